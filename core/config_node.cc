@@ -1,0 +1,219 @@
+#include "core/config_node.h"
+
+#include <cmath>
+#include <limits>
+#include <type_traits>
+
+#include <fmt/format.h>
+
+#include "core/file_util.h"
+
+namespace facedyn {
+namespace {
+
+std::string Describe(const YAML::Node& node) {
+  if (!node.IsDefined() || node.IsNull()) return "null";
+  if (node.IsMap()) return "a map";
+  if (node.IsSequence()) return "a list";
+  return "'" + node.Scalar() + "'";
+}
+
+// A quoted scalar (tag "!") is a string even when it looks like a number.
+bool IsPlainScalar(const YAML::Node& node) { return node.IsScalar() && node.Tag() != "!"; }
+
+template <typename T>
+bool ConvertScalar(const YAML::Node& node, T* out, std::string* expected) {
+  if constexpr (std::is_same_v<T, std::string>) {
+    *expected = "a string";
+    if (!node.IsScalar()) return false;
+    *out = node.Scalar();
+    return true;
+  } else if constexpr (std::is_same_v<T, bool>) {
+    *expected = "true or false";
+    if (!IsPlainScalar(node)) return false;
+    const std::string& s = node.Scalar();
+    if (s == "true") *out = true;
+    else if (s == "false") *out = false;
+    else return false;
+    return true;
+  } else if constexpr (std::is_floating_point_v<T>) {
+    *expected = "a number";
+    if (!IsPlainScalar(node)) return false;
+    try {
+      size_t used = 0;
+      const double value = std::stod(node.Scalar(), &used);
+      if (used != node.Scalar().size() || !std::isfinite(value)) return false;
+      *out = static_cast<T>(value);
+      return true;
+    } catch (const std::exception&) {
+      return false;
+    }
+  } else {
+    static_assert(std::is_integral_v<T>);
+    *expected = "an integer";
+    if (!IsPlainScalar(node)) return false;
+    try {
+      size_t used = 0;
+      const long long value = std::stoll(node.Scalar(), &used);
+      if (used != node.Scalar().size()) return false;
+      if (value < static_cast<long long>(std::numeric_limits<T>::min()) ||
+          value > static_cast<long long>(std::numeric_limits<T>::max())) {
+        return false;
+      }
+      *out = static_cast<T>(value);
+      return true;
+    } catch (const std::exception&) {
+      return false;
+    }
+  }
+}
+
+template <typename T>
+struct IsVector : std::false_type {};
+template <typename T>
+struct IsVector<std::vector<T>> : std::true_type {};
+
+}  // namespace
+
+StatusOr<ConfigNode> ConfigNode::ReadFile(const std::string& path) {
+  FACEDYN_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
+  return Parse(text, path);
+}
+
+StatusOr<ConfigNode> ConfigNode::Parse(const std::string& text, const std::string& source_name) {
+  try {
+    YAML::Node root = YAML::Load(text);
+    return ConfigNode(std::make_shared<const std::string>(source_name), root, "");
+  } catch (const YAML::Exception& e) {
+    return InvalidArgumentError(fmt::format("{}:{}:{}: syntax error: {}", source_name,
+                                            e.mark.line + 1, e.mark.column + 1, e.msg));
+  }
+}
+
+bool ConfigNode::Has(const std::string& key) const {
+  return node_.IsMap() && node_[key].IsDefined() && !node_[key].IsNull();
+}
+
+std::vector<std::string> ConfigNode::Keys() const {
+  std::vector<std::string> keys;
+  if (!node_.IsMap()) return keys;
+  for (const auto& item : node_) keys.push_back(item.first.Scalar());
+  return keys;
+}
+
+std::string ConfigNode::ChildPath(const std::string& key) const {
+  return path_.empty() ? key : path_ + "." + key;
+}
+
+StatusOr<ConfigNode> ConfigNode::Child(const std::string& key) const {
+  if (!node_.IsMap()) return Error(fmt::format("expected a map with field '{}', got {}", key, Describe(node_)));
+  const YAML::Node child = node_[key];
+  if (!child.IsDefined() || child.IsNull()) return Error(key, "required field is missing");
+  return ConfigNode(source_, child, ChildPath(key));
+}
+
+StatusOr<ConfigNode> ConfigNode::At(size_t index) const {
+  if (!node_.IsSequence()) return Error("expected a list, got " + Describe(node_));
+  if (index >= node_.size()) {
+    return Error(fmt::format("index {} out of range (list has {} entries)", index, node_.size()));
+  }
+  return ConfigNode(source_, node_[index], fmt::format("{}[{}]", path_, index));
+}
+
+template <typename T>
+StatusOr<T> ConfigNode::As() const {
+  T value{};
+  std::string expected;
+  if constexpr (IsVector<T>::value) {
+    if (!node_.IsSequence()) return Error("expected a list, got " + Describe(node_));
+    for (size_t i = 0; i < node_.size(); ++i) {
+      typename T::value_type element{};
+      if (!ConvertScalar(node_[i], &element, &expected)) {
+        return Error(fmt::format("entry {}: expected {}, got {}", i, expected, Describe(node_[i])));
+      }
+      value.push_back(element);
+    }
+    return value;
+  } else {
+    if (!ConvertScalar(node_, &value, &expected)) {
+      return Error(fmt::format("expected {}, got {}", expected, Describe(node_)));
+    }
+    return value;
+  }
+}
+
+template <typename T>
+StatusOr<T> ConfigNode::Get(const std::string& key) const {
+  FACEDYN_ASSIGN_OR_RETURN(ConfigNode child, Child(key));
+  return child.As<T>();
+}
+
+template <typename T>
+StatusOr<T> ConfigNode::GetOr(const std::string& key, T fallback) const {
+  if (!Has(key)) return fallback;
+  return Get<T>(key);
+}
+
+StatusOr<double> ConfigNode::GetInRange(const std::string& key, double min, double max) const {
+  FACEDYN_ASSIGN_OR_RETURN(double value, Get<double>(key));
+  if (value < min || value > max) {
+    return Error(key, fmt::format("{} is outside the allowed range [{}, {}]", value, min, max));
+  }
+  return value;
+}
+
+Status ConfigNode::Error(const std::string& key, const std::string& message) const {
+  const YAML::Node child = node_.IsMap() ? node_[key] : YAML::Node();
+  const int at_line = child.IsDefined() ? child.Mark().line + 1 : line();
+  return InvalidArgumentError(
+      fmt::format("{}:{}: field '{}': {}", *source_, at_line, ChildPath(key), message));
+}
+
+Status ConfigNode::Error(const std::string& message) const {
+  if (path_.empty()) return InvalidArgumentError(fmt::format("{}:{}: {}", *source_, line(), message));
+  return InvalidArgumentError(fmt::format("{}:{}: field '{}': {}", *source_, line(), path_, message));
+}
+
+Json ConfigNode::ToJson() const {
+  if (node_.IsMap()) {
+    Json object = Json::object();
+    for (const auto& item : node_) {
+      object[item.first.Scalar()] =
+          ConfigNode(source_, item.second, ChildPath(item.first.Scalar())).ToJson();
+    }
+    return object;
+  }
+  if (node_.IsSequence()) {
+    Json array = Json::array();
+    for (size_t i = 0; i < node_.size(); ++i) array.push_back(ConfigNode(source_, node_[i], "").ToJson());
+    return array;
+  }
+  if (!node_.IsDefined() || node_.IsNull()) return nullptr;
+  std::string unused;
+  if (IsPlainScalar(node_)) {
+    bool b;
+    long long i;
+    double d;
+    if (ConvertScalar(node_, &b, &unused)) return b;
+    if (ConvertScalar(node_, &i, &unused)) return i;
+    if (ConvertScalar(node_, &d, &unused)) return d;
+  }
+  return node_.Scalar();
+}
+
+#define FACEDYN_INSTANTIATE(T)                                              \
+  template StatusOr<T> ConfigNode::As<T>() const;                            \
+  template StatusOr<T> ConfigNode::Get<T>(const std::string&) const;         \
+  template StatusOr<T> ConfigNode::GetOr<T>(const std::string&, T) const;
+FACEDYN_INSTANTIATE(double)
+FACEDYN_INSTANTIATE(float)
+FACEDYN_INSTANTIATE(int)
+FACEDYN_INSTANTIATE(int64_t)
+FACEDYN_INSTANTIATE(bool)
+FACEDYN_INSTANTIATE(std::string)
+FACEDYN_INSTANTIATE(std::vector<double>)
+FACEDYN_INSTANTIATE(std::vector<int>)
+FACEDYN_INSTANTIATE(std::vector<std::string>)
+#undef FACEDYN_INSTANTIATE
+
+}  // namespace facedyn

@@ -1,0 +1,286 @@
+#include "core/mesh.h"
+
+#include <OpenMesh/Core/IO/MeshIO.hh>
+#include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <utility>
+
+#include <fmt/format.h>
+
+#include "core/file_util.h"
+
+namespace facedyn {
+namespace {
+
+struct OmTraits : public OpenMesh::DefaultTraits {
+  using Point = OpenMesh::Vec3d;
+  using Normal = OpenMesh::Vec3d;
+  using TexCoord2D = OpenMesh::Vec2d;
+};
+using OmMesh = OpenMesh::PolyMesh_ArrayKernelT<OmTraits>;
+
+std::string LowerExtension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+// OpenMesh prints its own diagnostics to omerr; facedyn reports through Status instead.
+void SilenceOpenMesh() {
+  static const bool silenced = [] {
+    omerr().disable();
+    omlog().disable();
+    omout().disable();
+    return true;
+  }();
+  (void)silenced;
+}
+
+// Vertex count a file declares, read independently of OpenMesh, so a read that renumbered
+// vertices can be detected. Returns -1 when the header cannot be understood.
+int DeclaredVertexCount(const std::string& path, const std::string& ext) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return -1;
+  std::string line;
+  if (ext == ".obj") {
+    int count = 0;
+    while (std::getline(in, line)) {
+      if (line.size() > 2 && line[0] == 'v' && (line[1] == ' ' || line[1] == '\t')) ++count;
+    }
+    return count;
+  }
+  // PLY: "element vertex N" in the header.
+  while (std::getline(in, line)) {
+    std::istringstream words(line);
+    std::string a, b;
+    long n = -1;
+    words >> a >> b >> n;
+    if (a == "element" && b == "vertex") return n >= 0 && n < std::numeric_limits<int>::max() ? int(n) : -1;
+    if (a == "end_header") break;
+  }
+  return -1;
+}
+
+}  // namespace
+
+void Mesh::AddFace(const std::vector<int>& vertices, const std::vector<int>& uv_indices) {
+  FACEDYN_CHECK(vertices.size() >= 3, "a face needs at least 3 corners");
+  FACEDYN_CHECK(uv_indices.empty() || uv_indices.size() == vertices.size(),
+                "uv indices must match the face's corners");
+  FACEDYN_CHECK(uv_indices.empty() == corner_uvs.empty() || face_count() == 0,
+                "all faces must have uvs, or none");
+  corner_vertices.insert(corner_vertices.end(), vertices.begin(), vertices.end());
+  corner_uvs.insert(corner_uvs.end(), uv_indices.begin(), uv_indices.end());
+  face_offsets.push_back(static_cast<int>(corner_vertices.size()));
+}
+
+Eigen::Matrix3Xi Mesh::Triangles() const {
+  int count = 0;
+  for (int f = 0; f < face_count(); ++f) count += FaceSize(f) - 2;
+  Eigen::Matrix3Xi triangles(3, count);
+  int t = 0;
+  for (int f = 0; f < face_count(); ++f) {
+    const int* c = corner_vertices.data() + face_offsets[f];
+    for (int k = 1; k + 1 < FaceSize(f); ++k) triangles.col(t++) << c[0], c[k], c[k + 1];
+  }
+  return triangles;
+}
+
+Eigen::Matrix2Xd Mesh::VertexUvs() const {
+  FACEDYN_CHECK(has_uvs(), "VertexUvs needs a mesh with uvs");
+  Eigen::Matrix2Xd result =
+      Eigen::Matrix2Xd::Constant(2, vertex_count(), std::numeric_limits<double>::quiet_NaN());
+  std::vector<bool> seen(vertex_count(), false);
+  for (size_t c = 0; c < corner_vertices.size(); ++c) {
+    const int v = corner_vertices[c];
+    if (!seen[v]) {
+      result.col(v) = uvs.col(corner_uvs[c]);
+      seen[v] = true;
+    }
+  }
+  return result;
+}
+
+Status Mesh::Validate(const std::string& what) const {
+  if (face_offsets.empty() || face_offsets.front() != 0 ||
+      face_offsets.back() != static_cast<int>(corner_vertices.size())) {
+    return FailedPreconditionError(what + ": face table is inconsistent");
+  }
+  if (!corner_uvs.empty() && corner_uvs.size() != corner_vertices.size()) {
+    return FailedPreconditionError(what + ": uv table does not match the face corners");
+  }
+  for (int v = 0; v < vertex_count(); ++v) {
+    if (!positions_mm.col(v).allFinite()) {
+      return DataLossError(fmt::format("{}: vertex {} has a non-finite coordinate", what, v));
+    }
+  }
+  for (int f = 0; f < face_count(); ++f) {
+    if (FaceSize(f) < 3) return DataLossError(fmt::format("{}: face {} has fewer than 3 corners", what, f));
+    for (int c = face_offsets[f]; c < face_offsets[f + 1]; ++c) {
+      if (corner_vertices[c] < 0 || corner_vertices[c] >= vertex_count()) {
+        return DataLossError(fmt::format("{}: face {} refers to vertex {} but the mesh has {}", what,
+                                         f, corner_vertices[c], vertex_count()));
+      }
+      if (has_uvs() && (corner_uvs[c] < 0 || corner_uvs[c] >= uvs.cols())) {
+        return DataLossError(fmt::format("{}: face {} refers to uv {} but the mesh has {}", what, f,
+                                         corner_uvs[c], uvs.cols()));
+      }
+    }
+  }
+  if (has_uvs() && !uvs.allFinite()) return DataLossError(what + ": non-finite texture coordinate");
+  return Status::Ok();
+}
+
+bool SameTopology(const Mesh& a, const Mesh& b) {
+  if (a.vertex_count() != b.vertex_count() || a.face_offsets != b.face_offsets ||
+      a.corner_vertices != b.corner_vertices || a.has_uvs() != b.has_uvs()) {
+    return false;
+  }
+  if (!a.has_uvs()) return true;
+  // uv tables may be numbered differently; compare the uv values at each corner.
+  for (size_t c = 0; c < a.corner_uvs.size(); ++c) {
+    if (!a.uvs.col(a.corner_uvs[c]).isApprox(b.uvs.col(b.corner_uvs[c]), 1e-6) &&
+        (a.uvs.col(a.corner_uvs[c]) - b.uvs.col(b.corner_uvs[c])).norm() > 1e-6) {
+      return false;
+    }
+  }
+  return true;
+}
+
+StatusOr<Mesh> ReadMesh(const std::string& path) {
+  SilenceOpenMesh();
+  const std::string ext = LowerExtension(path);
+  if (ext != ".obj" && ext != ".ply") {
+    return InvalidArgumentError(path + ": unsupported mesh format '" + ext + "' (use .obj or .ply)");
+  }
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return NotFoundError(path + ": no such file");
+
+  OmMesh om;
+  om.request_vertex_texcoords2D();
+  om.request_halfedge_texcoords2D();
+  OpenMesh::IO::Options options;
+  options += OpenMesh::IO::Options::VertexTexCoord;
+  options += OpenMesh::IO::Options::FaceTexCoord;
+  if (!OpenMesh::IO::read_mesh(om, path, options)) {
+    return DataLossError(path + ": not a readable " + ext.substr(1) + " mesh (corrupt or truncated)");
+  }
+  const int declared = DeclaredVertexCount(path, ext);
+  if (declared >= 0 && declared != static_cast<int>(om.n_vertices())) {
+    return DataLossError(fmt::format(
+        "{}: declares {} vertices but {} could be read (truncated file, or non-manifold faces "
+        "that would need duplicated vertices)",
+        path, declared, om.n_vertices()));
+  }
+  if (om.n_vertices() == 0) return DataLossError(path + ": mesh has no vertices");
+
+  Mesh mesh;
+  mesh.positions_mm.resize(3, om.n_vertices());
+  for (auto vh : om.vertices()) {
+    const auto& p = om.point(vh);
+    mesh.positions_mm.col(vh.idx()) << p[0], p[1], p[2];
+  }
+  const bool corner_uvs = options.check(OpenMesh::IO::Options::FaceTexCoord);
+  const bool vertex_uvs = !corner_uvs && options.check(OpenMesh::IO::Options::VertexTexCoord);
+  std::map<std::pair<double, double>, int> uv_index;  // dedupe corner uvs by value
+  std::vector<std::pair<double, double>> uv_values;
+  auto uv_id = [&](const OpenMesh::Vec2d& uv) {
+    const auto key = std::make_pair(uv[0], uv[1]);
+    auto [it, inserted] = uv_index.emplace(key, static_cast<int>(uv_values.size()));
+    if (inserted) uv_values.push_back(key);
+    return it->second;
+  };
+  std::vector<int> vertices, uvs;
+  for (auto fh : om.faces()) {
+    vertices.clear();
+    uvs.clear();
+    for (auto heh : om.fh_range(fh)) {
+      const auto vh = om.to_vertex_handle(heh);
+      vertices.push_back(vh.idx());
+      if (corner_uvs) uvs.push_back(uv_id(om.texcoord2D(heh)));
+      if (vertex_uvs) uvs.push_back(uv_id(om.texcoord2D(vh)));
+    }
+    // OpenMesh's face circulator starts at the face's first corner as it was added, so the
+    // corner order matches the file (checked by the round-trip tests).
+    mesh.AddFace(vertices, uvs);
+  }
+  if (!uv_values.empty()) {
+    mesh.uvs.resize(2, uv_values.size());
+    for (size_t i = 0; i < uv_values.size(); ++i) mesh.uvs.col(i) << uv_values[i].first, uv_values[i].second;
+  }
+  FACEDYN_RETURN_IF_ERROR(mesh.Validate(path));
+  return mesh;
+}
+
+Status WriteMesh(const Mesh& mesh, const std::string& path) {
+  return WriteMesh(mesh, mesh.positions_mm, path);
+}
+
+Status WriteMesh(const Mesh& mesh, const Eigen::Matrix3Xd& positions_mm, const std::string& path) {
+  SilenceOpenMesh();
+  FACEDYN_CHECK(positions_mm.cols() == mesh.vertex_count(), "positions must match the mesh");
+  const std::string ext = LowerExtension(path);
+  if (ext != ".obj" && ext != ".ply") {
+    return InvalidArgumentError(path + ": unsupported mesh format '" + ext + "' (use .obj or .ply)");
+  }
+  OmMesh om;
+  om.request_vertex_texcoords2D();
+  om.request_halfedge_texcoords2D();
+  std::vector<OmMesh::VertexHandle> handles(mesh.vertex_count());
+  for (int v = 0; v < mesh.vertex_count(); ++v) {
+    handles[v] = om.add_vertex(OmMesh::Point(positions_mm(0, v), positions_mm(1, v), positions_mm(2, v)));
+  }
+  const Eigen::Matrix2Xd vertex_uvs = mesh.has_uvs() ? mesh.VertexUvs() : Eigen::Matrix2Xd();
+  std::vector<OmMesh::VertexHandle> face;
+  for (int f = 0; f < mesh.face_count(); ++f) {
+    face.clear();
+    for (int c = mesh.face_offsets[f]; c < mesh.face_offsets[f + 1]; ++c) {
+      face.push_back(handles[mesh.corner_vertices[c]]);
+    }
+    const auto fh = om.add_face(face);
+    if (!fh.is_valid()) {
+      return FailedPreconditionError(
+          fmt::format("{}: face {} is non-manifold and cannot be written", path, f));
+    }
+    if (!mesh.has_uvs()) continue;
+    for (auto heh : om.fh_range(fh)) {
+      const int v = om.to_vertex_handle(heh).idx();
+      for (int c = mesh.face_offsets[f]; c < mesh.face_offsets[f + 1]; ++c) {
+        if (mesh.corner_vertices[c] == v) {
+          const auto uv = mesh.uvs.col(mesh.corner_uvs[c]);
+          om.set_texcoord2D(heh, OmMesh::TexCoord2D(uv[0], uv[1]));
+          break;
+        }
+      }
+    }
+  }
+  OpenMesh::IO::Options options;
+  if (mesh.has_uvs()) {
+    for (int v = 0; v < mesh.vertex_count(); ++v) {
+      if (vertex_uvs.col(v).allFinite()) {
+        om.set_texcoord2D(handles[v], OmMesh::TexCoord2D(vertex_uvs(0, v), vertex_uvs(1, v)));
+      }
+    }
+    options += OpenMesh::IO::Options::VertexTexCoord;
+    if (ext == ".obj") options += OpenMesh::IO::Options::FaceTexCoord;
+  }
+  if (ext == ".ply") options += OpenMesh::IO::Options::Binary;
+  const std::string tmp = path + ".tmp" + ext;
+  if (!OpenMesh::IO::write_mesh(om, tmp, options, /*precision=*/9)) {
+    std::filesystem::remove(tmp);
+    return UnavailableError(path + ": cannot write mesh");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) return UnavailableError(path + ": cannot move mesh into place: " + ec.message());
+  return Status::Ok();
+}
+
+}  // namespace facedyn

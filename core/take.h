@@ -1,0 +1,80 @@
+// Take: a mesh sequence in fixed topology plus the skull's rigid motion — the currency
+// between capture, reconstruction, dynamics and simulation (ARCHITECTURE.md, "Take").
+//
+// On disk a Take is a folder:
+//   take.json       fps, frame_count, vertex_count, units "mm", subject, expression, motion,
+//                   platform_hz, source, channels, metadata (free-form object)
+//   topology.obj    rest mesh with UVs and faces (defines the vertex order)
+//   positions.pc2   per-frame vertex positions in the world frame, mm
+//   skull.csv       frame,time_s,qw,qx,qy,qz,tx,ty,tz  (world_from_skull, mm)
+//   jaw.csv         optional, same columns, skull_from_jaw
+//   <channel>.pc2   optional extra per-frame positions (e.g. quasistatic, dynamic_offset)
+// LoadTake validates every cross-file invariant (counts agree, numbers finite, quaternions
+// unit, frames numbered in order, time increasing) and names the file and frame or vertex
+// of the first violation. SaveTake writes each file atomically and take.json last, so a
+// folder with a take.json is complete.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/json_io.h"
+#include "core/mesh.h"
+#include "core/pc2.h"
+#include "core/rigid3.h"
+#include "core/status.h"
+
+namespace facedyn {
+
+inline constexpr int kTakeFormatVersion = 1;
+
+struct TakeInfo {
+  double fps = 0.0;
+  std::string subject;
+  std::string expression;
+  std::string motion;    // platform | walk | run | jump | none | captured ...
+  std::string source;    // what produced the take: "sim", "reconstruct", "dynamics remove", ...
+  std::optional<double> platform_hz;  // platform oscillation frequency, when there was one
+  Json metadata = Json::object();
+};
+
+struct Take {
+  TakeInfo info;
+  Mesh topology;
+  PointCache positions;                 // world frame, mm
+  std::vector<double> time_s;           // per frame, session clock
+  std::vector<Rigid3> world_from_skull;  // per frame
+  std::vector<Rigid3> skull_from_jaw;    // per frame, or empty
+  std::map<std::string, PointCache> channels;
+
+  int frame_count() const { return positions.frame_count(); }
+  int vertex_count() const { return topology.vertex_count(); }
+  double duration_s() const { return info.fps > 0 ? frame_count() / info.fps : 0.0; }
+
+  // Positions of frame f as doubles (3 x V).
+  Eigen::Matrix3Xd FramePositions(int f) const { return positions.Frame(f).cast<double>(); }
+
+  // Sets time_s[f] = f / fps for every frame.
+  void SetUniformTimes();
+
+  // Checks the in-memory invariants LoadTake checks on disk.
+  Status Validate() const;
+};
+
+// Channel names are file stems: lower-case letters, digits and '_', not "positions".
+bool IsValidChannelName(const std::string& name);
+
+StatusOr<Take> LoadTake(const std::string& dir);
+// Creates `dir` if needed. Validates first; writes nothing when the take is inconsistent.
+Status SaveTake(const Take& take, const std::string& dir);
+
+// Per-frame rigid transforms as CSV (frame,time_s,qw,qx,qy,qz,tx,ty,tz).
+Status WriteTransformCsv(const std::string& path, const std::vector<double>& time_s,
+                         const std::vector<Rigid3>& transforms);
+// Reads such a CSV; fills time_s and transforms. Errors name file, line and frame.
+Status ReadTransformCsv(const std::string& path, std::vector<double>* time_s,
+                        std::vector<Rigid3>* transforms);
+
+}  // namespace facedyn

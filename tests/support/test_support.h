@@ -1,0 +1,61 @@
+// Helpers shared by facedyn's tests: temporary folders, the shared assets, Eigen matchers.
+#pragma once
+
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace facedyn::testing {
+
+// A fresh empty folder under the system temp dir, removed with the object.
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::string& path() const { return path_; }
+  std::string Join(const std::string& name) const { return path_ + "/" + name; }
+
+ private:
+  std::string path_;
+};
+
+// ../shared (FACEDYN_SHARED_DIR overrides), or "" when absent.
+std::string SharedDir();
+// Path of a file under ../shared/assets; "" when it is missing.
+std::string SharedAsset(const std::string& relative);
+// True when the environment says CI=true: there missing shared assets are failures.
+bool InCi();
+
+// The facedyn executable in the build tree (FACEDYN_BINARY_DIR is set by CTest).
+std::string FacedynExecutable();
+// Runs a shell command, captures stdout+stderr into *output, returns the exit code.
+int RunCommand(const std::string& command, std::string* output);
+
+// Writes bytes to a file (for crafting corrupt inputs).
+void WriteBytes(const std::string& path, const std::string& bytes);
+std::string ReadBytes(const std::string& path);
+
+}  // namespace facedyn::testing
+
+// Skips the test when the asset is missing, fails instead when CI=true (shared/README.md).
+#define FACEDYN_REQUIRE_SHARED_ASSET(var, relative)                                   \
+  const std::string var = ::facedyn::testing::SharedAsset(relative);                  \
+  if (var.empty()) {                                                                  \
+    if (::facedyn::testing::InCi()) {                                                 \
+      FAIL() << "shared asset " << (relative) << " is missing and CI=true";            \
+    }                                                                                 \
+    GTEST_SKIP() << "shared asset " << (relative) << " not present (../shared/assets)"; \
+  }
+
+// EXPECT that two Eigen objects agree elementwise within an absolute tolerance.
+#define EXPECT_EIGEN_NEAR(a, b, tol)                                                    \
+  do {                                                                                  \
+    const auto facedyn_a_ = (a).eval();                                                 \
+    const auto facedyn_b_ = (b).eval();                                                 \
+    ASSERT_EQ(facedyn_a_.rows(), facedyn_b_.rows());                                    \
+    ASSERT_EQ(facedyn_a_.cols(), facedyn_b_.cols());                                    \
+    EXPECT_LE((facedyn_a_ - facedyn_b_).cwiseAbs().maxCoeff(), (tol))                   \
+        << #a " =\n" << facedyn_a_ << "\n" #b " =\n" << facedyn_b_;                     \
+  } while (false)

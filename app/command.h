@@ -1,0 +1,21 @@
+// How subcommands plug into the `facedyn` executable. Each Add*Commands function declares
+// its CLI11 subcommands and, when one of them is chosen on the command line, stores the
+// work to run in *selected; main() runs it after parsing and turns its Status into the exit
+// code. app/ wires modules together and owns no algorithm.
+#pragma once
+
+#include <functional>
+
+#include <CLI/CLI.hpp>
+
+#include "core/status.h"
+
+namespace facedyn::app {
+
+using CommandRunner = std::function<Status()>;
+
+void AddTakeCommands(CLI::App& app, CommandRunner* selected);
+void AddExportCommand(CLI::App& app, CommandRunner* selected);
+void AddDemoCommand(CLI::App& app, CommandRunner* selected);
+
+}  // namespace facedyn::app

@@ -1,0 +1,56 @@
+// facedyn: facial performance capture with secondary dynamics (see README.md).
+//
+// Exit codes: 0 success, 1 the command failed (the message says why), 2 bad command line.
+
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "app/command.h"
+#include "core/log.h"
+#include "core/progress.h"
+#include "facedyn_version.h"
+
+int main(int argc, char** argv) {
+  using namespace facedyn;
+  CLI::App cli{"facedyn — facial capture with secondary dynamics: drive the platform, capture,\n"
+               "reconstruct, and remove or synthesise skin jiggle. See README.md.",
+               "facedyn"};
+  cli.set_version_flag("--version", std::string("facedyn ") + FACEDYN_VERSION + " (" +
+                                        FACEDYN_GIT_REVISION + ")");
+  bool quiet = false;
+  bool verbose = false;
+  cli.add_flag("-q,--quiet", quiet, "Only warnings and errors; no progress bars");
+  cli.add_flag("-v,--verbose", verbose, "Debug logging");
+  cli.require_subcommand(1);
+  cli.fallthrough();  // --quiet/--verbose may follow the subcommand
+
+  app::CommandRunner selected;
+  app::AddTakeCommands(cli, &selected);
+  app::AddExportCommand(cli, &selected);
+  app::AddDemoCommand(cli, &selected);
+
+  try {
+    cli.parse(argc, argv);
+  } catch (const CLI::Success& e) {  // --help, --version
+    return cli.exit(e);
+  } catch (const CLI::ParseError& e) {
+    cli.exit(e);
+    return 2;
+  }
+
+  InitLogging(quiet ? Verbosity::kQuiet : verbose ? Verbosity::kVerbose : Verbosity::kNormal);
+  if (quiet) SetDefaultProgressMode(ProgressMode::kSilent);
+  if (!selected) {
+    std::fprintf(stderr, "facedyn: nothing to do (see facedyn --help)\n");
+    return 2;
+  }
+  const Status status = selected();
+  if (!status.ok()) {
+    std::fprintf(stderr, "facedyn: error: %s\n", status.message().c_str());
+    return 1;
+  }
+  return 0;
+}

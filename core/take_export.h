@@ -1,0 +1,26 @@
+// Exporting a Take for other tools: per-frame meshes (OBJ or PLY, one file per frame), or
+// the topology plus point caches (PC2, which Blender's Mesh Cache modifier reads).
+#pragma once
+
+#include <string>
+
+#include "core/status.h"
+#include "core/take.h"
+
+namespace facedyn {
+
+enum class ExportFormat { kObj, kPly, kPc2 };
+
+// "obj" | "ply" | "pc2".
+StatusOr<ExportFormat> ParseExportFormat(const std::string& name);
+
+struct ExportSummary {
+  int files_written = 0;
+};
+
+// obj/ply: DIR/frame_000000.<ext> ... in world coordinates (mm).
+// pc2: DIR/topology.obj, DIR/positions.pc2 and DIR/<channel>.pc2 for every channel.
+// Shows progress for per-frame formats.
+StatusOr<ExportSummary> ExportTake(const Take& take, ExportFormat format, const std::string& dir);
+
+}  // namespace facedyn

@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages facedyn builds and tests with (ARCHITECTURE.md,
+# "Dependencies"). Idempotent: when everything is installed it only asks dpkg and exits.
+# Works as root or through sudo. Nothing is downloaded except Debian packages.
+set -euo pipefail
+
+packages=(
+  # toolchain
+  build-essential cmake pkg-config git
+  # libraries
+  libeigen3-dev            # dense linear algebra, geometry
+  libopenmesh-dev          # mesh I/O (OBJ/PLY), half-edge operations
+  libopencv-dev libopencv-contrib-dev  # images, calibration, aruco/ChArUco
+  libceres-dev             # bundle adjustment, dense fits
+  libsuitesparse-dev       # CHOLMOD sparse factorisations
+  libmodbus-dev            # Modbus RTU/TCP to motor drives
+  libusb-1.0-0-dev         # USB platform/sync controller
+  libaravis-dev            # GenICam machine-vision cameras
+  libtorch-dev             # removal and synthesis networks
+  libcli11-dev             # command line
+  libyaml-cpp-dev          # YAML configs
+  nlohmann-json3-dev       # JSON output
+  libspdlog-dev libfmt-dev # logging and formatting
+  libgtest-dev libgmock-dev libbenchmark-dev  # tests and benchmarks
+  # test-only peers: an independent Modbus implementation, pty pairs for RTU, USB replay
+  python3-pymodbus socat umockdev
+)
+
+missing=()
+# One dpkg-query for all packages keeps the nothing-to-do case fast.
+installed=$(dpkg-query -W -f='${Package} ${db:Status-Status}\n' "${packages[@]}" 2>/dev/null || true)
+for p in "${packages[@]}"; do
+  if ! grep -qx "$p installed" <<<"$installed"; then missing+=("$p"); fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+if [ "$(id -u)" -eq 0 ]; then
+  sudo=()
+elif command -v sudo >/dev/null 2>&1; then
+  sudo=(sudo)
+else
+  echo "install-deps: missing packages (${missing[*]}) and not root; install them or run with sudo" >&2
+  exit 1
+fi
+
+echo "install-deps: installing ${#missing[@]} packages: ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+"${sudo[@]}" apt-get update -qq
+"${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}"
+echo "install-deps: done"

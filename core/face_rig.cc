@@ -109,6 +109,11 @@ Status FaceRig::Validate() const {
     FACEDYN_RETURN_IF_ERROR(CheckSurfacePoint(skin_samples[i], vertex_count(), fmt::format("{}: skin sample {}", what, i)));
   }
   for (const auto& marker : markers) {
+    // markers.csv has no quoting, so such a name would save into a file that cannot be read.
+    if (marker.name.find_first_of(",\r\n") != std::string::npos) {
+      return FailedPreconditionError(what + ": marker name '" + marker.name +
+                                     "' cannot be stored in markers.csv (no commas or line breaks)");
+    }
     FACEDYN_RETURN_IF_ERROR(CheckSurfacePoint(marker.point, vertex_count(), what + ": marker " + marker.name));
     if (!(marker.diameter_mm > 0)) return FailedPreconditionError(what + ": marker " + marker.name + " has no size");
   }

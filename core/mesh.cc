@@ -43,26 +43,30 @@ void SilenceOpenMesh() {
   (void)silenced;
 }
 
-// Vertex count a file declares, read independently of OpenMesh, so a read that renumbered
-// vertices can be detected. Returns -1 when the header cannot be understood.
-int DeclaredVertexCount(const std::string& path, const std::string& ext) {
+// Number of vertices or faces (`element` "vertex" or "face") a file declares, read
+// independently of OpenMesh, so a read that renumbered vertices or silently dropped faces
+// (OpenMesh skips a face whose vertex index is out of range) can be detected. Returns -1
+// when the header cannot be understood.
+int DeclaredElementCount(const std::string& path, const std::string& ext,
+                         const std::string& element) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return -1;
   std::string line;
   if (ext == ".obj") {
+    const char tag = element == "vertex" ? 'v' : 'f';
     int count = 0;
     while (std::getline(in, line)) {
-      if (line.size() > 2 && line[0] == 'v' && (line[1] == ' ' || line[1] == '\t')) ++count;
+      if (line.size() > 2 && line[0] == tag && (line[1] == ' ' || line[1] == '\t')) ++count;
     }
     return count;
   }
-  // PLY: "element vertex N" in the header.
+  // PLY: "element <element> N" in the header.
   while (std::getline(in, line)) {
     std::istringstream words(line);
     std::string a, b;
     long n = -1;
     words >> a >> b >> n;
-    if (a == "element" && b == "vertex") return n >= 0 && n < std::numeric_limits<int>::max() ? int(n) : -1;
+    if (a == "element" && b == element) return n >= 0 && n < std::numeric_limits<int>::max() ? int(n) : -1;
     if (a == "end_header") break;
   }
   return -1;
@@ -172,12 +176,19 @@ StatusOr<Mesh> ReadMesh(const std::string& path) {
   if (!OpenMesh::IO::read_mesh(om, path, options)) {
     return DataLossError(path + ": not a readable " + ext.substr(1) + " mesh (corrupt or truncated)");
   }
-  const int declared = DeclaredVertexCount(path, ext);
+  const int declared = DeclaredElementCount(path, ext, "vertex");
   if (declared >= 0 && declared != static_cast<int>(om.n_vertices())) {
     return DataLossError(fmt::format(
         "{}: declares {} vertices but {} could be read (truncated file, or non-manifold faces "
         "that would need duplicated vertices)",
         path, declared, om.n_vertices()));
+  }
+  const int declared_faces = DeclaredElementCount(path, ext, "face");
+  if (declared_faces >= 0 && declared_faces != static_cast<int>(om.n_faces())) {
+    return DataLossError(fmt::format(
+        "{}: declares {} faces but {} could be read (a face refers to a vertex that does not "
+        "exist, or is degenerate)",
+        path, declared_faces, om.n_faces()));
   }
   if (om.n_vertices() == 0) return DataLossError(path + ": mesh has no vertices");
 
@@ -263,10 +274,17 @@ Status WriteMesh(const Mesh& mesh, const Eigen::Matrix3Xd& positions_mm, const s
   }
   OpenMesh::IO::Options options;
   if (mesh.has_uvs()) {
+    // OpenMesh's texcoord properties start uninitialised, and its OBJ writer collects the
+    // texcoords of every vertex and every halfedge (boundary halfedges included) into its "vt"
+    // table, so each one must hold a finite value or garbage/NaN reaches the file. A vertex no
+    // face uses gets (0, 0); a boundary halfedge gets its vertex's uv (already in the table).
     for (int v = 0; v < mesh.vertex_count(); ++v) {
-      if (vertex_uvs.col(v).allFinite()) {
-        om.set_texcoord2D(handles[v], OmMesh::TexCoord2D(vertex_uvs(0, v), vertex_uvs(1, v)));
-      }
+      const bool used = vertex_uvs.col(v).allFinite();
+      om.set_texcoord2D(handles[v], used ? OmMesh::TexCoord2D(vertex_uvs(0, v), vertex_uvs(1, v))
+                                         : OmMesh::TexCoord2D(0.0, 0.0));
+    }
+    for (auto heh : om.halfedges()) {
+      if (om.is_boundary(heh)) om.set_texcoord2D(heh, om.texcoord2D(om.to_vertex_handle(heh)));
     }
     options += OpenMesh::IO::Options::VertexTexCoord;
     if (ext == ".obj") options += OpenMesh::IO::Options::FaceTexCoord;

@@ -2,15 +2,15 @@
 // every corrupt-input path of ReadPc2.
 #include "core/pc2.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <limits>
 #include <string>
 #include <vector>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "tests/support/test_support.h"
 
@@ -34,7 +34,8 @@ void PutFloat(std::string* bytes, float value) {
 }
 int32_t GetInt32(const std::string& bytes, size_t offset) {
   uint32_t u = 0;
-  for (int i = 0; i < 4; ++i) u |= uint32_t(static_cast<unsigned char>(bytes[offset + i])) << (8 * i);
+  for (int i = 0; i < 4; ++i)
+    u |= uint32_t(static_cast<unsigned char>(bytes[offset + i])) << (8 * i);
   return static_cast<int32_t>(u);
 }
 float GetFloat(const std::string& bytes, size_t offset) {
@@ -133,16 +134,17 @@ TEST(WritePc2, HeaderAndPayloadBytes) {
   EXPECT_EQ(bytes[13], '\0');
   EXPECT_EQ(bytes[14], '\0');
   EXPECT_EQ(bytes[15], '\0');
-  EXPECT_EQ(GetInt32(bytes, 16), 3);     // vertex count
-  EXPECT_EQ(GetFloat(bytes, 20), -4.0f); // start frame
-  EXPECT_EQ(GetFloat(bytes, 24), 2.0f);  // sampling
-  EXPECT_EQ(GetInt32(bytes, 28), 2);     // frame count
+  EXPECT_EQ(GetInt32(bytes, 16), 3);      // vertex count
+  EXPECT_EQ(GetFloat(bytes, 20), -4.0f);  // start frame
+  EXPECT_EQ(GetFloat(bytes, 24), 2.0f);   // sampling
+  EXPECT_EQ(GetInt32(bytes, 28), 2);      // frame count
   // Then x y z of every vertex, frame-major.
   size_t offset = 32;
   for (int f = 0; f < 2; ++f) {
     for (int v = 0; v < 3; ++v) {
       for (int k = 0; k < 3; ++k) {
-        EXPECT_EQ(GetFloat(bytes, offset), cache.Frame(f)(k, v)) << "frame " << f << " vertex " << v;
+        EXPECT_EQ(GetFloat(bytes, offset), cache.Frame(f)(k, v))
+            << "frame " << f << " vertex " << v;
         offset += 4;
       }
     }
@@ -156,7 +158,8 @@ TEST(ReadPc2, HandCraftedFile) {
   TempDir dir;
   const std::string path = dir.Join("hand.pc2");
   // 2 vertices, 2 frames, start 1, sampling 1.
-  WriteBytes(path, Pc2Bytes(1, 2, 1.0f, 1.0f, 2, {1, 2, 3, 4, 5, 6, -1, -2, -3, 0.5f, 0.25f, 0.125f}));
+  WriteBytes(path,
+             Pc2Bytes(1, 2, 1.0f, 1.0f, 2, {1, 2, 3, 4, 5, 6, -1, -2, -3, 0.5f, 0.25f, 0.125f}));
   const auto read = ReadPc2(path);
   ASSERT_TRUE(read.ok()) << read.status().message();
   EXPECT_EQ(read->vertex_count, 2);
@@ -300,7 +303,7 @@ TEST(ReadPc2, ExtraTrailingBytes) {
 TEST(ReadPc2, NonFiniteValueNamesFrameAndVertex) {
   TempDir dir;
   const std::string path = dir.Join("nan.pc2");
-  std::vector<float> values = Ramp(3 * 4 * 3);  // 4 vertices, 3 frames
+  std::vector<float> values = Ramp(3 * 4 * 3);                            // 4 vertices, 3 frames
   values[(1 * 4 + 2) * 3 + 1] = std::numeric_limits<float>::quiet_NaN();  // frame 1 vertex 2 y
   WriteBytes(path, Pc2Bytes(1, 4, 0.0f, 1.0f, 3, values));
   auto read = ReadPc2(path);

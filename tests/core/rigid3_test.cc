@@ -1,12 +1,12 @@
 // Rigid3 against independent Eigen references (Eigen::Isometry3d, plain 4x4 matrices).
 #include "core/rigid3.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 #include <cmath>
 #include <limits>
 #include <random>
-
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
 
 #include "tests/support/test_support.h"
 
@@ -84,7 +84,8 @@ TEST(Rigid3ApplyPoint, MatchesHomogeneousMatrix) {
 
 TEST(Rigid3ApplyPoint, KnownRotationAboutZ) {
   // 90 degrees about +Z maps +X to +Y (right-handed), then translates.
-  const Rigid3 t = Rigid3::FromAxisAngle(Eigen::Vector3d::UnitZ(), kPi / 2, Eigen::Vector3d(0, 0, 5));
+  const Rigid3 t =
+      Rigid3::FromAxisAngle(Eigen::Vector3d::UnitZ(), kPi / 2, Eigen::Vector3d(0, 0, 5));
   EXPECT_EIGEN_NEAR(t * Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 5), 1e-12);
   EXPECT_EIGEN_NEAR(t * Eigen::Vector3d(0, 1, 0), Eigen::Vector3d(-1, 0, 5), 1e-12);
 }
@@ -99,7 +100,8 @@ TEST(Rigid3Apply, BlockMatchesPerColumn) {
   homogeneous << points, Eigen::RowVectorXd::Ones(17);
   const Eigen::Matrix4Xd expected = t.ToMatrix4() * homogeneous;
   EXPECT_EIGEN_NEAR(moved, expected.topRows<3>(), 1e-10);
-  for (int i = 0; i < 17; ++i) EXPECT_EIGEN_NEAR(moved.col(i), t * Eigen::Vector3d(points.col(i)), 1e-12);
+  for (int i = 0; i < 17; ++i)
+    EXPECT_EIGEN_NEAR(moved.col(i), t * Eigen::Vector3d(points.col(i)), 1e-12);
 }
 
 TEST(Rigid3Apply, EmptyBlock) {
@@ -121,8 +123,8 @@ TEST(Rigid3Matrix4, RoundTrip) {
 }
 
 TEST(Rigid3Matrix4, FromEigenIsometry) {
-  const Eigen::Isometry3d iso =
-      Eigen::Translation3d(3, -4, 5) * Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized());
+  const Eigen::Isometry3d iso = Eigen::Translation3d(3, -4, 5) *
+                                Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized());
   const Rigid3 t = Rigid3::FromMatrix4(iso.matrix());
   EXPECT_EIGEN_NEAR(t.translation(), Eigen::Vector3d(3, -4, 5), 1e-12);
   EXPECT_NEAR(t.AngleRad(), 0.7, 1e-12);
@@ -203,16 +205,19 @@ TEST(Rigid3AngleRad, NearPi) {
     EXPECT_NEAR(t.AngleRad(), angle, 1e-12) << "angle " << angle;
   }
   // Beyond pi the shorter rotation is reported: 3pi/2 about +Z is pi/2 about -Z.
-  EXPECT_NEAR(Rigid3::FromAxisAngle(Eigen::Vector3d::UnitZ(), 1.5 * kPi).AngleRad(), kPi / 2, 1e-12);
+  EXPECT_NEAR(Rigid3::FromAxisAngle(Eigen::Vector3d::UnitZ(), 1.5 * kPi).AngleRad(), kPi / 2,
+              1e-12);
   // q and -q give the same angle.
-  const Rigid3 flipped(Eigen::Quaterniond(-std::cos(1.4), 0, 0, -std::sin(1.4)), Eigen::Vector3d::Zero());
+  const Rigid3 flipped(Eigen::Quaterniond(-std::cos(1.4), 0, 0, -std::sin(1.4)),
+                       Eigen::Vector3d::Zero());
   EXPECT_NEAR(flipped.AngleRad(), 2.8, 1e-12);
 }
 
 TEST(Rigid3AngleRad, OfRelativeTransform) {
   std::mt19937 rng(11);
   const Rigid3 a = RandomRigid(&rng);
-  const Rigid3 delta = Rigid3::FromAxisAngle(Eigen::Vector3d(3, 1, -1), 0.25, Eigen::Vector3d(1, 1, 1));
+  const Rigid3 delta =
+      Rigid3::FromAxisAngle(Eigen::Vector3d(3, 1, -1), 0.25, Eigen::Vector3d(1, 1, 1));
   EXPECT_NEAR((a.Inverse() * (a * delta)).AngleRad(), 0.25, 1e-10);
 }
 
@@ -279,8 +284,8 @@ TEST(Rigid3IsApprox, TreatsNegatedQuaternionAsSameRotation) {
   const Rigid3 t = Rigid3::FromAxisAngle(Eigen::Vector3d(1, 1, 0), 0.9, Eigen::Vector3d(1, 2, 3));
   const Rigid3 negated(Eigen::Quaterniond(-t.rotation().coeffs()), t.translation());
   EXPECT_TRUE(t.IsApprox(negated));
-  EXPECT_FALSE(t.IsApprox(Rigid3::FromAxisAngle(Eigen::Vector3d(1, 1, 0), 0.9 + 1e-4,
-                                                Eigen::Vector3d(1, 2, 3))));
+  EXPECT_FALSE(t.IsApprox(
+      Rigid3::FromAxisAngle(Eigen::Vector3d(1, 1, 0), 0.9 + 1e-4, Eigen::Vector3d(1, 2, 3))));
   EXPECT_FALSE(t.IsApprox(Rigid3(t.rotation(), t.translation() + Eigen::Vector3d(0, 0, 1e-3))));
 }
 

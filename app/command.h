@@ -17,5 +17,6 @@ using CommandRunner = std::function<Status()>;
 void AddTakeCommands(CLI::App& app, CommandRunner* selected);
 void AddExportCommand(CLI::App& app, CommandRunner* selected);
 void AddDemoCommand(CLI::App& app, CommandRunner* selected);
+void AddSimCommands(CLI::App& app, CommandRunner* selected);
 
 }  // namespace facedyn::app

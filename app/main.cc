@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
   app::CommandRunner selected;
   app::AddTakeCommands(cli, &selected);
   app::AddExportCommand(cli, &selected);
+  app::AddSimCommands(cli, &selected);
   app::AddDemoCommand(cli, &selected);
 
   try {

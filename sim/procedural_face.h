@@ -35,7 +35,9 @@ inline constexpr double kProceduralJawOpenRad = 0.175;
 inline const Eigen::Vector3d kProceduralJawPivotMm{0.0, -18.0, 5.0};
 
 struct ProceduralFaceOptions {
-  int target_vertex_count = 6000;  // 4000..10000; the result is within +-10% (typically 2%)
+  // 4000..10000; the result is within +-10% (typically 2%). The default keeps a 3 s, 128 fps
+  // simulated take under 10 s on a 2-core machine (bench/sim_bench).
+  int target_vertex_count = 5000;
   std::string name = "procedural";
   AnatomyOptions anatomy;  // skull, samples, markers
   Status Check() const;

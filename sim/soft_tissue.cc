@@ -3,12 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
-#include <set>
 
 #include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
-#include <Eigen/SVD>
 #include <fmt/format.h>
 
 #include "core/check.h"
@@ -18,16 +16,14 @@ namespace {
 
 using SparseMatrix = Eigen::SparseMatrix<double>;
 using Matrix12d = Eigen::Matrix<double, 12, 12>;
-using Vector12d = Eigen::Matrix<double, 12, 1>;
+// CHOLMOD's supernodal Cholesky (SuiteSparse): the factorisation is reused for every step.
 using Solver = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
-
-// Newmark average-acceleration constants.
-constexpr double kNewmarkBeta = 0.25;
-constexpr double kNewmarkGamma = 0.5;
 
 // Linear-tetrahedron stiffness for E = 1 (Zienkiewicz & Taylor, The Finite Element Method,
 // vol. 1, ch. 6): K = V B^T D B with B the 6x12 strain-displacement matrix.
-Matrix12d UnitTetStiffness(const Eigen::Matrix3d& dm_inverse, double volume, double poisson) {
+Matrix12d UnitTetStiffness(const Eigen::Matrix3d& dm, double poisson) {
+  const Eigen::Matrix3d dm_inverse = dm.inverse();
+  const double volume = std::abs(dm.determinant()) / 6.0;
   Eigen::Matrix<double, 3, 4> grad;  // gradients of the barycentric shape functions
   grad.rightCols<3>() = dm_inverse.transpose();
   grad.col(0) = -grad.rightCols<3>().rowwise().sum();
@@ -50,15 +46,6 @@ Matrix12d UnitTetStiffness(const Eigen::Matrix3d& dm_inverse, double volume, dou
   return volume * b.transpose() * d * b;
 }
 
-// Rotation of the polar decomposition F = R S, proper (det +1).
-Eigen::Matrix3d PolarRotation(const Eigen::Matrix3d& f) {
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(f, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d u = svd.matrixU();
-  const Eigen::Matrix3d v = svd.matrixV();
-  if ((u * v.transpose()).determinant() < 0) u.col(2) = -u.col(2);
-  return u * v.transpose();
-}
-
 }  // namespace
 
 Status TissueOptions::Check() const {
@@ -76,7 +63,9 @@ Status TissueOptions::Check() const {
   if (!(mass_damping_share >= 0 && mass_damping_share <= 1)) {
     return InvalidArgumentError("tissue.mass_damping_share must be in [0, 1]");
   }
-  if (!(muscle_stiffness_ratio >= 0)) return InvalidArgumentError("tissue.muscle_stiffness_ratio must be >= 0");
+  if (!(muscle_hz >= 0 && muscle_hz < 200)) {
+    return InvalidArgumentError(fmt::format("tissue.muscle_hz must be in [0, 200), got {}", muscle_hz));
+  }
   if (!(activation_full_mm > 0)) return InvalidArgumentError("tissue.activation_full_mm must be positive");
   if (!(max_step_s > 0 && max_step_s <= 0.05)) return InvalidArgumentError("tissue.max_step_s must be in (0, 0.05]");
   return Status::Ok();
@@ -86,199 +75,184 @@ struct SoftTissueModel::Impl {
   // Rig data.
   int vertex_count = 0;
   int layers = 0;
+  int k_shapes = 0;
   std::vector<Eigen::Matrix3Xd> deltas;
   Eigen::Vector3d jaw_pivot = Eigen::Vector3d::Zero();
   Eigen::Vector3d jaw_axis = Eigen::Vector3d::UnitX();
   std::vector<bool> in_jaw;
 
   // Discretisation.
-  Eigen::Matrix3Xd rest;            // 3 x N
-  Eigen::VectorXd mass;             // per node, kg
-  std::vector<int> free_index;      // node -> free node index or -1
-  std::vector<int> fixed_index;     // node -> constrained node index or -1
-  std::vector<int> free_nodes, fixed_nodes;
-  std::vector<Matrix12d> unit_stiffness;  // per tet, E = 1
-  std::vector<Eigen::Matrix3d> dm_inverse;
-  SparseMatrix kff, kfc;            // assembled stiffness, free-free and free-fixed
-  std::vector<int> entry_map;       // 144 per tet: >=0 kff value, <=-2 kfc value -(i+2), -1 none
+  Eigen::Matrix4Xi tets;
+  Eigen::Matrix3Xd rest;            // 3 x N, neutral
+  Eigen::VectorXd mass;             // per node, kg (from the neutral volume; mass is conserved)
+  std::vector<int> free_index;      // node -> free node index or -1 (bone-attached)
+  std::vector<int> free_nodes;
+  Eigen::VectorXd mass_dofs;        // per free DOF
+  SparseMatrix kff;                 // stiffness on free DOFs
+  std::vector<int> entry_map;       // 144 per tet: index into kff values, or -1
   double youngs = 1.0;
 
-  // Reference (linearisation point).
+  // Reference expression (linearisation point) and prefactored systems.
   bool has_reference = false;
   Eigen::VectorXd w_ref;
   double jaw_ref = 0.0;
-  Eigen::Matrix3Xd x_ref;           // 3 x N
-  Eigen::VectorXd spring;           // per node, kg s^-2 (zero-length spring stiffness)
-  Eigen::Matrix3Xd target_ref;      // muscle targets at the reference
-  Eigen::VectorXd mass_dofs;        // per free DOF
+  Eigen::Matrix3Xd x_ref;           // 3 x N targets of the reference expression
+  Eigen::VectorXd spring;           // per node, kg s^-2
   double dt = 0.0;
   double alpha = 0.0, beta = 0.0;
+  double c_k = 1.0, c_m = 0.0;      // K_eff = c_k K + c_m M
   std::unique_ptr<Solver> static_solver, dynamic_solver;
 
-  // Dynamic state (free DOFs, displacement from x_ref).
-  Eigen::VectorXd u, v, a;
-  Eigen::VectorXd fixed_u_prev;  // constrained-node displacement at the previous step (3 * nc)
+  // Forcing fields on free DOFs; every force is fields * coefficients (see Step):
+  //   [0,3)            m e_k          gravity change and frame acceleration
+  //   [3,6)            m (e_k x p)    angular acceleration
+  //   [6,15)           m p_j e_i      centripetal, coefficient |w|^2 delta_ij - w_i w_j
+  //   [15,15+K)        m s delta_k    acceleration of blendshape k's targets
+  //   15+K, 16+K       m (1-s) A1, A2 acceleration of the mandible's targets, where by
+  //                    Rodrigues' formula the mandible moves a point by
+  //                    sin(th) A1 + (1 - cos(th)) A2, A1 = a x v, A2 = a x (a x v).
+  static constexpr int kColW = 3, kColC = 6, kColE = 15;
+  int field_columns() const { return kColE + k_shapes + 2; }
+  Eigen::MatrixXd fields;            // 3nf x field_columns()
+  Eigen::MatrixXd gravity_response;  // 3V (skin rows) x 3: K^-1 m e_k
+
+  // Dynamic state: displacement u of free nodes from their (moving) targets, with K u and
+  // K v kept alongside so a step needs no sparse matrix-vector product.
+  Eigen::VectorXd u, v, a, ku, kv;
+  Eigen::Matrix3Xd skin_targets;     // skin targets at the last Reset/Step
 
   int nf() const { return static_cast<int>(free_nodes.size()); }
-  int nc() const { return static_cast<int>(fixed_nodes.size()); }
 
-  Eigen::Vector3d JawPosition(const Eigen::Vector3d& p, double angle) const {
-    return jaw_pivot + Eigen::AngleAxisd(angle, jaw_axis) * (p - jaw_pivot);
-  }
-
-  // Positions of the constrained (layer-0) nodes for a jaw angle: the cranium is fixed, the
-  // mandible's attachment rotates about the jaw hinge.
-  Eigen::Matrix3Xd FixedPositions(double jaw_angle) const {
-    Eigen::Matrix3Xd p(3, nc());
-    for (int c = 0; c < nc(); ++c) {
-      const int node = fixed_nodes[c];
-      const int vertex = node % vertex_count;
-      p.col(c) = in_jaw[vertex] ? JawPosition(rest.col(node), jaw_angle) : Eigen::Vector3d(rest.col(node));
-    }
-    return p;
-  }
-
-  // Muscle targets of every node for the given weights and jaw angle (Bao et al. 2018: interior
-  // targets linear in the blendshape weights). Depth s = l / layers blends the skin's delta
-  // with the mandible's motion below it.
+  // Targets of every node for an expression: depth s = l / layers blends the skin's delta
+  // (s = 1) with the mandible's motion at the bone (s = 0).
   Eigen::Matrix3Xd Targets(const Eigen::VectorXd& weights, double jaw_angle) const {
     Eigen::Matrix3Xd skin_delta = Eigen::Matrix3Xd::Zero(3, vertex_count);
-    for (size_t k = 0; k < deltas.size(); ++k) {
+    for (int k = 0; k < k_shapes; ++k) {
       if (weights[k] != 0.0) skin_delta += weights[k] * deltas[k];
     }
+    const Eigen::Matrix3d jaw_rotation = Eigen::AngleAxisd(jaw_angle, jaw_axis).toRotationMatrix();
     Eigen::Matrix3Xd targets = rest;
     for (int l = 0; l <= layers; ++l) {
       const double s = double(l) / layers;
       for (int i = 0; i < vertex_count; ++i) {
-        const int node = l * vertex_count + i;
         Eigen::Vector3d jaw_delta = Eigen::Vector3d::Zero();
-        if (in_jaw[i]) jaw_delta = JawPosition(rest.col(i), jaw_angle) - rest.col(i);
-        targets.col(node) += s * skin_delta.col(i) + (1 - s) * jaw_delta;
+        if (in_jaw[i] && s < 1) jaw_delta = jaw_rotation * (rest.col(i) - jaw_pivot) + jaw_pivot - rest.col(i);
+        targets.col(l * vertex_count + i) += s * skin_delta.col(i) + (1 - s) * jaw_delta;
       }
     }
     return targets;
   }
 
-  Eigen::VectorXd StaticForce(const TissueForcing& forcing, Eigen::VectorXd* fixed_u) const;
-
-  Eigen::VectorXd GatherFree(const Eigen::Matrix3Xd& per_node) const {
-    Eigen::VectorXd out(3 * nf());
-    for (int f = 0; f < nf(); ++f) out.segment<3>(3 * f) = per_node.col(free_nodes[f]);
-    return out;
+  // Skin targets (the skin's share of Targets, s = 1): neutral plus blendshape deltas.
+  Eigen::Matrix3Xd SkinTargets(const Eigen::VectorXd& weights) const {
+    Eigen::Matrix3Xd skin = rest.rightCols(vertex_count);
+    for (int k = 0; k < k_shapes; ++k) {
+      if (weights[k] != 0.0) skin += weights[k] * deltas[k];
+    }
+    return skin;
   }
 
-  void BuildPattern(const Eigen::Matrix4Xi& tets) {
-    std::vector<Eigen::Triplet<double>> ff, fc;
-    ff.reserve(tets.cols() * 144);
+  void BuildPattern() {
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(tets.cols() * 144 + 3 * nf());
     for (int e = 0; e < tets.cols(); ++e) {
       for (int i = 0; i < 4; ++i) {
         const int fi = free_index[tets(i, e)];
         if (fi < 0) continue;
         for (int j = 0; j < 4; ++j) {
           const int fj = free_index[tets(j, e)];
-          const int cj = fixed_index[tets(j, e)];
+          if (fj < 0) continue;
           for (int r = 0; r < 3; ++r) {
-            for (int c = 0; c < 3; ++c) {
-              if (fj >= 0) ff.emplace_back(3 * fi + r, 3 * fj + c, 0.0);
-              else fc.emplace_back(3 * fi + r, 3 * cj + c, 0.0);
-            }
+            for (int c = 0; c < 3; ++c) triplets.emplace_back(3 * fi + r, 3 * fj + c, 0.0);
           }
         }
       }
     }
-    for (int d = 0; d < 3 * nf(); ++d) ff.emplace_back(d, d, 0.0);  // springs live on the diagonal
+    for (int d = 0; d < 3 * nf(); ++d) triplets.emplace_back(d, d, 0.0);  // springs
     kff.resize(3 * nf(), 3 * nf());
-    kff.setFromTriplets(ff.begin(), ff.end());
-    kfc.resize(3 * nf(), 3 * nc());
-    kfc.setFromTriplets(fc.begin(), fc.end());
+    kff.setFromTriplets(triplets.begin(), triplets.end());
     kff.makeCompressed();
-    kfc.makeCompressed();
-    auto find = [](const SparseMatrix& m, int row, int col) {
-      const int* begin = m.innerIndexPtr() + m.outerIndexPtr()[col];
-      const int* end = m.innerIndexPtr() + m.outerIndexPtr()[col + 1];
-      const int* it = std::lower_bound(begin, end, row);
-      FACEDYN_CHECK(it != end && *it == row, "sparse pattern misses an element entry");
-      return static_cast<int>(it - m.innerIndexPtr());
-    };
     entry_map.assign(size_t(tets.cols()) * 144, -1);
     for (int e = 0; e < tets.cols(); ++e) {
       for (int i = 0; i < 12; ++i) {
         const int fi = free_index[tets(i / 3, e)];
         if (fi < 0) continue;
         for (int j = 0; j < 12; ++j) {
-          const int node_j = tets(j / 3, e);
-          const int row = 3 * fi + i % 3;
-          int& slot = entry_map[size_t(e) * 144 + i * 12 + j];
-          if (free_index[node_j] >= 0) slot = find(kff, row, 3 * free_index[node_j] + j % 3);
-          else slot = -2 - find(kfc, row, 3 * fixed_index[node_j] + j % 3);
+          const int fj = free_index[tets(j / 3, e)];
+          if (fj < 0) continue;
+          const int row = 3 * fi + i % 3, col = 3 * fj + j % 3;
+          const int* begin = kff.innerIndexPtr() + kff.outerIndexPtr()[col];
+          const int* end = kff.innerIndexPtr() + kff.outerIndexPtr()[col + 1];
+          const int* it = std::lower_bound(begin, end, row);
+          FACEDYN_CHECK(it != end && *it == row, "sparse pattern misses an element entry");
+          entry_map[size_t(e) * 144 + i * 12 + j] = static_cast<int>(it - kff.innerIndexPtr());
         }
       }
     }
   }
 
-  // Assembles the corotational stiffness at `x` (rotations from x; identity when x is null)
-  // plus the springs, and the internal force R K (R^T x - X) on free DOFs when requested.
-  void Assemble(const Eigen::Matrix3Xd* x, const Eigen::Matrix4Xi& tets, Eigen::VectorXd* internal_force) {
+  // K = E * sum of element stiffnesses on `geometry` + springs. Returns the number of
+  // tetrahedra that `geometry` turns inside out.
+  int Assemble(const Eigen::Matrix3Xd& geometry, double poisson) {
     std::fill(kff.valuePtr(), kff.valuePtr() + kff.nonZeros(), 0.0);
-    std::fill(kfc.valuePtr(), kfc.valuePtr() + kfc.nonZeros(), 0.0);
-    if (internal_force) internal_force->setZero(3 * nf());
+    int inverted = 0;
     for (int e = 0; e < tets.cols(); ++e) {
-      Matrix12d k = youngs * unit_stiffness[e];
-      if (x) {
-        Eigen::Matrix3d ds;
-        for (int c = 0; c < 3; ++c) ds.col(c) = x->col(tets(c + 1, e)) - x->col(tets(0, e));
-        const Eigen::Matrix3d r = PolarRotation(ds * dm_inverse[e]);
-        Matrix12d rot = Matrix12d::Zero();
-        for (int n = 0; n < 4; ++n) rot.block<3, 3>(3 * n, 3 * n) = r;
-        if (internal_force) {
-          Vector12d local;
-          for (int n = 0; n < 4; ++n) {
-            local.segment<3>(3 * n) = r.transpose() * x->col(tets(n, e)) - rest.col(tets(n, e));
-          }
-          const Vector12d f = rot * (k * local);
-          for (int n = 0; n < 4; ++n) {
-            const int fi = free_index[tets(n, e)];
-            if (fi >= 0) internal_force->segment<3>(3 * fi) += f.segment<3>(3 * n);
-          }
-        }
-        k = rot * k * rot.transpose();
-      }
+      Eigen::Matrix3d dm;
+      for (int c = 0; c < 3; ++c) dm.col(c) = geometry.col(tets(c + 1, e)) - geometry.col(tets(0, e));
+      if (dm.determinant() <= 0) ++inverted;
+      const Matrix12d k = youngs * UnitTetStiffness(dm, poisson);
       const int* map = entry_map.data() + size_t(e) * 144;
-      for (int i = 0; i < 12; ++i) {
-        for (int j = 0; j < 12; ++j) {
-          const int slot = map[i * 12 + j];
-          if (slot >= 0) kff.valuePtr()[slot] += k(i, j);
-          else if (slot <= -2) kfc.valuePtr()[-2 - slot] += k(i, j);
-        }
+      for (int i = 0; i < 144; ++i) {
+        if (map[i] >= 0) kff.valuePtr()[map[i]] += k(i / 12, i % 12);
       }
     }
-    if (spring.size() == static_cast<Eigen::Index>(rest.cols())) {
+    if (spring.size() == rest.cols()) {
       for (int f = 0; f < nf(); ++f) {
         for (int c = 0; c < 3; ++c) kff.coeffRef(3 * f + c, 3 * f + c) += spring[free_nodes[f]];
       }
     }
+    return inverted;
+  }
+
+  void BuildFields() {
+    fields.setZero(3 * nf(), field_columns());
+    for (int f = 0; f < nf(); ++f) {
+      const int node = free_nodes[f];
+      const int vertex = node % vertex_count;
+      const double s = double(node / vertex_count) / layers;
+      const double m = mass[node];
+      const Eigen::Vector3d p = x_ref.col(node);
+      for (int k = 0; k < 3; ++k) {
+        fields(3 * f + k, k) = m;
+        fields.block<3, 1>(3 * f, kColW + k) = m * Eigen::Vector3d::Unit(k).cross(p);
+        for (int j = 0; j < 3; ++j) fields(3 * f + k, kColC + 3 * k + j) = m * p[j];
+      }
+      for (int k = 0; k < k_shapes; ++k) fields.block<3, 1>(3 * f, kColE + k) = m * s * deltas[k].col(vertex);
+      if (in_jaw[vertex] && s < 1) {
+        const Eigen::Vector3d lever = rest.col(vertex) - jaw_pivot;
+        fields.block<3, 1>(3 * f, kColE + k_shapes) = m * (1 - s) * jaw_axis.cross(lever);
+        fields.block<3, 1>(3 * f, kColE + k_shapes + 1) = m * (1 - s) * jaw_axis.cross(jaw_axis.cross(lever));
+      }
+    }
+    const Eigen::MatrixXd response = static_solver->solve(fields.leftCols<3>());
+    gravity_response.setZero(3 * vertex_count, 3);
+    for (int i = 0; i < vertex_count; ++i) {
+      const int f = free_index[layers * vertex_count + i];
+      if (f >= 0) gravity_response.middleRows<3>(3 * i) = response.middleRows<3>(3 * f);
+    }
+  }
+
+  // Skin positions for targets plus a displacement field on free DOFs.
+  Eigen::Matrix3Xd Skin(const Eigen::Matrix3Xd& targets, const Eigen::VectorXd& displacement) const {
+    Eigen::Matrix3Xd skin = targets;
+    const int first = layers * vertex_count;
+    for (int i = 0; i < vertex_count; ++i) {
+      const int f = free_index[first + i];
+      if (f >= 0) skin.col(i) += displacement.segment<3>(3 * f);
+    }
+    return skin;
   }
 };
-
-// Forces on free DOFs relative to the reference: gravity's change of direction in the skull
-// frame, the muscle targets' change, and the mandible's prescribed motion (static part).
-Eigen::VectorXd SoftTissueModel::Impl::StaticForce(const TissueForcing& forcing,
-                                                   Eigen::VectorXd* fixed_u) const {
-  const Impl& m = *this;
-  const Eigen::Vector3d dg = forcing.kinematics.GravityInSkull() - kGravityInWorld;
-  const Eigen::Matrix3Xd targets = m.Targets(forcing.weights, forcing.jaw_angle_rad);
-  Eigen::VectorXd force(3 * m.nf());
-  for (int f = 0; f < m.nf(); ++f) {
-    const int node = m.free_nodes[f];
-    force.segment<3>(3 * f) = m.mass[node] * dg + m.spring[node] * (targets.col(node) - m.target_ref.col(node));
-  }
-  const Eigen::Matrix3Xd fixed_now = m.FixedPositions(forcing.jaw_angle_rad);
-  const Eigen::Matrix3Xd fixed_delta = fixed_now - m.FixedPositions(m.jaw_ref);
-  *fixed_u = Eigen::Map<const Eigen::VectorXd>(fixed_delta.data(), 3 * m.nc());
-  if (forcing.jaw_angle_rad != m.jaw_ref) force -= m.kfc * *fixed_u;
-  return force;
-}
-
 
 SoftTissueModel::~SoftTissueModel() = default;
 
@@ -301,52 +275,52 @@ StatusOr<std::unique_ptr<SoftTissueModel>> SoftTissueModel::Create(const FaceRig
   m.vertex_count = rig.vertex_count();
   m.layers = options.layers;
   m.deltas = rig.blendshape_deltas_mm;
+  m.k_shapes = static_cast<int>(m.deltas.size());
   m.jaw_pivot = rig.jaw.pivot_in_skull;
   m.jaw_axis = rig.jaw.axis_in_skull.normalized();
   m.in_jaw.assign(m.vertex_count, false);
   if (!rig.jaw.region.empty()) {
     for (int v : rig.regions.at(rig.jaw.region)) m.in_jaw[v] = true;
   }
+  m.tets = shell.tets;
   m.rest = shell.rest_positions_mm;
   const int n = shell.node_count();
 
-  // Lumped mass and element data.
+  // Lumped mass; layer-0 nodes are attached to bone, nodes no tetrahedron touches are held.
   m.mass.setZero(n);
-  m.unit_stiffness.resize(shell.tets.cols());
-  m.dm_inverse.resize(shell.tets.cols());
   std::vector<bool> used(n, false);
-  for (int e = 0; e < shell.tets.cols(); ++e) {
+  for (int e = 0; e < m.tets.cols(); ++e) {
     Eigen::Matrix3d dm;
-    for (int c = 0; c < 3; ++c) dm.col(c) = m.rest.col(shell.tets(c + 1, e)) - m.rest.col(shell.tets(0, e));
+    for (int c = 0; c < 3; ++c) dm.col(c) = m.rest.col(m.tets(c + 1, e)) - m.rest.col(m.tets(0, e));
     const double volume = dm.determinant() / 6.0;
-    m.dm_inverse[e] = dm.inverse();
-    m.unit_stiffness[e] = UnitTetStiffness(m.dm_inverse[e], volume, options.poisson_ratio);
     for (int k = 0; k < 4; ++k) {
-      m.mass[shell.tets(k, e)] += options.density_kg_per_mm3 * volume / 4.0;
-      used[shell.tets(k, e)] = true;
+      m.mass[m.tets(k, e)] += options.density_kg_per_mm3 * volume / 4.0;
+      used[m.tets(k, e)] = true;
     }
   }
-  // Layer-0 nodes are attached to bone; nodes no tetrahedron touches are held too.
   m.free_index.assign(n, -1);
-  m.fixed_index.assign(n, -1);
-  for (int node = 0; node < n; ++node) {
-    if (node >= m.vertex_count && used[node]) {
-      m.free_index[node] = static_cast<int>(m.free_nodes.size());
-      m.free_nodes.push_back(node);
-    } else {
-      m.fixed_index[node] = static_cast<int>(m.fixed_nodes.size());
-      m.fixed_nodes.push_back(node);
-    }
+  for (int node = m.vertex_count; node < n; ++node) {
+    if (!used[node]) continue;
+    m.free_index[node] = static_cast<int>(m.free_nodes.size());
+    m.free_nodes.push_back(node);
   }
   model->free_dofs_.resize(3 * m.nf());
   m.mass_dofs.resize(3 * m.nf());
   for (int f = 0; f < m.nf(); ++f) m.mass_dofs.segment<3>(3 * f).setConstant(m.mass[m.free_nodes[f]]);
-  m.BuildPattern(shell.tets);
+  m.BuildPattern();
 
   // Calibrate E so that the neutral face's fundamental frequency is options.fundamental_hz:
   // natural frequencies scale with sqrt(E) at fixed Poisson ratio and mass.
+  // The static and dynamic matrices share one sparsity pattern: each solver orders and
+  // analyses it once (METIS, the costly symbolic step) and only refactorises numerically.
   m.youngs = 1.0;
-  m.Assemble(nullptr, shell.tets, nullptr);
+  m.Assemble(m.rest, options.poisson_ratio);
+  m.static_solver = std::make_unique<Solver>();
+  m.static_solver->analyzePattern(m.kff);
+  m.dynamic_solver = std::make_unique<Solver>();
+  m.dynamic_solver->analyzePattern(m.kff);
+  m.static_solver->factorize(m.kff);
+  if (m.static_solver->info() != Eigen::Success) return InternalError("tissue stiffness is not positive definite");
   FACEDYN_ASSIGN_OR_RETURN(const std::vector<double> unit_hz, model->NaturalFrequenciesHz(1));
   m.youngs = std::pow(options.fundamental_hz / unit_hz[0], 2);
   model->youngs_modulus_kpa_ = m.youngs;
@@ -355,18 +329,19 @@ StatusOr<std::unique_ptr<SoftTissueModel>> SoftTissueModel::Create(const FaceRig
   m.beta = 2 * (1 - options.mass_damping_share) * options.damping_ratio / omega;
   model->rayleigh_mass_ = m.alpha;
   model->rayleigh_stiffness_ = m.beta;
-  m.Assemble(nullptr, shell.tets, nullptr);
+  m.Assemble(m.rest, options.poisson_ratio);
+  m.static_solver->factorize(m.kff);
+  if (m.static_solver->info() != Eigen::Success) return InternalError("tissue stiffness is not positive definite");
   return model;
 }
 
 StatusOr<std::vector<double>> SoftTissueModel::NaturalFrequenciesHz(int count) const {
   const Impl& m = *impl_;
   FACEDYN_CHECK(count >= 1, "count must be positive");
-  // Subspace iteration (Bathe, Finite Element Procedures, 11.6) with count + 4 vectors.
-  Solver solver;
-  solver.compute(m.kff);
-  if (solver.info() != Eigen::Success) return InternalError("tissue stiffness is not positive definite");
-  const int p = std::min(count + 4, static_cast<int>(m.kff.rows()));
+  // Subspace iteration (Bathe, Finite Element Procedures, 11.6) with count + 2 vectors, on
+  // the current stiffness (factorised by Create or SetReference).
+  const Solver& solver = *m.static_solver;
+  const int p = std::min(count + 2, static_cast<int>(m.kff.rows()));
   std::mt19937 rng(7);
   std::normal_distribution<double> normal;
   Eigen::MatrixXd x(m.kff.rows(), p);
@@ -375,13 +350,12 @@ StatusOr<std::vector<double>> SoftTissueModel::NaturalFrequenciesHz(int count) c
   Eigen::VectorXd previous = Eigen::VectorXd::Constant(p, -1.0);
   for (int iteration = 0; iteration < 60; ++iteration) {
     const Eigen::MatrixXd y = solver.solve(m.mass_dofs.asDiagonal() * x);
-    const Eigen::MatrixXd ky = m.kff.selfadjointView<Eigen::Lower>() * y;
-    const Eigen::MatrixXd kr = y.transpose() * ky;
+    const Eigen::MatrixXd kr = y.transpose() * (m.kff * y);
     const Eigen::MatrixXd mr = y.transpose() * m.mass_dofs.asDiagonal() * y;
     Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> ritz(kr, mr);
     eigenvalues = ritz.eigenvalues();
     x = y * ritz.eigenvectors();
-    if (((eigenvalues - previous).cwiseAbs().array() <= 1e-10 * eigenvalues.cwiseAbs().array()).head(count).all()) break;
+    if (((eigenvalues - previous).cwiseAbs().array() <= 1e-7 * eigenvalues.cwiseAbs().array()).head(count).all()) break;
     previous = eigenvalues;
   }
   std::vector<double> hz(count);
@@ -392,130 +366,116 @@ StatusOr<std::vector<double>> SoftTissueModel::NaturalFrequenciesHz(int count) c
 StatusOr<ReferenceSummary> SoftTissueModel::SetReference(const Eigen::VectorXd& weights,
                                                          double jaw_angle_rad, double dt_s) {
   Impl& m = *impl_;
-  FACEDYN_CHECK(weights.size() == static_cast<Eigen::Index>(m.deltas.size()), "one weight per blendshape");
+  FACEDYN_CHECK(weights.size() == m.k_shapes, "one weight per blendshape");
   FACEDYN_CHECK(dt_s > 0, "dt must be positive");
+  m.has_reference = false;
   m.w_ref = weights;
   m.jaw_ref = jaw_angle_rad;
   m.dt = dt_s;
+  m.x_ref = m.Targets(weights, jaw_angle_rad);
+  ReferenceSummary summary;
+  summary.max_target_move_mm = (m.x_ref - m.rest).colwise().norm().maxCoeff();
 
-  // Activation per skin vertex from the expression's displacement; springs scale with the
-  // node's own elastic stiffness so the stiffening is resolution-independent.
-  Eigen::Matrix3Xd skin_delta = Eigen::Matrix3Xd::Zero(3, m.vertex_count);
-  for (size_t k = 0; k < m.deltas.size(); ++k) skin_delta += weights[k] * m.deltas[k];
+  // Muscle springs: activation from the expression's displacement at the skin; stiffness
+  // proportional to the node's mass, so the stiffening is a frequency, resolution-independent.
+  const Eigen::Matrix3Xd skin_delta = m.SkinTargets(weights) - m.rest.rightCols(m.vertex_count);
   m.spring.setZero(m.rest.cols());
-  m.Assemble(nullptr, shell_.tets, nullptr);
+  const double muscle_omega = 2 * M_PI * options_.muscle_hz;
   for (int f = 0; f < m.nf(); ++f) {
     const int node = m.free_nodes[f];
-    const double activation = std::min(1.0, skin_delta.col(node % m.vertex_count).norm() / options_.activation_full_mm);
-    const double diagonal = (m.kff.coeff(3 * f, 3 * f) + m.kff.coeff(3 * f + 1, 3 * f + 1) +
-                             m.kff.coeff(3 * f + 2, 3 * f + 2)) / 3.0;
-    m.spring[node] = options_.muscle_stiffness_ratio * activation * diagonal;
+    const double activation =
+        std::min(1.0, skin_delta.col(node % m.vertex_count).norm() / options_.activation_full_mm);
+    m.spring[node] = activation * m.mass[node] * muscle_omega * muscle_omega;
   }
-  m.target_ref = m.Targets(weights, jaw_angle_rad);
-
-  // Newton on the corotational equilibrium f_int(x) + k (x - t) = m g0 with bone nodes held.
-  Eigen::Matrix3Xd x = m.target_ref;
-  const Eigen::Matrix3Xd fixed = m.FixedPositions(jaw_angle_rad);
-  for (int c = 0; c < m.nc(); ++c) x.col(m.fixed_nodes[c]) = fixed.col(c);
-  const Eigen::Vector3d g0 = kGravityInWorld;
-  ReferenceSummary summary;
-  Solver solver;
-  Eigen::VectorXd internal;
-  for (int iteration = 1; iteration <= 25; ++iteration) {
-    m.Assemble(&x, shell_.tets, &internal);
-    Eigen::VectorXd residual = internal;
-    for (int f = 0; f < m.nf(); ++f) {
-      const int node = m.free_nodes[f];
-      residual.segment<3>(3 * f) += m.spring[node] * (x.col(node) - m.target_ref.col(node)) - m.mass[node] * g0;
-    }
-    summary.iterations = iteration;
-    summary.max_residual = residual.cwiseAbs().maxCoeff();
-    if (iteration == 1) solver.analyzePattern(m.kff);
-    solver.factorize(m.kff);
-    if (solver.info() != Eigen::Success) return InternalError("expression equilibrium: stiffness is not positive definite");
-    const Eigen::VectorXd step = solver.solve(-residual);
-    for (int f = 0; f < m.nf(); ++f) x.col(m.free_nodes[f]) += step.segment<3>(3 * f);
-    if (step.cwiseAbs().maxCoeff() < 1e-6) {
-      summary.converged = true;
-      break;
-    }
-  }
-  m.x_ref = x;
-  // Linearisation: stiffness at the equilibrium, Rayleigh damping, Newmark effective matrix.
-  m.Assemble(&m.x_ref, shell_.tets, nullptr);
-  m.static_solver = std::make_unique<Solver>();
-  m.static_solver->compute(m.kff);
-  if (m.static_solver->info() != Eigen::Success) return InternalError("linearised stiffness is not positive definite");
-  const double c_k = 1.0 + m.beta * kNewmarkGamma / (kNewmarkBeta * dt_s);
-  const double c_m = 1.0 / (kNewmarkBeta * dt_s * dt_s) + m.alpha * kNewmarkGamma / (kNewmarkBeta * dt_s);
-  SparseMatrix effective = c_k * m.kff;
-  for (int d = 0; d < effective.rows(); ++d) effective.coeffRef(d, d) += c_m * m.mass_dofs[d];
-  m.dynamic_solver = std::make_unique<Solver>();
-  m.dynamic_solver->compute(effective);
+  // Elasticity about the expression's shape (its active rest shape).
+  summary.inverted_elements = m.Assemble(m.x_ref, options_.poisson_ratio);
+  m.static_solver->factorize(m.kff);
+  if (m.static_solver->info() != Eigen::Success) return InternalError("tissue stiffness is not positive definite");
+  // Newmark average acceleration (beta = 1/4, gamma = 1/2): K_eff = K + 2/dt C + 4/dt^2 M.
+  m.c_k = 1.0 + 2.0 * m.beta / dt_s;
+  m.c_m = 4.0 / (dt_s * dt_s) + 2.0 * m.alpha / dt_s;
+  SparseMatrix effective = m.c_k * m.kff;
+  for (int d = 0; d < effective.rows(); ++d) effective.coeffRef(d, d) += m.c_m * m.mass_dofs[d];
+  m.dynamic_solver->factorize(effective);
   if (m.dynamic_solver->info() != Eigen::Success) return InternalError("Newmark matrix is not positive definite");
+  m.BuildFields();
   m.has_reference = true;
-  m.u.setZero(3 * m.nf());
-  m.v.setZero(3 * m.nf());
-  m.a.setZero(3 * m.nf());
-  m.fixed_u_prev.setZero(3 * m.nc());
+  const int dofs = 3 * m.nf();
+  m.u.setZero(dofs);
+  m.v.setZero(dofs);
+  m.a.setZero(dofs);
+  m.ku.setZero(dofs);
+  m.kv.setZero(dofs);
+  m.skin_targets = m.SkinTargets(weights);
   return summary;
 }
+
+namespace {
+// Coefficients of the forcing fields (Impl's field layout) for one instant.
+Eigen::VectorXd ForceCoefficients(const TissueForcing& forcing, int k_shapes, bool dynamic) {
+  constexpr int kColW = 3, kColC = 6, kColE = 15;
+  Eigen::VectorXd c = Eigen::VectorXd::Zero(kColE + k_shapes + 2);
+  const SkullKinematics& k = forcing.kinematics;
+  c.head<3>() = k.GravityInSkull() - kGravityInWorld;
+  if (!dynamic) return c;
+  // Fictitious forces of the skull frame: -m (a0 + alpha x p + w x (w x p)).
+  c.head<3>() -= k.origin_acceleration_in_skull;
+  c.segment<3>(kColW) = -k.angular_acceleration_in_skull;
+  const Eigen::Vector3d& w = k.angular_velocity_in_skull;
+  const Eigen::Matrix3d centripetal = w.squaredNorm() * Eigen::Matrix3d::Identity() - w * w.transpose();
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) c[kColC + 3 * i + j] = centripetal(i, j);
+  }
+  // The targets' acceleration: -m d^2/dt^2 (targets).
+  if (forcing.weight_accelerations.size() == k_shapes) c.segment(kColE, k_shapes) = -forcing.weight_accelerations;
+  const double th = forcing.jaw_angle_rad, th_d = forcing.jaw_angle_velocity, th_dd = forcing.jaw_angle_acceleration;
+  c[kColE + k_shapes] = -(std::cos(th) * th_dd - std::sin(th) * th_d * th_d);      // d2/dt2 sin(th)
+  c[kColE + k_shapes + 1] = -(std::sin(th) * th_dd + std::cos(th) * th_d * th_d);  // d2/dt2 (1 - cos(th))
+  return c;
+}
+}  // namespace
 
 void SoftTissueModel::Reset(const TissueForcing& forcing) {
   Impl& m = *impl_;
   FACEDYN_CHECK(m.has_reference, "SetReference before Reset");
-  Eigen::VectorXd fixed_u;
-  const Eigen::VectorXd f_static = m.StaticForce(forcing, &fixed_u);
-  m.u = m.static_solver->solve(f_static);
+  m.u = m.static_solver->solve(m.fields * ForceCoefficients(forcing, m.k_shapes, false));
   m.v.setZero(3 * m.nf());
-  m.fixed_u_prev = fixed_u;
-  // a(0) from the equation of motion at rest: M a = F_dyn - K u = fictitious forces.
-  const SkullKinematics& k = forcing.kinematics;
-  for (int f = 0; f < m.nf(); ++f) {
-    const Eigen::Vector3d p = m.x_ref.col(m.free_nodes[f]);
-    const Eigen::Vector3d& w = k.angular_velocity_in_skull;
-    m.a.segment<3>(3 * f) =
-        -(k.origin_acceleration_in_skull + k.angular_acceleration_in_skull.cross(p) + w.cross(w.cross(p)));
-  }
+  m.ku = m.kff * m.u;
+  m.kv.setZero(3 * m.nf());
+  // a(0) from the equation of motion at rest: M a = F_dyn - K u (the inertial terms).
+  const Eigen::VectorXd c = ForceCoefficients(forcing, m.k_shapes, true) - ForceCoefficients(forcing, m.k_shapes, false);
+  m.a = (m.fields * c).cwiseQuotient(m.mass_dofs);
+  m.skin_targets = m.SkinTargets(forcing.weights);
 }
 
 void SoftTissueModel::Step(const TissueForcing& forcing) {
   Impl& m = *impl_;
   FACEDYN_CHECK(m.has_reference, "SetReference before Step");
   const double dt = m.dt;
-  Eigen::VectorXd fixed_u;
-  Eigen::VectorXd force = m.StaticForce(forcing, &fixed_u);
-  // Fictitious forces of the skull frame, with the Coriolis term from the current velocity
-  // (explicit: it is tiny next to the others for head motion).
-  const SkullKinematics& k = forcing.kinematics;
-  const Eigen::Vector3d& w = k.angular_velocity_in_skull;
-  const bool rotating = w.squaredNorm() > 0 || k.angular_acceleration_in_skull.squaredNorm() > 0;
-  for (int f = 0; f < m.nf(); ++f) {
-    const int node = m.free_nodes[f];
-    Eigen::Vector3d a_frame = k.origin_acceleration_in_skull;
-    if (rotating) {
-      const Eigen::Vector3d p = m.x_ref.col(node);
-      a_frame += k.angular_acceleration_in_skull.cross(p) + w.cross(w.cross(p)) +
-                 2.0 * w.cross(Eigen::Vector3d(m.v.segment<3>(3 * f)));
+  Eigen::VectorXd force = m.fields * ForceCoefficients(forcing, m.k_shapes, true);
+  const Eigen::Vector3d& w = forcing.kinematics.angular_velocity_in_skull;
+  if (w.squaredNorm() > 0) {
+    // Coriolis from the current velocity (explicit: tiny next to the other terms for heads).
+    for (int f = 0; f < m.nf(); ++f) {
+      force.segment<3>(3 * f) -= 2.0 * m.mass[m.free_nodes[f]] * w.cross(Eigen::Vector3d(m.v.segment<3>(3 * f)));
     }
-    force.segment<3>(3 * f) -= m.mass[node] * a_frame;
   }
-  if (m.beta > 0 && (fixed_u - m.fixed_u_prev).squaredNorm() > 0) {
-    force -= m.beta * (m.kfc * ((fixed_u - m.fixed_u_prev) / dt));
-  }
-  m.fixed_u_prev = fixed_u;
-
-  const double b = kNewmarkBeta, g = kNewmarkGamma;
-  const Eigen::VectorXd mass_part = (1 / (b * dt * dt)) * m.u + (1 / (b * dt)) * m.v + (1 / (2 * b) - 1) * m.a;
-  const Eigen::VectorXd damp_part = (g / (b * dt)) * m.u + (g / b - 1) * m.v + dt * (g / (2 * b) - 1) * m.a;
-  Eigen::VectorXd rhs = force + m.mass_dofs.cwiseProduct(mass_part);
+  // Newmark, beta = 1/4, gamma = 1/2 (Bathe, Finite Element Procedures, 9.2.4):
+  // K_eff u' = F + M (4/dt^2 u + 4/dt v + a) + C (2/dt u + v), with C = alpha M + beta K.
+  const Eigen::VectorXd damp_part = (2 / dt) * m.u + m.v;
+  Eigen::VectorXd rhs = force + m.mass_dofs.cwiseProduct((4 / (dt * dt)) * m.u + (4 / dt) * m.v + m.a);
   if (m.alpha > 0) rhs += m.alpha * m.mass_dofs.cwiseProduct(damp_part);
-  if (m.beta > 0) rhs += m.beta * (m.kff * damp_part);
+  if (m.beta > 0) rhs += m.beta * ((2 / dt) * m.ku + m.kv);
   const Eigen::VectorXd u_new = m.dynamic_solver->solve(rhs);
-  const Eigen::VectorXd a_new = (1 / (b * dt * dt)) * (u_new - m.u) - (1 / (b * dt)) * m.v - (1 / (2 * b) - 1) * m.a;
-  m.v += dt * ((1 - g) * m.a + g * a_new);
-  m.a = a_new;
+  // K u' follows from the solved system itself: c_k K u' + c_m M u' = rhs.
+  const Eigen::VectorXd ku_new = (rhs - m.c_m * m.mass_dofs.cwiseProduct(u_new)) / m.c_k;
+  m.a = (4 / (dt * dt)) * (u_new - m.u) - (4 / dt) * m.v - m.a;
+  const Eigen::VectorXd v_new = (2 / dt) * (u_new - m.u) - m.v;  // = v + dt/2 (a + a')
+  m.kv = (2 / dt) * (ku_new - m.ku) - m.kv;
+  m.ku = ku_new;
+  m.v = v_new;
   m.u = u_new;
+  m.skin_targets = m.SkinTargets(forcing.weights);
 }
 
 Eigen::Matrix3Xd SoftTissueModel::ReferenceSkin() const {
@@ -526,27 +486,16 @@ Eigen::Matrix3Xd SoftTissueModel::ReferenceSkin() const {
 
 Eigen::Matrix3Xd SoftTissueModel::DynamicSkin() const {
   const Impl& m = *impl_;
-  Eigen::Matrix3Xd skin = ReferenceSkin();
-  const int first = m.layers * m.vertex_count;
-  for (int i = 0; i < m.vertex_count; ++i) {
-    const int f = m.free_index[first + i];
-    if (f >= 0) skin.col(i) += m.u.segment<3>(3 * f);
-  }
-  return skin;
+  FACEDYN_CHECK(m.has_reference, "SetReference first");
+  return m.Skin(m.skin_targets, m.u);
 }
 
 Eigen::Matrix3Xd SoftTissueModel::QuasistaticSkin(const TissueForcing& forcing) const {
   const Impl& m = *impl_;
   FACEDYN_CHECK(m.has_reference, "SetReference first");
-  Eigen::VectorXd fixed_u;
-  const Eigen::VectorXd u_qs = m.static_solver->solve(m.StaticForce(forcing, &fixed_u));
-  Eigen::Matrix3Xd skin = ReferenceSkin();
-  const int first = m.layers * m.vertex_count;
-  for (int i = 0; i < m.vertex_count; ++i) {
-    const int f = m.free_index[first + i];
-    if (f >= 0) skin.col(i) += u_qs.segment<3>(3 * f);
-  }
-  return skin;
+  const Eigen::Vector3d dg = forcing.kinematics.GravityInSkull() - kGravityInWorld;
+  const Eigen::VectorXd offset = m.gravity_response * dg;
+  return m.SkinTargets(forcing.weights) + Eigen::Map<const Eigen::Matrix3Xd>(offset.data(), 3, m.vertex_count);
 }
 
 double SoftTissueModel::Energy() const {
@@ -558,8 +507,9 @@ void SoftTissueModel::SetVelocity(const Eigen::VectorXd& velocity) {
   Impl& m = *impl_;
   FACEDYN_CHECK(velocity.size() == m.v.size(), "one velocity per free DOF");
   m.v = velocity;
-  // Keep the acceleration consistent with the equation of motion (no forcing).
-  m.a = -(m.kff * m.u + m.alpha * m.mass_dofs.cwiseProduct(m.v) + m.beta * (m.kff * m.v)).cwiseQuotient(m.mass_dofs);
+  m.kv = m.kff * m.v;
+  // Keep the acceleration consistent with the unforced equation of motion.
+  m.a = -(m.ku + m.alpha * m.mass_dofs.cwiseProduct(m.v) + m.beta * m.kv).cwiseQuotient(m.mass_dofs);
 }
 
 }  // namespace facedyn::sim

@@ -1,30 +1,35 @@
-// SoftTissueModel: the flesh between skull and skin as a corotational linear-tetrahedron FEM,
-// simulated in the skull frame, with exact ground truth for both the dynamic skin and the
-// quasistatic skin (what the same skull motion and expression give without inertia).
+// SoftTissueModel: the flesh between skull and skin as a linear-tetrahedron FEM simulated in
+// the skull frame, with exact ground truth for both the dynamic skin and the quasistatic skin
+// (what the same skull motion and expression give without inertia).
 //
 // Why it is shaped this way:
 // - Frame. The tissue is simulated in the skull's own (non-inertial) frame, where the
 //   attached inner surface is fixed and head motion enters only as fictitious body forces
 //   (sim/skull_kinematics.h) and a rotating gravity vector. Head rotation of any size is
-//   therefore exact; nothing is linearised about the head pose.
-// - Expressions (Bao et al. 2018, sections 5-6): blendshape-driven muscle tracks. Every flesh
-//   node in an active region gets an interior target that moves linearly with the blendshape
-//   weights (the skin delta blended with depth toward the mandible's motion), and a
-//   zero-length spring pulls it there; its stiffness grows with the local activation, so an
-//   active face is stiffer and jiggles differently. The expression's shape is the nonlinear
-//   corotational equilibrium (Newton) under those springs and gravity.
-// - Dynamics. Around that reference equilibrium the skin moves by millimetres, so the
-//   equations of motion are linearised there: M u'' + C u' + K u = F(t), with K the
-//   corotational stiffness at the reference (rotations frozen), Rayleigh damping C = aM + bK,
-//   lumped mass M, and F from gravity's change of direction, fictitious forces, the change of
-//   the expression's muscle targets and the mandible's prescribed motion. Newmark's average-
-//   acceleration rule integrates it: unconditionally stable and energy-conserving for the
-//   undamped system, one prefactored sparse solve per step. The quasistatic skin is
-//   K u = F_static(t) (the same forces without inertia), one prefactored solve per frame.
-// - Material. The Young's modulus is calibrated so the neutral face's lowest natural
-//   frequency equals `fundamental_hz` (subspace iteration on K phi = w^2 M phi), and the
-//   Rayleigh coefficients give `damping_ratio` at that frequency, so the two figures a user
-//   configures are the two figures the face has.
+//   therefore exact: nothing is linearised about the head pose, and the elastic problem only
+//   sees the millimetre-scale motion of flesh relative to bone.
+// - Expressions (after Bao et al. 2018, sections 5-6): blendshape-driven muscle tracks. Every
+//   flesh node gets a target that moves linearly with the blendshape weights (the skin delta
+//   blended with depth toward the mandible's motion, which rotates the jaw's bone attachment).
+//   The targets act twice: as the tissue's active rest shape (so a held expression reproduces
+//   the blendshape exactly, as captured expressions are equilibria), and as zero-length
+//   springs whose stiffness grows with the local activation, so active flesh is stiffer and
+//   jiggles differently (Zoss et al. 2020's second hypothesis). Changing expressions move the
+//   targets, and their acceleration loads the flesh inertially (lips flap when they move).
+// - Dynamics. Relative to the moving targets the flesh moves by millimetres, so elasticity is
+//   linear about the reference expression's shape: M u'' + C u' + K u = F(t), with lumped
+//   mass M, Rayleigh damping C = aM + bK, K the elastic stiffness of the expression's shape
+//   plus the muscle springs, and F from gravity's change of direction, fictitious forces and
+//   the targets' acceleration. Every force is an exact combination of a few precomputed
+//   spatial fields. Newmark's average-acceleration rule integrates it (unconditionally stable,
+//   energy-conserving when undamped): one prefactored sparse solve per step. The quasistatic
+//   state is K u = F_static(t), an exact combination of precomputed static responses.
+// - Gravity. The neutral mesh (and every blendshape) is taken as the equilibrium under
+//   upright gravity, as a scan is; gravity acts through its change of direction in the skull.
+// - Material. Young's modulus is calibrated so the neutral face's lowest natural frequency
+//   equals `fundamental_hz` (subspace iteration on K phi = w^2 M phi), and the Rayleigh
+//   coefficients give `damping_ratio` at that frequency, so the two figures a user configures
+//   are the two figures the face has.
 // Units: mm, s, kg; stress in kPa (1 kg mm^-1 s^-2 = 1 kPa).
 #pragma once
 
@@ -47,11 +52,18 @@ struct TissueOptions {
   double poisson_ratio = 0.45;             // nearly incompressible flesh
   double density_kg_per_mm3 = 1.1e-6;      // 1100 kg/m^3
   double fundamental_hz = 11.0;            // neutral face's lowest natural frequency
-  double damping_ratio = 0.15;             // modal damping ratio at the fundamental
+  double damping_ratio = 0.18;             // modal damping ratio at the fundamental
   double mass_damping_share = 0.5;         // share of the damping ratio from the mass term
-  double muscle_stiffness_ratio = 2.0;     // spring stiffness at full activation / node's elastic stiffness
-  double activation_full_mm = 4.0;         // blendshape displacement counted as full activation
-  double max_step_s = 0.004;               // largest integration step (frames are subdivided)
+  // Zero-length muscle springs: a fully active spring alone would make the flesh it holds
+  // oscillate at muscle_hz (k = m (2 pi muscle_hz)^2 per node), so fully active flesh rings at
+  // about sqrt(f_flesh^2 + muscle_hz^2), ~1.5x the fundamental with the defaults.
+  double muscle_hz = 12.0;
+  double activation_full_mm = 3.0;         // blendshape displacement counted as full activation
+  // Largest integration step; frames are subdivided to stay below it. The default is one step
+  // per frame at 128 fps: Newmark's average-acceleration rule lengthens a period by about
+  // (omega dt)^2 / 12 (Bathe, FE Procedures, 9.4), i.e. 2.4% at 11 Hz for dt = 1/128 s (0.6%
+  // with two substeps, max_step_s = 0.004, at about twice the cost).
+  double max_step_s = 1.0 / 128.0;
 
   Status Check() const;
 };
@@ -59,14 +71,16 @@ struct TissueOptions {
 // Skull-frame forcing at one instant.
 struct TissueForcing {
   SkullKinematics kinematics;
-  Eigen::VectorXd weights;    // blendshape weights
-  double jaw_angle_rad = 0.0;  // mandible rotation about the rig's jaw axis
+  Eigen::VectorXd weights;                // blendshape weights
+  Eigen::VectorXd weight_accelerations;   // d^2 weights / dt^2, 1/s^2 (empty = zero)
+  double jaw_angle_rad = 0.0;             // mandible rotation about the rig's jaw axis
+  double jaw_angle_velocity = 0.0;        // rad/s
+  double jaw_angle_acceleration = 0.0;    // rad/s^2
 };
 
 struct ReferenceSummary {
-  bool converged = false;
-  int iterations = 0;
-  double max_residual = 0.0;  // largest nodal force residual, kg mm s^-2
+  int inverted_elements = 0;  // tetrahedra the expression turns inside out (stiffness from |V|)
+  double max_target_move_mm = 0.0;  // largest displacement of a target from the neutral
 };
 
 class SoftTissueModel {
@@ -88,8 +102,8 @@ class SoftTissueModel {
   // the neutral face.
   StatusOr<std::vector<double>> NaturalFrequenciesHz(int count) const;
 
-  // Solves the expression's equilibrium (head upright, gravity -Y) and prefactors the
-  // linearised system for steps of dt_s. Must be called before Reset/Step.
+  // Sets the expression the dynamics are linearised about (its shape is the rest shape) and
+  // prefactors the system for steps of dt_s. Must be called before Reset/Step.
   StatusOr<ReferenceSummary> SetReference(const Eigen::VectorXd& weights, double jaw_angle_rad,
                                           double dt_s);
 
@@ -98,14 +112,14 @@ class SoftTissueModel {
   // Advances the dynamic state by dt_s to the instant described by `forcing`.
   void Step(const TissueForcing& forcing);
 
-  // Skin positions in the skull frame (3 x V): dynamic state, and the quasistatic state for
-  // a forcing (which does not change the dynamic state).
+  // Skin positions in the skull frame (3 x V): dynamic state (at the last Reset/Step), and
+  // the quasistatic state for a forcing (which does not change the dynamic state).
   Eigen::Matrix3Xd DynamicSkin() const;
   Eigen::Matrix3Xd QuasistaticSkin(const TissueForcing& forcing) const;
-  // Reference (expression equilibrium) skin, skull frame.
+  // Reference expression's skin (the blendshape shape), skull frame.
   Eigen::Matrix3Xd ReferenceSkin() const;
 
-  // Kinetic + elastic energy of the linearised state (u' M u' / 2 + u K u / 2).
+  // Kinetic + elastic energy of the flesh's motion relative to its targets.
   double Energy() const;
   // For tests: sets a velocity field (per free DOF) on the current state.
   void SetVelocity(const Eigen::VectorXd& velocity);

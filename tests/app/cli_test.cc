@@ -22,12 +22,23 @@ using ::testing::HasSubstr;
 
 std::string Facedyn(const std::string& args) { return FacedynExecutable() + " " + args; }
 
-// Builds a take with the demo (the only generator in the foundation) and returns its folder.
+// Runs `facedyn demo --quick` once for the whole suite (it simulates a face, which takes a
+// few seconds) and returns the folder of its small rigid take; tests copy what they modify.
+const TempDir& DemoDir() {
+  static const TempDir* dir = [] {
+    auto* d = new TempDir();
+    std::string out;
+    const int rc = RunCommand(Facedyn("--quiet demo --quick --out " + d->Join("demo")), &out);
+    EXPECT_EQ(rc, 0) << out;
+    return d;
+  }();
+  return *dir;
+}
+
 std::string MakeDemoTake(const TempDir& dir) {
-  std::string out;
-  const int rc = RunCommand(Facedyn("--quiet demo --quick --out " + dir.Join("demo")), &out);
-  EXPECT_EQ(rc, 0) << out;
-  return dir.Join("demo/takes/platform_8hz");
+  const std::string copy = dir.Join("platform_8hz");
+  std::filesystem::copy(DemoDir().Join("demo/takes/platform_8hz"), copy);
+  return copy;
 }
 
 template <typename T>
@@ -62,8 +73,14 @@ TEST(Cli, DemoWritesTakeAndExports) {
   for (const char* file : {"take.json", "topology.obj", "positions.pc2", "skull.csv"}) {
     EXPECT_TRUE(std::filesystem::exists(take + "/" + file)) << file;
   }
-  EXPECT_TRUE(std::filesystem::exists(dir.Join("demo/export/obj/frame_000063.obj")));
-  EXPECT_TRUE(std::filesystem::exists(dir.Join("demo/export/pc2/positions.pc2")));
+  EXPECT_TRUE(std::filesystem::exists(DemoDir().Join("demo/export/obj/frame_000063.obj")));
+  EXPECT_TRUE(std::filesystem::exists(DemoDir().Join("demo/export/pc2/positions.pc2")));
+  // The simulated platform take carries the exact quasistatic channel.
+  const std::string sim = DemoDir().Join("demo/takes/sim_neutral_11hz");
+  for (const char* file : {"take.json", "positions.pc2", "quasistatic.pc2", "dynamic_offset.pc2", "jaw.csv"}) {
+    EXPECT_TRUE(std::filesystem::exists(sim + "/" + file)) << file;
+  }
+  EXPECT_TRUE(std::filesystem::exists(DemoDir().Join("demo/face/face_rig.json")));
 }
 
 TEST(Cli, TakeInfoJsonReportsCountsAndSkullRange) {
@@ -149,6 +166,42 @@ TEST(Cli, ExportErrorLeavesNoCrash) {
   std::string out;
   EXPECT_EQ(RunCommand(Facedyn("export --take " + take + " --format pc2 --out " + dir.Join("file")), &out), 1);
   EXPECT_THAT(out, HasSubstr("file"));
+}
+
+TEST(Cli, SimFaceAndPerformWriteATakeWithQuasistaticChannel) {
+  TempDir dir;
+  std::string out;
+  ASSERT_EQ(RunCommand(Facedyn("--quiet sim face --vertices 4000 --out " + dir.Join("face")), &out), 0) << out;
+  ASSERT_EQ(RunCommand(Facedyn("--quiet sim perform --face " + dir.Join("face") +
+                               " --expression smile --motion platform --hz 9 --seconds 0.25 --fps 96 --out " +
+                               dir.Join("take")),
+                       &out),
+            0)
+      << out;
+  ASSERT_EQ(RunCommand(Facedyn("take info --json " + dir.Join("take") + " 2>/dev/null"), &out), 0) << out;
+  const auto json = nlohmann::json::parse(out);
+  EXPECT_EQ(json["frames"], 24);
+  EXPECT_EQ(json["fps"], 96.0);
+  EXPECT_EQ(json["expression"], "smile");
+  EXPECT_EQ(json["platform_hz"], 9.0);
+  EXPECT_EQ(json["channels"], nlohmann::json({"dynamic_offset", "quasistatic"}));
+  EXPECT_EQ(json["has_jaw"], true);
+}
+
+TEST(Cli, SimPerformBadArgumentsAreClearErrors) {
+  TempDir dir;
+  std::string out;
+  EXPECT_EQ(RunCommand(Facedyn("sim perform --motion wobble --out " + dir.Join("t")), &out), 1);
+  EXPECT_THAT(out, HasSubstr("wobble"));
+  EXPECT_EQ(RunCommand(Facedyn("sim perform --expression grimace --seconds 0.1 --out " + dir.Join("t")), &out), 1);
+  EXPECT_THAT(out, HasSubstr("grimace"));
+  EXPECT_EQ(RunCommand(Facedyn("sim perform --face " + dir.Join("nope") + " --out " + dir.Join("t")), &out), 1);
+  EXPECT_THAT(out, HasSubstr("nope"));
+  EXPECT_EQ(RunCommand(Facedyn("sim perform --seconds -1 --out " + dir.Join("t")), &out), 1);
+  EXPECT_THAT(out, HasSubstr("seconds"));
+  EXPECT_EQ(RunCommand(Facedyn("sim face --ict " + dir.Join("no-ict") + " --out " + dir.Join("f")), &out), 1);
+  EXPECT_THAT(out, HasSubstr("no-ict"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("t/take.json")));
 }
 
 }  // namespace

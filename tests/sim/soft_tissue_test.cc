@@ -175,7 +175,8 @@ TEST(SoftTissueModel, NoMotionHeldExpressionIsQuasistatic) {
     }
   }
   EXPECT_LT(max_error, 0.01);
-  // The expression is formed: the centre bulges out by most of the blendshape's 5 mm.
+  // The expression is formed: its targets are the flesh's active rest shape, so the centre
+  // bulges out by the blendshape's 5 mm (minus the gravity sag difference).
   auto neutral = SoftTissueModel::Create(MakeShellRig(), TissueOptions());
   ASSERT_TRUE((*neutral)->SetReference(Eigen::VectorXd::Zero(1), 0.0, 1.0 / 256).ok());
   EXPECT_GT(CentreZ(model.ReferenceSkin()) - CentreZ((*neutral)->ReferenceSkin()), 2.5);

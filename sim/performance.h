@@ -1,0 +1,47 @@
+// SimulatePerformance: `facedyn sim perform` — a FaceRig, an expression curve and a skull
+// motion in, a Take out whose positions are the dynamic skin and whose `quasistatic` channel
+// is the exact quasistatic skin (same skull motion and expression, no inertia), with
+// `dynamic_offset` = skull_from_world (dynamic - quasistatic), the paper's dx (Zoss et al.
+// 2020, Eq. 6, here exact instead of a moving-average estimate).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+
+#include "core/face_rig.h"
+#include "core/status.h"
+#include "core/take.h"
+#include "sim/skull_motion.h"
+#include "sim/soft_tissue.h"
+
+namespace facedyn::sim {
+
+struct PerformanceOptions {
+  std::string expression = "neutral";  // an expression name (sim/expressions.h) or "speech"
+  MotionOptions motion;
+  double seconds = 3.0;
+  double fps = 128.0;
+  uint64_t seed = 1;  // expression drift/speech timing; the motion has its own seed
+  TissueOptions tissue;
+
+  Status Check() const;
+};
+
+struct PerformanceSummary {
+  ReferenceSummary reference;
+  double youngs_modulus_kpa = 0.0;
+  int substeps_per_frame = 0;
+  double simulate_s = 0.0;  // wall time
+};
+
+// Peak |dynamic_offset| (mm) over the take's frames and each region's vertices, for every
+// region of the rig plus "face" (all vertices). Requires the take's dynamic_offset channel.
+StatusOr<std::map<std::string, double>> PeakOffsetByRegionMm(const FaceRig& rig, const Take& take,
+                                                             double skip_first_s = 0.5);
+
+// Deterministic for given options. Shows progress per frame.
+StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions& options,
+                                   PerformanceSummary* summary = nullptr);
+
+}  // namespace facedyn::sim

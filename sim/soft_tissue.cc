@@ -46,6 +46,31 @@ Matrix12d UnitTetStiffness(const Eigen::Matrix3d& dm, double poisson) {
   return volume * b.transpose() * d * b;
 }
 
+// Lowest `count` eigenpairs of K phi = lambda M phi (lumped, diagonal M) by subspace iteration
+// (Bathe, Finite Element Procedures, 11.6) with count + 2 vectors, using a factorised K.
+void LowestModes(const Solver& solver, const SparseMatrix& k, const Eigen::VectorXd& mass, int count,
+                 Eigen::VectorXd* eigenvalues, Eigen::MatrixXd* modes) {
+  const int p = std::min(count + 2, static_cast<int>(k.rows()));
+  std::mt19937 rng(7);
+  std::normal_distribution<double> normal;
+  Eigen::MatrixXd x(k.rows(), p);
+  for (Eigen::Index i = 0; i < x.size(); ++i) x.data()[i] = normal(rng);
+  Eigen::VectorXd previous = Eigen::VectorXd::Constant(p, -1.0);
+  for (int iteration = 0; iteration < 60; ++iteration) {
+    const Eigen::MatrixXd y = solver.solve(mass.asDiagonal() * x);
+    const Eigen::MatrixXd kr = y.transpose() * (k * y);
+    const Eigen::MatrixXd mr = y.transpose() * mass.asDiagonal() * y;
+    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> ritz(kr, mr);
+    *eigenvalues = ritz.eigenvalues();
+    x = y * ritz.eigenvectors();
+    if (((*eigenvalues - previous).cwiseAbs().array() <= 1e-7 * eigenvalues->cwiseAbs().array()).head(count).all()) {
+      break;
+    }
+    previous = *eigenvalues;
+  }
+  *modes = x.leftCols(count);
+  eigenvalues->conservativeResize(count);
+}
 }  // namespace
 
 Status TissueOptions::Check() const {
@@ -321,8 +346,37 @@ StatusOr<std::unique_ptr<SoftTissueModel>> SoftTissueModel::Create(const FaceRig
   m.dynamic_solver->analyzePattern(m.kff);
   m.static_solver->factorize(m.kff);
   if (m.static_solver->info() != Eigen::Success) return InternalError("tissue stiffness is not positive definite");
-  FACEDYN_ASSIGN_OR_RETURN(const std::vector<double> unit_hz, model->NaturalFrequenciesHz(1));
-  m.youngs = std::pow(options.fundamental_hz / unit_hz[0], 2);
+  // The calibrated mode is the one that dominates the cheeks' vertical response to vertical
+  // head motion (largest |participation x cheek amplitude| / omega^2 among the lowest six),
+  // i.e. the frequency at which the cheeks ring after a jolt; without a "cheeks" region, the
+  // lowest mode.
+  constexpr int kCalibrationModes = 6;
+  Eigen::VectorXd eigenvalues;
+  Eigen::MatrixXd modes;
+  LowestModes(*m.static_solver, m.kff, m.mass_dofs, kCalibrationModes, &eigenvalues, &modes);
+  int calibrated_mode = 0;
+  const auto cheeks = rig.regions.find("cheeks");
+  if (cheeks != rig.regions.end() && !cheeks->second.empty()) {
+    double best = -1;
+    for (int i = 0; i < kCalibrationModes; ++i) {
+      double participation = 0, modal_mass = 0;
+      for (int f = 0; f < m.nf(); ++f) {
+        participation += m.mass_dofs[3 * f + 1] * modes(3 * f + 1, i);
+        modal_mass += m.mass_dofs.segment<3>(3 * f).dot(modes.col(i).segment<3>(3 * f).cwiseAbs2());
+      }
+      double cheek_y = 0;
+      for (int v : cheeks->second) {
+        const int f = m.free_index[m.layers * m.vertex_count + v];
+        if (f >= 0) cheek_y += modes(3 * f + 1, i);
+      }
+      const double score = std::abs(participation / modal_mass * cheek_y) / eigenvalues[i];
+      if (score > best) {
+        best = score;
+        calibrated_mode = i;
+      }
+    }
+  }
+  m.youngs = std::pow(2 * M_PI * options.fundamental_hz, 2) / eigenvalues[calibrated_mode];
   model->youngs_modulus_kpa_ = m.youngs;
   const double omega = 2 * M_PI * options.fundamental_hz;
   m.alpha = 2 * options.mass_damping_share * options.damping_ratio * omega;
@@ -335,29 +389,13 @@ StatusOr<std::unique_ptr<SoftTissueModel>> SoftTissueModel::Create(const FaceRig
   return model;
 }
 
+
 StatusOr<std::vector<double>> SoftTissueModel::NaturalFrequenciesHz(int count) const {
   const Impl& m = *impl_;
   FACEDYN_CHECK(count >= 1, "count must be positive");
-  // Subspace iteration (Bathe, Finite Element Procedures, 11.6) with count + 2 vectors, on
-  // the current stiffness (factorised by Create or SetReference).
-  const Solver& solver = *m.static_solver;
-  const int p = std::min(count + 2, static_cast<int>(m.kff.rows()));
-  std::mt19937 rng(7);
-  std::normal_distribution<double> normal;
-  Eigen::MatrixXd x(m.kff.rows(), p);
-  for (Eigen::Index i = 0; i < x.size(); ++i) x.data()[i] = normal(rng);
   Eigen::VectorXd eigenvalues;
-  Eigen::VectorXd previous = Eigen::VectorXd::Constant(p, -1.0);
-  for (int iteration = 0; iteration < 60; ++iteration) {
-    const Eigen::MatrixXd y = solver.solve(m.mass_dofs.asDiagonal() * x);
-    const Eigen::MatrixXd kr = y.transpose() * (m.kff * y);
-    const Eigen::MatrixXd mr = y.transpose() * m.mass_dofs.asDiagonal() * y;
-    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> ritz(kr, mr);
-    eigenvalues = ritz.eigenvalues();
-    x = y * ritz.eigenvectors();
-    if (((eigenvalues - previous).cwiseAbs().array() <= 1e-7 * eigenvalues.cwiseAbs().array()).head(count).all()) break;
-    previous = eigenvalues;
-  }
+  Eigen::MatrixXd modes;
+  LowestModes(*m.static_solver, m.kff, m.mass_dofs, count, &eigenvalues, &modes);
   std::vector<double> hz(count);
   for (int i = 0; i < count; ++i) hz[i] = std::sqrt(std::max(0.0, eigenvalues[i])) / (2 * M_PI);
   return hz;

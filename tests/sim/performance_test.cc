@@ -91,18 +91,18 @@ TEST(SimulatePerformance, ResponseFollowsTheResonance) {
   }
   EXPECT_LT(gain[0], gain[1]);
   EXPECT_LT(gain[1], gain[2]);
-  // A single-DOF oscillator at 11 Hz with damping 0.18 predicts gain(11)/gain(6) =
-  // |H(11)|/|H(6)| ~ 2.0 with |H(f)| = 1/sqrt((f0^2-f^2)^2 + (2 zeta f0 f)^2). The face has a
+  // A single-DOF oscillator at 11 Hz with damping 0.22 predicts gain(11)/gain(6) =
+  // |H(11)|/|H(6)| ~ 1.7 with |H(f)| = 1/sqrt((f0^2-f^2)^2 + (2 zeta f0 f)^2). The face has a
   // cluster of modes from 11 to ~12.5 Hz, which adds gain near 11 Hz and none at 6 Hz, so the
   // measured ratio may exceed the single-mode figure but not fall short of it.
-  auto h = [](double f) { return 1.0 / std::hypot(121.0 - f * f, 2 * 0.18 * 11.0 * f); };
+  auto h = [](double f) { return 1.0 / std::hypot(121.0 - f * f, 2 * 0.22 * 11.0 * f); };
   const double relative = (gain[2] / gain[0]) / (h(11) / h(6));
   EXPECT_GT(relative, 0.85);
   EXPECT_LT(relative, 1.6);
 }
 
 TEST(SoftTissueModel, CheekImpulseResponseMatchesConfiguredFrequencyAndDamping) {
-  TissueOptions options;  // defaults: fundamental 11 Hz, damping ratio 0.18
+  TissueOptions options;  // defaults: fundamental 11 Hz, damping ratio 0.22
   auto created = SoftTissueModel::Create(Face(), options);
   ASSERT_TRUE(created.ok());
   SoftTissueModel& model = **created;
@@ -148,7 +148,7 @@ TEST(SoftTissueModel, CheekImpulseResponseMatchesConfiguredFrequencyAndDamping) 
   const int window = static_cast<int>(std::lround(2.0 / 11.0 / dt));  // two periods
   const int later = settle + static_cast<int>(0.3 / dt);
   const double sigma = std::log(rms(settle, settle + window) / rms(later, later + window)) / 0.3;
-  EXPECT_NEAR(sigma / (2 * M_PI * hz), 0.18, 0.018);
+  EXPECT_NEAR(sigma / (2 * M_PI * hz), 0.22, 0.022);
 }
 
 TEST(SimulatePerformance, WritesChannelsJawAndParameters) {

@@ -8,6 +8,8 @@ JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DFACEDYN_WERROR=ON  # the supported platform (Debian 12, GCC 12) builds warning-free
 DEMO_OUT ?= demo-out
 
+MAKEFLAGS += --no-print-directory
+
 .PHONY: all deps configure build test demo asan format clean
 
 all: build

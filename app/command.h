@@ -18,5 +18,7 @@ void AddTakeCommands(CLI::App& app, CommandRunner* selected);
 void AddExportCommand(CLI::App& app, CommandRunner* selected);
 void AddDemoCommand(CLI::App& app, CommandRunner* selected);
 void AddSimCommands(CLI::App& app, CommandRunner* selected);
+void AddDynamicsCommands(CLI::App& app, CommandRunner* selected);
+void AddRigCommands(CLI::App& app, CommandRunner* selected);
 
 }  // namespace facedyn::app

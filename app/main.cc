@@ -31,6 +31,8 @@ int main(int argc, char** argv) {
   app::AddTakeCommands(cli, &selected);
   app::AddExportCommand(cli, &selected);
   app::AddSimCommands(cli, &selected);
+  app::AddDynamicsCommands(cli, &selected);
+  app::AddRigCommands(cli, &selected);
   app::AddDemoCommand(cli, &selected);
 
   try {

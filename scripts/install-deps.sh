@@ -23,7 +23,7 @@ packages=(
   libspdlog-dev libfmt-dev # logging and formatting
   libgtest-dev libgmock-dev libbenchmark-dev  # tests and benchmarks
   # test-only peers: an independent Modbus implementation, pty pairs for RTU, USB replay
-  python3-pymodbus socat umockdev
+  python3-pymodbus python3-serial python3-serial-asyncio socat umockdev
 )
 
 missing=()

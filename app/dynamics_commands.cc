@@ -1,0 +1,125 @@
+// `facedyn dynamics quasistatic` and `facedyn dynamics eval`.
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <spdlog/spdlog.h>
+
+#include "app/command.h"
+#include "core/face_rig.h"
+#include "core/take.h"
+#include "dynamics/evaluate.h"
+#include "dynamics/quasistatic.h"
+
+namespace facedyn::app {
+
+void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
+  auto* dynamics = app.add_subcommand(
+      "dynamics", "Secondary dynamics: quasistatic extraction and evaluation (Zoss et al. 2020)");
+  dynamics->require_subcommand(1);
+
+  struct QuasistaticCommandOptions {
+    std::string take_dir;
+    std::string out_dir;
+    double window_ms = 80.0;
+  };
+  auto quasistatic_options = std::make_shared<QuasistaticCommandOptions>();
+  auto* quasistatic = dynamics->add_subcommand(
+      "quasistatic",
+      "Moving-average quasistatic estimate of a held-expression take (Eq. 5) plus its dynamic "
+      "offsets (Eq. 6) as channel dynamic_offset");
+  quasistatic->add_option("--take", quasistatic_options->take_dir, "Input take folder")->required();
+  quasistatic->add_option("--out", quasistatic_options->out_dir, "Output take folder")->required();
+  quasistatic->add_option("--window-ms", quasistatic_options->window_ms,
+                          "Half-window in milliseconds (frames = round(ms * fps / 1000))")
+      ->capture_default_str();
+  quasistatic->callback([quasistatic_options, selected] {
+    *selected = [quasistatic_options]() -> Status {
+      dynamics::QuasistaticOptions options;
+      options.window_s = quasistatic_options->window_ms * 1e-3;
+      if (!options.Check().ok()) {
+        return InvalidArgumentError("--window-ms must be in [0, 1000], got " +
+                                    std::to_string(quasistatic_options->window_ms));
+      }
+      FACEDYN_ASSIGN_OR_RETURN(const Take take, LoadTake(quasistatic_options->take_dir));
+      FACEDYN_ASSIGN_OR_RETURN(const Take result, dynamics::ExtractQuasistatic(take, options));
+      FACEDYN_RETURN_IF_ERROR(SaveTake(result, quasistatic_options->out_dir));
+      spdlog::info("wrote quasistatic take ({} frames, window {} frames) to {}",
+                   result.frame_count(),
+                   result.info.metadata["quasistatic_window_frames"].get<int>(),
+                   quasistatic_options->out_dir);
+      return Status::Ok();
+    };
+  });
+
+  struct EvalCommandOptions {
+    std::string pred_dir;
+    std::string truth_dir;
+    std::string input_dir;
+    std::string face_dir;
+    std::string channel = "quasistatic";
+    int skip_frames = -1;
+    double window_ms = 80.0;
+    double lowpass_hz = 4.0;
+    bool json = false;
+  };
+  auto eval_options = std::make_shared<EvalCommandOptions>();
+  auto* eval = dynamics->add_subcommand(
+      "eval",
+      "Per-vertex error (mm) of a predicted take against a truth take: mean, p95 and max over "
+      "the face and per region, with the no-removal, low-pass and moving-average baselines");
+  eval->add_option("--pred", eval_options->pred_dir, "Predicted take (the dynamic input itself "
+                                                     "is the no-removal baseline)")
+      ->required();
+  eval->add_option("--truth", eval_options->truth_dir, "Truth take")->required();
+  eval->add_option("--channel", eval_options->channel,
+                   "Truth channel, or \"positions\" for the truth take's positions")
+      ->capture_default_str();
+  eval->add_option("--input", eval_options->input_dir,
+                   "Dynamic input take: also report the baselines computed from it");
+  eval->add_option("--face", eval_options->face_dir, "FaceRig folder: also report per region");
+  eval->add_option("--skip-frames", eval_options->skip_frames,
+                   "Frames left out at each end (default: the window, round(window * fps))");
+  eval->add_option("--window-ms", eval_options->window_ms,
+                   "Moving-average baseline half-window and default skip, milliseconds")
+      ->capture_default_str();
+  eval->add_option("--lowpass-hz", eval_options->lowpass_hz, "Low-pass baseline cutoff, Hz")
+      ->capture_default_str();
+  eval->add_flag("--json", eval_options->json, "Print JSON on stdout");
+  eval->callback([eval_options, selected] {
+    *selected = [eval_options]() -> Status {
+      dynamics::EvaluateOptions options;
+      options.truth_channel = eval_options->channel;
+      options.skip_edge_frames = eval_options->skip_frames;
+      options.window_s = eval_options->window_ms * 1e-3;
+      options.baselines.lowpass_cutoff_hz = eval_options->lowpass_hz;
+      options.baselines.window_s = options.window_s;
+      FACEDYN_RETURN_IF_ERROR(options.Check());
+      FACEDYN_ASSIGN_OR_RETURN(const Take predicted, LoadTake(eval_options->pred_dir));
+      FACEDYN_ASSIGN_OR_RETURN(const Take truth, LoadTake(eval_options->truth_dir));
+      std::optional<Take> input;
+      if (!eval_options->input_dir.empty()) {
+        FACEDYN_ASSIGN_OR_RETURN(input, LoadTake(eval_options->input_dir));
+      }
+      std::optional<FaceRig> rig;
+      if (!eval_options->face_dir.empty()) {
+        FACEDYN_ASSIGN_OR_RETURN(rig, LoadFaceRig(eval_options->face_dir));
+      }
+      FACEDYN_ASSIGN_OR_RETURN(
+          const dynamics::Evaluation evaluation,
+          dynamics::Evaluate(predicted, truth, input ? &*input : nullptr, rig ? &*rig : nullptr,
+                             options));
+      if (eval_options->json) {
+        std::printf("%s\n", dynamics::EvaluationToJson(evaluation).dump(2).c_str());
+      } else {
+        std::printf("%s", dynamics::EvaluationToText(evaluation).c_str());
+      }
+      return Status::Ok();
+    };
+  });
+}
+
+}  // namespace facedyn::app

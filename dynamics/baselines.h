@@ -1,0 +1,57 @@
+// Baselines every dynamics figure is reported against (issue 4): what a quasistatic estimate
+// must beat to be worth a network.
+//   - no removal: the dynamic input itself (error = the dynamic offset);
+//   - low-pass: a zero-phase low-pass filter of the stabilised vertex positions
+//     T(t)^-1 x(t), re-posed with T(t) — what a user would try first. A 2nd-order Butterworth
+//     (bilinear transform, cutoff pre-warped) run forward then backward over time, so the
+//     phase is zero and the magnitude response is |H|^2 (-6 dB at the cutoff, default 4 Hz:
+//     below the 6-11 Hz platform band, above expression changes of about 1 Hz);
+//   - moving average: Eq. (5) of Zoss et al. 2020 itself (quasistatic.h).
+// Ends follow the policy of features.h: the signal is extended by replicating its first and
+// last frames (padding of two cutoff periods, filter state started at steady state), so a
+// constant take passes unchanged and nothing is read outside the arrays.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/pc2.h"
+#include "core/rigid3.h"
+#include "core/status.h"
+#include "core/take.h"
+
+namespace facedyn::dynamics {
+
+enum class BaselineKind { kNoRemoval, kLowPass, kMovingAverage };
+
+// "no_removal", "lowpass", "moving_average".
+const char* BaselineName(BaselineKind kind);
+
+struct BaselineOptions {
+  double lowpass_cutoff_hz = 4.0;  // low-pass cutoff; must be in (0, fps / 2)
+  double window_s = 0.08;          // moving-average half-window (quasistatic.h)
+  // lowpass_cutoff_hz > 0 and window_s in [0, 1] s. The message names the field.
+  Status Check() const;
+};
+
+// Second-order Butterworth low-pass coefficients (b0, b1, b2, a1, a2 with a0 = 1) for
+// `cutoff_hz` at `sample_hz`. Precondition: 0 < cutoff_hz < sample_hz / 2.
+struct Biquad {
+  double b0 = 1.0, b1 = 0.0, b2 = 0.0, a1 = 0.0, a2 = 0.0;
+};
+Biquad ButterworthLowPass(double cutoff_hz, double sample_hz);
+
+// Zero-phase (forward-backward) low-pass of every row of `signal` (rows = channels, columns =
+// frames, uniform sampling at sample_hz), with edge replication as described above.
+// Errors when the cutoff is not in (0, sample_hz / 2).
+StatusOr<Eigen::MatrixXd> ZeroPhaseLowPass(const Eigen::MatrixXd& signal, double cutoff_hz,
+                                           double sample_hz);
+
+// Low-pass baseline positions (world frame) for all vertices of `take`.
+StatusOr<PointCache> LowPassBaseline(const Take& take, double cutoff_hz);
+
+// The baseline's positions (world frame, 3V x F) computed from a dynamic take.
+StatusOr<PointCache> ComputeBaseline(const Take& take, BaselineKind kind,
+                                     const BaselineOptions& options);
+
+}  // namespace facedyn::dynamics

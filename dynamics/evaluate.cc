@@ -1,0 +1,229 @@
+#include "dynamics/evaluate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "dynamics/features.h"
+
+namespace facedyn::dynamics {
+
+ErrorStats ComputeErrorStats(std::vector<float>* errors_mm) {
+  ErrorStats stats;
+  std::vector<float>& errors = *errors_mm;
+  stats.count = static_cast<long>(errors.size());
+  if (errors.empty()) return stats;
+  double sum = 0.0;
+  float max_error = errors[0];
+  for (float e : errors) {
+    sum += e;
+    max_error = std::max(max_error, e);
+  }
+  stats.mean_mm = sum / static_cast<double>(errors.size());
+  stats.max_mm = max_error;
+  const double position = 0.95 * static_cast<double>(errors.size() - 1);
+  const size_t lower = static_cast<size_t>(std::floor(position));
+  std::nth_element(errors.begin(), errors.begin() + lower, errors.end());
+  const double lower_value = errors[lower];
+  double upper_value = lower_value;
+  if (lower + 1 < errors.size()) {
+    upper_value = *std::min_element(errors.begin() + lower + 1, errors.end());
+  }
+  stats.p95_mm = lower_value + (position - static_cast<double>(lower)) * (upper_value - lower_value);
+  return stats;
+}
+
+Status EvaluateOptions::Check() const {
+  if (truth_channel.empty()) return InvalidArgumentError("EvaluateOptions.truth_channel is empty");
+  if (skip_edge_frames < -1) {
+    return InvalidArgumentError("EvaluateOptions.skip_edge_frames must be >= 0 (or -1 for the "
+                                "window), got " + std::to_string(skip_edge_frames));
+  }
+  if (!std::isfinite(window_s) || window_s < 0.0 || window_s > 1.0) {
+    return InvalidArgumentError("EvaluateOptions.window_s must be in [0, 1] s, got " +
+                                std::to_string(window_s));
+  }
+  return baselines.Check();
+}
+
+StatusOr<ErrorReport> ComparePositions(const PointCache& predicted, const PointCache& truth,
+                                       const FaceRig* rig, int skip_edge_frames,
+                                       const std::string& name) {
+  if (predicted.vertex_count != truth.vertex_count) {
+    return FailedPreconditionError(name + ": vertex count differs: prediction has " +
+                                   std::to_string(predicted.vertex_count) + ", truth has " +
+                                   std::to_string(truth.vertex_count));
+  }
+  if (predicted.frame_count() != truth.frame_count()) {
+    return FailedPreconditionError(name + ": frame count differs: prediction has " +
+                                   std::to_string(predicted.frame_count()) + ", truth has " +
+                                   std::to_string(truth.frame_count()));
+  }
+  const int vertex_count = truth.vertex_count;
+  const int frame_count = truth.frame_count();
+  if (rig != nullptr && rig->vertex_count() != vertex_count) {
+    return FailedPreconditionError("face rig '" + rig->name + "' has " +
+                                   std::to_string(rig->vertex_count()) + " vertices, takes have " +
+                                   std::to_string(vertex_count));
+  }
+  if (skip_edge_frames < 0) return InvalidArgumentError("skip_edge_frames must be >= 0");
+  const int first = skip_edge_frames;
+  const int end = frame_count - skip_edge_frames;
+  if (end <= first) {
+    return FailedPreconditionError("take has " + std::to_string(frame_count) +
+                                   " frames: nothing left after skipping " +
+                                   std::to_string(skip_edge_frames) + " at each end");
+  }
+  const int used_frames = end - first;
+  // Per-vertex, per-frame errors, vertex-major so regions gather contiguous runs.
+  std::vector<float> errors(static_cast<size_t>(vertex_count) * used_frames);
+  for (int t = first; t < end; ++t) {
+    const Eigen::Map<const Eigen::Matrix3Xf> p = predicted.Frame(t);
+    const Eigen::Map<const Eigen::Matrix3Xf> q = truth.Frame(t);
+    for (int v = 0; v < vertex_count; ++v) {
+      errors[static_cast<size_t>(v) * used_frames + (t - first)] = (p.col(v) - q.col(v)).norm();
+    }
+  }
+  ErrorReport report;
+  report.name = name;
+  if (rig != nullptr) {
+    std::vector<float> region_errors;
+    for (const auto& [region, vertices] : rig->regions) {
+      region_errors.clear();
+      region_errors.reserve(vertices.size() * used_frames);
+      for (int v : vertices) {
+        if (v < 0 || v >= vertex_count) {
+          return FailedPreconditionError("region '" + region + "' has vertex " + std::to_string(v) +
+                                         " outside the take's " + std::to_string(vertex_count));
+        }
+        const auto begin = errors.begin() + static_cast<std::ptrdiff_t>(v) * used_frames;
+        region_errors.insert(region_errors.end(), begin, begin + used_frames);
+      }
+      report.regions[region] = ComputeErrorStats(&region_errors);
+    }
+  }
+  report.face = ComputeErrorStats(&errors);
+  return report;
+}
+
+namespace {
+
+Status CheckSameShape(const Take& a, const std::string& a_name, const Take& b,
+                      const std::string& b_name) {
+  if (a.vertex_count() != b.vertex_count() || a.positions.vertex_count != b.positions.vertex_count) {
+    return FailedPreconditionError("vertex count differs: " + a_name + " has " +
+                                   std::to_string(a.positions.vertex_count) + ", " + b_name +
+                                   " has " + std::to_string(b.positions.vertex_count));
+  }
+  if (a.frame_count() != b.frame_count()) {
+    return FailedPreconditionError("frame count differs: " + a_name + " has " +
+                                   std::to_string(a.frame_count()) + ", " + b_name + " has " +
+                                   std::to_string(b.frame_count()));
+  }
+  if (std::abs(a.info.fps - b.info.fps) > 1e-6 * std::max(1.0, b.info.fps)) {
+    return FailedPreconditionError("fps differs: " + a_name + " has " + std::to_string(a.info.fps) +
+                                   ", " + b_name + " has " + std::to_string(b.info.fps));
+  }
+  return Status::Ok();
+}
+
+Json StatsToJson(const ErrorStats& stats) {
+  Json json = Json::object();
+  json["mean_mm"] = stats.mean_mm;
+  json["p95_mm"] = stats.p95_mm;
+  json["max_mm"] = stats.max_mm;
+  json["count"] = stats.count;
+  return json;
+}
+
+}  // namespace
+
+StatusOr<Evaluation> Evaluate(const Take& predicted, const Take& truth, const Take* input,
+                              const FaceRig* rig, const EvaluateOptions& options) {
+  FACEDYN_RETURN_IF_ERROR(options.Check());
+  FACEDYN_RETURN_IF_ERROR(CheckSameShape(predicted, "prediction", truth, "truth"));
+  if (input != nullptr) FACEDYN_RETURN_IF_ERROR(CheckSameShape(*input, "input", truth, "truth"));
+  const PointCache* truth_positions = &truth.positions;
+  if (options.truth_channel != "positions") {
+    const auto it = truth.channels.find(options.truth_channel);
+    if (it == truth.channels.end()) {
+      std::string available;
+      for (const auto& [channel, cache] : truth.channels) available += " " + channel;
+      return NotFoundError("truth take has no channel '" + options.truth_channel +
+                           "' (channels:" + (available.empty() ? " none" : available) +
+                           "; use \"positions\" to compare against its positions)");
+    }
+    truth_positions = &it->second;
+  }
+  Evaluation evaluation;
+  evaluation.truth_channel = options.truth_channel;
+  evaluation.frame_count = truth.frame_count();
+  evaluation.vertex_count = truth.positions.vertex_count;
+  evaluation.skip_edge_frames = options.skip_edge_frames >= 0
+                                    ? options.skip_edge_frames
+                                    : WindowFrames(options.window_s, truth.info.fps);
+  FACEDYN_ASSIGN_OR_RETURN(ErrorReport prediction,
+                           ComparePositions(predicted.positions, *truth_positions, rig,
+                                            evaluation.skip_edge_frames, "prediction"));
+  evaluation.reports.push_back(std::move(prediction));
+  if (input != nullptr) {
+    BaselineOptions baseline_options = options.baselines;
+    baseline_options.window_s = options.window_s;
+    for (BaselineKind kind :
+         {BaselineKind::kNoRemoval, BaselineKind::kLowPass, BaselineKind::kMovingAverage}) {
+      FACEDYN_ASSIGN_OR_RETURN(const PointCache baseline, ComputeBaseline(*input, kind, baseline_options));
+      FACEDYN_ASSIGN_OR_RETURN(ErrorReport report,
+                               ComparePositions(baseline, *truth_positions, rig,
+                                                evaluation.skip_edge_frames, BaselineName(kind)));
+      evaluation.reports.push_back(std::move(report));
+    }
+  }
+  return evaluation;
+}
+
+Json EvaluationToJson(const Evaluation& evaluation) {
+  Json json = Json::object();
+  json["truth_channel"] = evaluation.truth_channel;
+  json["frame_count"] = evaluation.frame_count;
+  json["vertex_count"] = evaluation.vertex_count;
+  json["skip_edge_frames"] = evaluation.skip_edge_frames;
+  Json reports = Json::object();
+  for (const ErrorReport& report : evaluation.reports) {
+    Json entry = Json::object();
+    entry["face"] = StatsToJson(report.face);
+    if (!report.regions.empty()) {
+      Json regions = Json::object();
+      for (const auto& [region, stats] : report.regions) regions[region] = StatsToJson(stats);
+      entry["regions"] = std::move(regions);
+    }
+    reports[report.name] = std::move(entry);
+  }
+  json["reports"] = std::move(reports);
+  return json;
+}
+
+std::string EvaluationToText(const Evaluation& evaluation) {
+  std::string text;
+  char line[256];
+  std::snprintf(line, sizeof(line),
+                "truth channel %s, %d vertices, %d frames (%d skipped at each end)\n",
+                evaluation.truth_channel.c_str(), evaluation.vertex_count, evaluation.frame_count,
+                evaluation.skip_edge_frames);
+  text += line;
+  std::snprintf(line, sizeof(line), "%-16s %-16s %9s %9s %9s\n", "method", "region", "mean_mm",
+                "p95_mm", "max_mm");
+  text += line;
+  for (const ErrorReport& report : evaluation.reports) {
+    auto add = [&](const std::string& region, const ErrorStats& stats) {
+      std::snprintf(line, sizeof(line), "%-16s %-16s %9.4f %9.4f %9.4f\n", report.name.c_str(),
+                    region.c_str(), stats.mean_mm, stats.p95_mm, stats.max_mm);
+      text += line;
+    };
+    add("face", report.face);
+    for (const auto& [region, stats] : report.regions) add(region, stats);
+  }
+  return text;
+}
+
+}  // namespace facedyn::dynamics

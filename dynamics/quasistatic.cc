@@ -1,0 +1,120 @@
+#include "dynamics/quasistatic.h"
+
+#include <cmath>
+#include <string>
+
+#include "dynamics/features.h"
+
+namespace facedyn::dynamics {
+
+Status QuasistaticOptions::Check() const {
+  if (!std::isfinite(window_s) || window_s < 0.0 || window_s > 1.0) {
+    return InvalidArgumentError("QuasistaticOptions.window_s must be in [0, 1] s, got " +
+                                std::to_string(window_s));
+  }
+  return Status::Ok();
+}
+
+namespace {
+
+Status CheckPoses(const PointCache& positions, const std::vector<Rigid3>& world_from_skull) {
+  if (positions.frame_count() == 0) return FailedPreconditionError("take has no frames");
+  if (static_cast<int>(world_from_skull.size()) != positions.frame_count()) {
+    return FailedPreconditionError("positions have " + std::to_string(positions.frame_count()) +
+                                   " frames but there are " +
+                                   std::to_string(world_from_skull.size()) + " skull poses");
+  }
+  if (positions.positions.rows() != 3 * static_cast<Eigen::Index>(positions.vertex_count)) {
+    return FailedPreconditionError("point cache rows do not match its vertex count");
+  }
+  return Status::Ok();
+}
+
+// skull_from_world * x for a whole frame, into `out` (3 x N, preallocated).
+void Stabilise(const Eigen::Map<const Eigen::Matrix3Xf>& frame, const Rigid3& world_from_skull,
+               Eigen::Ref<Eigen::Matrix3Xd> out) {
+  const Eigen::Matrix3d skull_from_world_rotation = world_from_skull.RotationMatrix().transpose();
+  out.noalias() = skull_from_world_rotation * frame.cast<double>();
+  out.colwise() -= skull_from_world_rotation * world_from_skull.translation();
+}
+
+}  // namespace
+
+StatusOr<PointCache> MovingAverageInSkull(const PointCache& positions,
+                                          const std::vector<Rigid3>& world_from_skull,
+                                          int window_frames) {
+  FACEDYN_RETURN_IF_ERROR(CheckPoses(positions, world_from_skull));
+  if (window_frames < 0) return InvalidArgumentError("moving-average window must be >= 0 frames");
+  const int frame_count = positions.frame_count();
+  const int point_count = positions.vertex_count;
+  // Stabilised positions of every frame, once (3N x F doubles).
+  Eigen::MatrixXd in_skull(3 * static_cast<Eigen::Index>(point_count), frame_count);
+  for (int t = 0; t < frame_count; ++t) {
+    Eigen::Map<Eigen::Matrix3Xd> out(in_skull.col(t).data(), 3, point_count);
+    Stabilise(positions.Frame(t), world_from_skull[t], out);
+  }
+  // Running window sum over clamped indices: sum(t) = sum(t-1) + P(t+w) - P(t-w-1).
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(in_skull.rows());
+  for (int k = -window_frames; k <= window_frames; ++k) sum += in_skull.col(ClampFrame(k, frame_count));
+  const double inverse_count = 1.0 / (2 * window_frames + 1);
+  PointCache result;
+  result.vertex_count = point_count;
+  result.start_frame = positions.start_frame;
+  result.sampling = positions.sampling;
+  result.positions.resize(positions.positions.rows(), frame_count);
+  Eigen::Matrix3Xd mean_in_skull(3, point_count);
+  for (int t = 0; t < frame_count; ++t) {
+    if (t > 0) {
+      sum += in_skull.col(ClampFrame(t + window_frames, frame_count));
+      sum -= in_skull.col(ClampFrame(t - window_frames - 1, frame_count));
+    }
+    mean_in_skull = Eigen::Map<const Eigen::Matrix3Xd>(sum.data(), 3, point_count) * inverse_count;
+    const Rigid3& pose = world_from_skull[t];
+    result.Frame(t) = ((pose.RotationMatrix() * mean_in_skull).colwise() + pose.translation()).cast<float>();
+  }
+  return result;
+}
+
+StatusOr<PointCache> DynamicOffsets(const PointCache& positions, const PointCache& quasistatic,
+                                    const std::vector<Rigid3>& world_from_skull) {
+  FACEDYN_RETURN_IF_ERROR(CheckPoses(positions, world_from_skull));
+  if (quasistatic.vertex_count != positions.vertex_count ||
+      quasistatic.frame_count() != positions.frame_count()) {
+    return FailedPreconditionError(
+        "dynamic offsets: positions have " + std::to_string(positions.vertex_count) +
+        " vertices x " + std::to_string(positions.frame_count()) + " frames, quasistatic has " +
+        std::to_string(quasistatic.vertex_count) + " x " + std::to_string(quasistatic.frame_count()));
+  }
+  PointCache offsets = positions;
+  for (int t = 0; t < positions.frame_count(); ++t) {
+    const Eigen::Matrix3f skull_from_world_rotation =
+        world_from_skull[t].RotationMatrix().transpose().cast<float>();
+    offsets.Frame(t) = skull_from_world_rotation * (positions.Frame(t) - quasistatic.Frame(t));
+  }
+  return offsets;
+}
+
+StatusOr<Take> ExtractQuasistatic(const Take& take, const QuasistaticOptions& options) {
+  FACEDYN_RETURN_IF_ERROR(options.Check());
+  if (!(take.info.fps > 0.0)) return FailedPreconditionError("take has no valid fps");
+  const int window_frames = WindowFrames(options.window_s, take.info.fps);
+  FACEDYN_ASSIGN_OR_RETURN(PointCache quasistatic,
+                           MovingAverageInSkull(take.positions, take.world_from_skull, window_frames));
+  FACEDYN_ASSIGN_OR_RETURN(PointCache offsets,
+                           DynamicOffsets(take.positions, quasistatic, take.world_from_skull));
+  Take result;
+  result.info = take.info;
+  result.info.source = "dynamics quasistatic";
+  result.info.metadata["quasistatic_window_s"] = options.window_s;
+  result.info.metadata["quasistatic_window_frames"] = window_frames;
+  result.info.metadata["quasistatic_input_source"] = take.info.source;
+  result.topology = take.topology;
+  result.positions = std::move(quasistatic);
+  result.time_s = take.time_s;
+  result.world_from_skull = take.world_from_skull;
+  result.skull_from_jaw = take.skull_from_jaw;
+  result.channels["dynamic_offset"] = std::move(offsets);
+  return result;
+}
+
+}  // namespace facedyn::dynamics

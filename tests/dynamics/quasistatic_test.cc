@@ -1,0 +1,185 @@
+// Quasistatic extraction, Eq. (5)-(6) of Zoss et al. 2020.
+
+#include "dynamics/quasistatic.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "core/mesh_primitives.h"
+#include "dynamics/evaluate.h"
+#include "sim/performance.h"
+#include "sim/procedural_face.h"
+#include "tests/support/test_support.h"
+
+namespace facedyn::dynamics {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::vector<Rigid3> WobblingPoses(int frames, double fps) {
+  std::vector<Rigid3> poses;
+  for (int t = 0; t < frames; ++t) {
+    const double s = t / fps;
+    const Eigen::Vector3d axis = Eigen::Vector3d(std::sin(3 * s), 1.0, 0.4).normalized();
+    poses.push_back(Rigid3::FromAxisAngle(axis, 0.3 * std::sin(7 * s),
+                                          {20 * std::sin(11 * s), 5 * s, 3 * std::cos(9 * s)}));
+  }
+  return poses;
+}
+
+// positions(t) = T(t) * (rest + offset_in_skull(t)), offsets from `offset(t, vertex)`.
+template <typename Offset>
+Take HeldExpressionTake(const Mesh& rest, int frames, double fps, Offset offset) {
+  Take take;
+  take.info.fps = fps;
+  take.topology = rest;
+  take.world_from_skull = WobblingPoses(frames, fps);
+  take.positions.vertex_count = rest.vertex_count();
+  take.positions.positions.resize(3 * rest.vertex_count(), frames);
+  for (int t = 0; t < frames; ++t) {
+    Eigen::Matrix3Xd in_skull = rest.positions_mm;
+    for (int v = 0; v < rest.vertex_count(); ++v) in_skull.col(v) += offset(t, v);
+    take.positions.Frame(t) = take.world_from_skull[t].Apply(in_skull).cast<float>();
+  }
+  take.SetUniformTimes();
+  return take;
+}
+
+// Largest distance (mm) between skull_from_world * y(t) and the rest shape over frames [a, b).
+double MaxStabilisedError(const Take& estimate, const Mesh& rest, int a, int b) {
+  double worst = 0;
+  for (int t = a; t < b; ++t) {
+    const Eigen::Matrix3Xd in_skull =
+        estimate.world_from_skull[t].Inverse().Apply(estimate.FramePositions(t));
+    worst = std::max(worst, (in_skull - rest.positions_mm).colwise().norm().maxCoeff());
+  }
+  return worst;
+}
+
+TEST(ExtractQuasistatic, RigidlyMovingHeldExpressionReturnsTheRestShape) {
+  const Mesh rest = MakeEllipsoidPatch(75, 100, 90, 1.0, 0.8, 12, 10);
+  const Take take = HeldExpressionTake(rest, 60, 128.0, [](int, int) { return Eigen::Vector3d::Zero(); });
+  const auto result = ExtractQuasistatic(take, QuasistaticOptions());
+  ASSERT_TRUE(result.ok()) << result.status().message();
+  // Every frame, ends included (replicated frames are rigidly placed too). Float storage.
+  EXPECT_LT(MaxStabilisedError(*result, rest, 0, 60), 1e-4);
+  ASSERT_EQ(result->channels.count("dynamic_offset"), 1u);
+  EXPECT_LT(result->channels.at("dynamic_offset").positions.cwiseAbs().maxCoeff(), 1e-4);
+  EXPECT_EQ(result->info.source, "dynamics quasistatic");
+  EXPECT_EQ(result->info.metadata.at("quasistatic_window_frames").get<int>(), 10);
+  EXPECT_TRUE(result->Validate().ok()) << result->Validate().message();
+}
+
+TEST(ExtractQuasistatic, JiggleWithTheWindowPeriodAveragesOutExactly) {
+  const Mesh rest = MakeEllipsoidPatch(75, 100, 90, 1.0, 0.8, 8, 8);
+  const int w = 10;  // 128 fps, 80 ms
+  // A jiggle whose period is exactly 2w+1 frames sums to zero over every full window.
+  auto jiggle = [&](int t, int v) {
+    const double phase = 2 * kPi * t / (2 * w + 1) + 0.1 * v;
+    return Eigen::Vector3d(0.5 * std::sin(phase), 2.0 * std::cos(phase), -1.0 * std::sin(phase));
+  };
+  const Take take = HeldExpressionTake(rest, 80, 128.0, jiggle);
+  const Take result = ExtractQuasistatic(take, QuasistaticOptions()).value();
+  EXPECT_LT(MaxStabilisedError(result, rest, w, 80 - w), 1e-4);
+  // dx of Eq. (6) recovers the jiggle (skull frame) away from the ends.
+  const PointCache& offsets = result.channels.at("dynamic_offset");
+  for (int t = w; t < 80 - w; t += 7) {
+    for (int v = 0; v < rest.vertex_count(); v += 5) {
+      EXPECT_EIGEN_NEAR(offsets.Frame(t).col(v).cast<double>(), jiggle(t, v), 1e-4);
+    }
+  }
+  // At the ends the replicated frames do not cancel: the estimate is off, but finite.
+  EXPECT_GT(MaxStabilisedError(result, rest, 0, 1), 1e-3);
+}
+
+TEST(ExtractQuasistatic, ShortTakesAndWindowZero) {
+  const Mesh rest = MakeEllipsoidPatch(75, 100, 90, 1.0, 0.8, 4, 4);
+  for (int frames : {1, 3}) {
+    const Take take = HeldExpressionTake(rest, frames, 128.0, [](int t, int) { return Eigen::Vector3d(t, 0, 0); });
+    const auto result = ExtractQuasistatic(take, QuasistaticOptions());
+    ASSERT_TRUE(result.ok()) << result.status().message();
+    EXPECT_EQ(result->frame_count(), frames);
+    EXPECT_TRUE(result->positions.positions.allFinite());
+  }
+  // 3 frames, w = 10: frame 0's window k = -10..10 reads frame 0 for k <= 0 (11 times),
+  // frame 1 once and frame 2 for k = 2..10 (9 times).
+  const Take take = HeldExpressionTake(rest, 3, 128.0, [](int t, int) { return Eigen::Vector3d(t, 0, 0); });
+  const Take result = ExtractQuasistatic(take, QuasistaticOptions()).value();
+  const double expected_x = (11 * 0.0 + 1 * 1.0 + 9 * 2.0) / 21.0;
+  const Eigen::Vector3d in_skull = result.world_from_skull[0].Inverse() * result.FramePositions(0).col(0);
+  EXPECT_NEAR(in_skull.x() - rest.positions_mm(0, 0), expected_x, 1e-4);
+  // Window 0 is the identity.
+  QuasistaticOptions none;
+  none.window_s = 0.0;
+  const Take same = ExtractQuasistatic(take, none).value();
+  EXPECT_LT((same.positions.positions - take.positions.positions).cwiseAbs().maxCoeff(), 1e-4);
+}
+
+TEST(ExtractQuasistatic, RejectsBadOptionsAndPoseCounts) {
+  QuasistaticOptions options;
+  options.window_s = -1;
+  EXPECT_THAT(options.Check().message(), ::testing::HasSubstr("window_s"));
+  const Mesh rest = MakeEllipsoidPatch(75, 100, 90, 1.0, 0.8, 4, 4);
+  Take take = HeldExpressionTake(rest, 5, 128.0, [](int, int) { return Eigen::Vector3d::Zero(); });
+  take.world_from_skull.pop_back();
+  const auto result = ExtractQuasistatic(take, QuasistaticOptions());
+  ASSERT_FALSE(result.ok());
+  EXPECT_THAT(result.status().message(), ::testing::HasSubstr("4 skull poses"));
+}
+
+// The simulator's exact quasistatic channel as truth (4000 vertices, 1.5 s; one simulation
+// keeps the test under 10 s).
+class SimulatedTakes : public ::testing::Test {
+ protected:
+  static const FaceRig& Face() {
+    static const FaceRig* rig = [] {
+      sim::ProceduralFaceOptions options;
+      options.target_vertex_count = 4000;
+      return new FaceRig(sim::MakeProceduralFace(options).value());
+    }();
+    return *rig;
+  }
+  static Take Perform(sim::MotionKind kind, double hz, double seconds) {
+    sim::PerformanceOptions options;
+    options.motion.kind = kind;
+    options.motion.platform_hz = hz;
+    options.seconds = seconds;
+    return sim::SimulatePerformance(Face(), options).value();
+  }
+};
+
+TEST_F(SimulatedTakes, PlatformAt11HzMovingAverageBeatsNoRemoval) {
+  const Take take = Perform(sim::MotionKind::kPlatform, 11.0, 1.5);
+  const auto start = std::chrono::steady_clock::now();
+  const Take estimate = ExtractQuasistatic(take, QuasistaticOptions()).value();
+  const double extract_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EvaluateOptions options;
+  options.skip_edge_frames = 64;  // skip the 0.25 s ramp-in plus the window
+  const Evaluation evaluation = Evaluate(estimate, take, &take, &Face(), options).value();
+  std::printf("%s", EvaluationToText(evaluation).c_str());
+  std::printf("extraction %.1f ms for %d frames x %d vertices\n", extract_s * 1e3,
+              take.frame_count(), take.vertex_count());
+  ASSERT_EQ(evaluation.reports.size(), 4u);
+  const ErrorReport& moving_average = evaluation.reports[0];
+  const ErrorReport& no_removal = evaluation.reports[1];
+  EXPECT_EQ(no_removal.name, "no_removal");
+  EXPECT_LT(moving_average.face.mean_mm, 0.5 * no_removal.face.mean_mm);
+  EXPECT_LT(moving_average.face.p95_mm, no_removal.face.p95_mm);
+  EXPECT_LT(moving_average.regions.at("cheeks").mean_mm, 0.5 * no_removal.regions.at("cheeks").mean_mm);
+  // The baseline of the same name is the same computation.
+  EXPECT_NEAR(evaluation.reports[3].face.mean_mm, moving_average.face.mean_mm, 1e-6);
+  // The dynamic offset channel is Eq. (6) of the estimate: x - y in the skull frame.
+  const PointCache& dx = estimate.channels.at("dynamic_offset");
+  const int t = 100;
+  const Eigen::Matrix3Xd expected = take.world_from_skull[t].RotationMatrix().transpose() *
+                                    (take.FramePositions(t) - estimate.FramePositions(t));
+  EXPECT_EIGEN_NEAR(dx.Frame(t).cast<double>(), expected, 1e-4);
+}
+
+}  // namespace
+}  // namespace facedyn::dynamics

@@ -1,0 +1,272 @@
+// The removal network F of Zoss et al. 2020, section 5.2 (dynamics/removal_model.h).
+
+#include "dynamics/removal_model.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "core/mesh_primitives.h"
+#include "dynamics/evaluate.h"
+#include "sim/performance.h"
+#include "sim/procedural_face.h"
+#include "tests/support/test_support.h"
+
+namespace facedyn::dynamics {
+namespace {
+
+using ::testing::HasSubstr;
+
+// A small rig: an ellipsoid patch, five landmarks, a sample on every third vertex.
+FaceRig TinyRig() {
+  FaceRig rig;
+  rig.name = "tiny";
+  rig.neutral = MakeEllipsoidPatch(75, 100, 90, 1.0, 0.8, 8, 8);
+  rig.skull_landmarks = {{"b1", {0, 40, 60}},
+                         {"b2", {-50, 10, 40}},
+                         {"b3", {50, 10, 40}},
+                         {"b4", {0, -60, 50}},
+                         {"b5", {0, 0, -40}}};
+  for (int v = 0; v < rig.vertex_count(); v += 3) {
+    rig.skin_samples.push_back(SurfacePoint::AtVertex(v));
+  }
+  return rig;
+}
+
+std::vector<Rigid3> WobblingPoses(int frames, double fps, double phase) {
+  std::vector<Rigid3> poses;
+  for (int t = 0; t < frames; ++t) {
+    const double s = t / fps + phase;
+    const Eigen::Vector3d axis = Eigen::Vector3d(std::sin(3 * s), 1.0, 0.4).normalized();
+    poses.push_back(Rigid3::FromAxisAngle(axis, 0.3 * std::sin(7 * s),
+                                          {20 * std::sin(11 * s), 5 * s, 3 * std::cos(9 * s)}));
+  }
+  return poses;
+}
+
+// x(t) = T(t) (rest + dx(t)) with dx(t) = 0.004 s * (velocity of landmark b1, Eq. 2): a known,
+// smooth (linear) function of B(t). Channel "quasistatic" = T(t) rest, so the exact offsets
+// are dx.
+Take SyntheticTake(const FaceRig& rig, int frames, double fps, double phase) {
+  Take take;
+  take.info.fps = fps;
+  take.topology = rig.neutral;
+  take.world_from_skull = WobblingPoses(frames, fps, phase);
+  const Eigen::MatrixXd velocity = SkullLandmarkVelocities(
+      take.world_from_skull, {rig.skull_landmarks[0].position_in_skull}, fps);
+  const int vertex_count = rig.vertex_count();
+  take.positions.vertex_count = vertex_count;
+  take.positions.positions.resize(3 * vertex_count, frames);
+  PointCache quasistatic = take.positions;
+  for (int t = 0; t < frames; ++t) {
+    const Eigen::Vector3d dx = 0.004 * velocity.col(t);
+    const Eigen::Matrix3Xd in_skull = rig.neutral.positions_mm.colwise() + dx;
+    take.positions.Frame(t) = take.world_from_skull[t].Apply(in_skull).cast<float>();
+    quasistatic.Frame(t) = take.world_from_skull[t].Apply(rig.neutral.positions_mm).cast<float>();
+  }
+  take.channels["quasistatic"] = quasistatic;
+  take.SetUniformTimes();
+  return take;
+}
+
+TrainOptions QuickOptions(int epochs) {
+  TrainOptions options;
+  options.epochs = epochs;
+  options.batch_size = 256;
+  options.use_exact_targets = true;
+  options.show_progress = false;
+  options.seed = 7;
+  return options;
+}
+
+TEST(TrainOptions, CheckNamesTheField) {
+  TrainOptions options;
+  EXPECT_TRUE(options.Check().ok());
+  options.batch_size = 0;
+  EXPECT_THAT(options.Check().message(), HasSubstr("batch_size"));
+  options = TrainOptions();
+  options.validation_fraction = 0.95;
+  EXPECT_THAT(options.Check().message(), HasSubstr("validation_fraction"));
+}
+
+TEST(RemovalModel, RefusesATakeWithAnotherFps) {
+  const FaceRig rig = TinyRig();
+  const RemovalModel model = RemovalModel::Create(RemovalConfig::ForRig(rig, 128.0), 1).value();
+  EXPECT_TRUE(model.CheckCompatible(SyntheticTake(rig, 30, 128.0, 0.0), rig).ok());
+  const Take take = SyntheticTake(rig, 30, 96.0, 0.0);
+  const Status status = model.CheckCompatible(take, rig);
+  EXPECT_EQ(status.code(), StatusCode::kFailedPrecondition);
+  EXPECT_THAT(status.message(), HasSubstr("fps"));
+  EXPECT_THAT(status.message(), HasSubstr("96"));
+  const auto removed = RemoveDynamics(model, take, rig);
+  ASSERT_FALSE(removed.ok());
+  EXPECT_THAT(removed.status().message(), HasSubstr("fps"));
+}
+
+TEST(RemovalModel, RefusesAnotherSampleSetOrLandmarks) {
+  const FaceRig rig = TinyRig();
+  const RemovalModel model = RemovalModel::Create(RemovalConfig::ForRig(rig, 128.0), 1).value();
+  const Take take = SyntheticTake(rig, 30, 128.0, 0.0);
+
+  FaceRig fewer = rig;
+  fewer.skin_samples.pop_back();
+  Status status = model.CheckCompatible(take, fewer);
+  EXPECT_EQ(status.code(), StatusCode::kFailedPrecondition);
+  EXPECT_THAT(status.message(), HasSubstr("skin_samples"));
+
+  FaceRig moved = rig;
+  moved.skin_samples[3] = SurfacePoint::AtVertex(1);
+  status = model.CheckCompatible(take, moved);
+  EXPECT_THAT(status.message(), HasSubstr("skin_samples"));
+  EXPECT_THAT(status.message(), HasSubstr("different sample definitions"));
+  EXPECT_FALSE(RemoveDynamics(model, take, moved).ok());
+
+  FaceRig landmarks = rig;
+  landmarks.skull_landmarks[2].position_in_skull.x() += 1.0;
+  status = model.CheckCompatible(take, landmarks);
+  EXPECT_THAT(status.message(), HasSubstr("skull_landmarks"));
+  EXPECT_THAT(status.message(), HasSubstr("b3"));
+}
+
+TEST(RemovalModel, SaveLoadGivesBitwiseIdenticalOutputs) {
+  const FaceRig rig = TinyRig();
+  RemovalModel model = RemovalModel::Create(RemovalConfig::ForRig(rig, 128.0), 3).value();
+  const int n = model.config().input_size();
+  model.SetNormalisation(Eigen::VectorXf::LinSpaced(n, -1.0f, 1.0f),
+                         Eigen::VectorXf::LinSpaced(n, 0.5f, 2.0f), Eigen::Vector3f(0.1f, 0.2f, 0.3f),
+                         Eigen::Vector3f(1.5f, 2.5f, 3.5f));
+  testing::TempDir dir;
+  const std::string path = dir.Join("F.pt");
+  ASSERT_TRUE(model.Save(path).ok());
+  const auto loaded = RemovalModel::Load(path);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+  EXPECT_EQ(loaded->FlatParameters(), model.FlatParameters());
+  EXPECT_EQ(loaded->config().samples_hash, HashSurfacePoints(rig.skin_samples));
+  EXPECT_EQ(loaded->config().sample_count, static_cast<int>(rig.skin_samples.size()));
+  EXPECT_EQ(loaded->config().features.fps, 128.0);
+  ASSERT_EQ(loaded->config().landmarks.size(), 5u);
+  EXPECT_EQ(loaded->config().landmarks[4].name, "b5");
+  const Eigen::MatrixXf features = Eigen::MatrixXf::Random(n, 257) * 100.0f;
+  const Eigen::MatrixXf a = model.Predict(features);
+  const Eigen::MatrixXf b = loaded->Predict(features);
+  ASSERT_EQ(a.cols(), 257);
+  EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(float) * a.size()), 0);
+  // The loaded model still refuses other takes.
+  EXPECT_THAT(loaded->CheckCompatible(SyntheticTake(rig, 30, 64.0, 0.0), rig).message(),
+              HasSubstr("fps"));
+}
+
+TEST(RemovalModel, LoadRejectsTruncatedAndForeignFiles) {
+  const FaceRig rig = TinyRig();
+  const RemovalModel model = RemovalModel::Create(RemovalConfig::ForRig(rig, 128.0), 3).value();
+  testing::TempDir dir;
+  ASSERT_TRUE(model.Save(dir.Join("F.pt")).ok());
+  const std::string bytes = testing::ReadBytes(dir.Join("F.pt"));
+  testing::WriteBytes(dir.Join("truncated.pt"), bytes.substr(0, bytes.size() / 2));
+  EXPECT_EQ(RemovalModel::Load(dir.Join("truncated.pt")).status().code(), StatusCode::kDataLoss);
+  testing::WriteBytes(dir.Join("foreign.pt"), "not a model at all");
+  EXPECT_EQ(RemovalModel::Load(dir.Join("foreign.pt")).status().code(), StatusCode::kDataLoss);
+  EXPECT_FALSE(RemovalModel::Load(dir.Join("missing.pt")).ok());
+}
+
+TEST(TrainRemoval, DeterministicForASeed) {
+  const FaceRig rig = TinyRig();
+  const Take take = SyntheticTake(rig, 80, 128.0, 0.0);
+  const std::vector<TrainingTake> takes = {{&take, &rig}};
+  const RemovalModel a = TrainRemoval(takes, QuickOptions(3)).value();
+  const RemovalModel b = TrainRemoval(takes, QuickOptions(3)).value();
+  EXPECT_EQ(a.FlatParameters(), b.FlatParameters());
+  const Take removed_a = RemoveDynamics(a, take, rig).value();
+  const Take removed_b = RemoveDynamics(b, take, rig).value();
+  EXPECT_EQ(removed_a.positions.positions, removed_b.positions.positions);
+  TrainOptions other = QuickOptions(3);
+  other.seed = 8;
+  EXPECT_NE(TrainRemoval(takes, other).value().FlatParameters(), a.FlatParameters());
+}
+
+TEST(TrainRemoval, LearnsAKnownSmoothFunctionOfTheFeatures) {
+  const FaceRig rig = TinyRig();
+  const Take take_a = SyntheticTake(rig, 128, 128.0, 0.0);
+  const Take take_b = SyntheticTake(rig, 128, 128.0, 1.3);
+  TrainSummary summary;
+  const auto model =
+      TrainRemoval({{&take_a, &rig}, {&take_b, &rig}}, QuickOptions(20), &summary);
+  ASSERT_TRUE(model.ok()) << model.status().message();
+  ASSERT_EQ(summary.train_loss.size(), 20u);
+  ASSERT_EQ(summary.validation_loss.size(), 20u);
+  EXPECT_GT(summary.validation_samples, 0);
+  std::printf("synthetic: loss %.4g -> %.4g (val %.4g), %.0f samples/s\n",
+              summary.train_loss.front(), summary.train_loss.back(),
+              summary.validation_loss.back(), summary.samples_per_s);
+  EXPECT_LT(summary.train_loss.back(), summary.train_loss.front() / 20);
+  EXPECT_LT(summary.validation_loss.back(), 0.05);
+
+  // Removal with the exact offsets known: the corrected take is close to the rest shape.
+  const Take removed = RemoveDynamics(*model, take_b, rig).value();
+  EXPECT_EQ(removed.info.source, "dynamics remove");
+  ASSERT_EQ(removed.channels.count("dynamic_offset"), 1u);
+  const PointCache& truth = take_b.channels.at("quasistatic");
+  double error = 0, offset = 0;
+  long count = 0;
+  for (int t = 10; t < 118; ++t) {
+    error += (removed.positions.Frame(t) - truth.Frame(t)).colwise().norm().sum();
+    offset += (take_b.positions.Frame(t) - truth.Frame(t)).colwise().norm().sum();
+    count += rig.vertex_count();
+  }
+  std::printf("synthetic removal: mean error %.4f mm vs %.4f mm without removal\n", error / count,
+              offset / count);
+  EXPECT_LT(error, 0.2 * offset);
+}
+
+// Simulated platform takes (sim/performance.h): train at 7 and 9 Hz, test at 8 Hz.
+TEST(RemoveDynamics, HeldOutPlatformFrequencyBeatsNoRemoval) {
+  sim::ProceduralFaceOptions face_options;
+  face_options.target_vertex_count = 4000;
+  const FaceRig rig = sim::MakeProceduralFace(face_options).value();
+  auto perform = [&rig](double hz) {
+    sim::PerformanceOptions options;
+    options.motion.kind = sim::MotionKind::kPlatform;
+    options.motion.platform_hz = hz;
+    options.seconds = 1.5;
+    return sim::SimulatePerformance(rig, options).value();
+  };
+  const Take take7 = perform(7.0);
+  const Take take9 = perform(9.0);
+  const Take take8 = perform(8.0);
+
+  TrainOptions options;
+  options.epochs = 8;
+  options.batch_size = 2000;
+  options.show_progress = false;
+  TrainSummary summary;
+  const auto model = TrainRemoval({{&take7, &rig}, {&take9, &rig}}, options, &summary);
+  ASSERT_TRUE(model.ok()) << model.status().message();
+  std::printf("train: %ld rows, %.1f s, %.0f samples/s, loss %.4g -> %.4g, val %.4g\n",
+              summary.training_samples, summary.train_s, summary.samples_per_s,
+              summary.train_loss.front(), summary.train_loss.back(),
+              summary.validation_loss.back());
+
+  RemovalSummary removal;
+  const auto removed = RemoveDynamics(*model, take8, rig, &removal);
+  ASSERT_TRUE(removed.ok()) << removed.status().message();
+  std::printf("remove: %d frames x %d vertices, %.1f frames/s (predict %.3f s, propagate %.3f s)\n",
+              take8.frame_count(), take8.vertex_count(), removal.frames_per_s, removal.predict_s,
+              removal.propagate_s);
+  const auto evaluation = Evaluate(*removed, take8, &take8, &rig, EvaluateOptions());
+  ASSERT_TRUE(evaluation.ok()) << evaluation.status().message();
+  std::printf("%s", EvaluationToText(*evaluation).c_str());
+  const ErrorReport& prediction = evaluation->reports.front();
+  const ErrorReport* no_removal = nullptr;
+  for (const ErrorReport& report : evaluation->reports) {
+    if (report.name == BaselineName(BaselineKind::kNoRemoval)) no_removal = &report;
+  }
+  ASSERT_NE(no_removal, nullptr);
+  EXPECT_LT(prediction.face.mean_mm, no_removal->face.mean_mm);
+}
+
+}  // namespace
+}  // namespace facedyn::dynamics

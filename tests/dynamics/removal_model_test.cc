@@ -73,22 +73,22 @@ Take SyntheticTake(const FaceRig& rig, int frames, double fps, double phase) {
   return take;
 }
 
-TrainOptions QuickOptions(int epochs) {
-  TrainOptions options;
+RemovalTrainOptions QuickOptions(int epochs) {
+  RemovalTrainOptions options;
   options.epochs = epochs;
   options.batch_size = 256;
-  options.use_exact_targets = true;
+  options.targets = RemovalTargets::kExact;
   options.show_progress = false;
   options.seed = 7;
   return options;
 }
 
-TEST(TrainOptions, CheckNamesTheField) {
-  TrainOptions options;
+TEST(RemovalTrainOptions, CheckNamesTheField) {
+  RemovalTrainOptions options;
   EXPECT_TRUE(options.Check().ok());
   options.batch_size = 0;
   EXPECT_THAT(options.Check().message(), HasSubstr("batch_size"));
-  options = TrainOptions();
+  options = RemovalTrainOptions();
   options.validation_fraction = 0.95;
   EXPECT_THAT(options.Check().message(), HasSubstr("validation_fraction"));
 }
@@ -183,7 +183,7 @@ TEST(TrainRemoval, DeterministicForASeed) {
   const Take removed_a = RemoveDynamics(a, take, rig).value();
   const Take removed_b = RemoveDynamics(b, take, rig).value();
   EXPECT_EQ(removed_a.positions.positions, removed_b.positions.positions);
-  TrainOptions other = QuickOptions(3);
+  RemovalTrainOptions other = QuickOptions(3);
   other.seed = 8;
   EXPECT_NE(TrainRemoval(takes, other).value().FlatParameters(), a.FlatParameters());
 }
@@ -192,16 +192,16 @@ TEST(TrainRemoval, LearnsAKnownSmoothFunctionOfTheFeatures) {
   const FaceRig rig = TinyRig();
   const Take take_a = SyntheticTake(rig, 128, 128.0, 0.0);
   const Take take_b = SyntheticTake(rig, 128, 128.0, 1.3);
-  TrainSummary summary;
+  MlpTrainSummary summary;
   const auto model =
       TrainRemoval({{&take_a, &rig}, {&take_b, &rig}}, QuickOptions(20), &summary);
   ASSERT_TRUE(model.ok()) << model.status().message();
   ASSERT_EQ(summary.train_loss.size(), 20u);
   ASSERT_EQ(summary.validation_loss.size(), 20u);
-  EXPECT_GT(summary.validation_samples, 0);
+  EXPECT_GT(summary.validation_rows, 0);
   std::printf("synthetic: loss %.4g -> %.4g (val %.4g), %.0f samples/s\n",
               summary.train_loss.front(), summary.train_loss.back(),
-              summary.validation_loss.back(), summary.samples_per_s);
+              summary.validation_loss.back(), summary.rows_per_s);
   EXPECT_LT(summary.train_loss.back(), summary.train_loss.front() / 20);
   EXPECT_LT(summary.validation_loss.back(), 0.05);
 
@@ -238,20 +238,20 @@ TEST(RemoveDynamics, HeldOutPlatformFrequencyBeatsNoRemoval) {
   const Take take9 = perform(9.0);
   const Take take8 = perform(8.0);
 
-  TrainOptions options;
+  RemovalTrainOptions options;
   options.epochs = 8;
   options.batch_size = 2000;
   options.show_progress = false;
-  TrainSummary summary;
+  MlpTrainSummary summary;
   const auto model = TrainRemoval({{&take7, &rig}, {&take9, &rig}}, options, &summary);
   ASSERT_TRUE(model.ok()) << model.status().message();
   std::printf("train: %ld rows, %.1f s, %.0f samples/s, loss %.4g -> %.4g, val %.4g\n",
-              summary.training_samples, summary.train_s, summary.samples_per_s,
+              summary.training_rows, summary.train_s, summary.rows_per_s,
               summary.train_loss.front(), summary.train_loss.back(),
               summary.validation_loss.back());
 
   RemovalSummary removal;
-  const auto removed = RemoveDynamics(*model, take8, rig, &removal);
+  const auto removed = RemoveDynamics(*model, take8, rig, nullptr, &removal);
   ASSERT_TRUE(removed.ok()) << removed.status().message();
   std::printf("remove: %d frames x %d vertices, %.1f frames/s (predict %.3f s, propagate %.3f s)\n",
               take8.frame_count(), take8.vertex_count(), removal.frames_per_s, removal.predict_s,

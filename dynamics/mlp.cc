@@ -1,0 +1,409 @@
+#include "dynamics/mlp.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <random>
+#include <utility>
+
+#include <torch/torch.h>
+
+#include "core/check.h"
+#include "core/progress.h"
+
+namespace facedyn::dynamics {
+
+namespace {
+
+constexpr char kKindKey[] = "facedyn_model_kind";
+constexpr char kConfigKey[] = "facedyn_model_config";
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// Linear layers fc1..fcN (N = hidden_layers + 1) with ReLU between, plus normalisation buffers.
+struct NetImpl : torch::nn::Module {
+  explicit NetImpl(const MlpShape& shape)
+      : input_mean(register_buffer("input_mean", torch::zeros({shape.input_size}))),
+        input_std(register_buffer("input_std", torch::ones({shape.input_size}))),
+        output_mean(register_buffer("output_mean", torch::zeros({shape.output_size}))),
+        output_std(register_buffer("output_std", torch::ones({shape.output_size}))) {
+    int in = shape.input_size;
+    for (int k = 0; k <= shape.hidden_layers; ++k) {
+      const int out = k < shape.hidden_layers ? shape.hidden_units : shape.output_size;
+      layers.push_back(
+          register_module("fc" + std::to_string(k + 1), torch::nn::Linear(in, out)));
+      in = out;
+    }
+  }
+
+  torch::Tensor ForwardNormalised(torch::Tensor x) {
+    for (size_t k = 0; k < layers.size(); ++k) {
+      x = layers[k]->forward(x);
+      if (k + 1 < layers.size()) x = torch::relu(x);
+    }
+    return x;
+  }
+  torch::Tensor Forward(const torch::Tensor& raw) {
+    return ForwardNormalised((raw - input_mean) / input_std) * output_std + output_mean;
+  }
+
+  std::vector<torch::nn::Linear> layers;
+  torch::Tensor input_mean, input_std, output_mean, output_std;
+};
+TORCH_MODULE(Net);
+
+// A column-major (rows x cols) Eigen matrix seen as a row-major cols x rows tensor: no copy.
+torch::Tensor AsRowMajorTensor(const Eigen::MatrixXf& matrix) {
+  return torch::from_blob(const_cast<float*>(matrix.data()), {matrix.cols(), matrix.rows()},
+                          torch::kFloat32);
+}
+
+Json ShapeToJson(const MlpShape& shape) {
+  return {{"input_size", shape.input_size},
+          {"hidden_units", shape.hidden_units},
+          {"hidden_layers", shape.hidden_layers},
+          {"output_size", shape.output_size}};
+}
+
+}  // namespace
+
+Status MlpShape::Check() const {
+  if (input_size < 1) return InvalidArgumentError("input_size must be >= 1");
+  if (hidden_units < 1) return InvalidArgumentError("hidden_units must be >= 1");
+  if (hidden_layers < 1) return InvalidArgumentError("hidden_layers must be >= 1");
+  if (output_size < 1) return InvalidArgumentError("output_size must be >= 1");
+  return Status::Ok();
+}
+
+double MlpShape::ForwardMultiplyAdds() const {
+  double total = static_cast<double>(input_size) * hidden_units;
+  total += static_cast<double>(hidden_layers - 1) * hidden_units * hidden_units;
+  total += static_cast<double>(hidden_units) * output_size;
+  return total;
+}
+
+struct Mlp::Impl {
+  MlpShape shape;
+  Net net{nullptr};
+};
+
+Mlp::Mlp() = default;
+Mlp::~Mlp() = default;
+Mlp::Mlp(Mlp&&) noexcept = default;
+Mlp& Mlp::operator=(Mlp&&) noexcept = default;
+
+StatusOr<Mlp> Mlp::Create(const MlpShape& shape, uint64_t seed) {
+  FACEDYN_RETURN_IF_ERROR(shape.Check());
+  torch::manual_seed(seed);
+  Mlp model;
+  model.impl_ = std::make_unique<Impl>();
+  model.impl_->shape = shape;
+  model.impl_->net = Net(shape);
+  model.impl_->net->eval();
+  return model;
+}
+
+const MlpShape& Mlp::shape() const {
+  FACEDYN_CHECK(valid(), "shape() on an empty Mlp");
+  return impl_->shape;
+}
+
+Status Mlp::Save(const std::string& path, const std::string& kind, Json config) const {
+  FACEDYN_CHECK(valid(), "Save() on an empty Mlp");
+  FACEDYN_CHECK(config.is_object(), "Mlp::Save: config must be a JSON object");
+  config["mlp"] = ShapeToJson(impl_->shape);
+  const std::string temporary = path + ".tmp";
+  try {
+    torch::serialize::OutputArchive archive;
+    impl_->net->save(archive);
+    archive.write(kKindKey, c10::IValue(kind));
+    archive.write(kConfigKey, c10::IValue(config.dump()));
+    archive.save_to(temporary);
+  } catch (const std::exception& e) {
+    std::remove(temporary.c_str());
+    return UnavailableError(path + ": cannot write the model: " + e.what());
+  }
+  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
+    std::remove(temporary.c_str());
+    return UnavailableError(path + ": cannot rename " + temporary + " into place");
+  }
+  return Status::Ok();
+}
+
+StatusOr<Mlp> Mlp::Load(const std::string& path, const std::string& expected_kind, Json* config) {
+  FACEDYN_CHECK(config != nullptr, "Mlp::Load: config is null");
+  try {
+    torch::serialize::InputArchive archive;
+    archive.load_from(path);
+    c10::IValue kind_value, config_value;
+    if (!archive.try_read(kKindKey, kind_value) || !kind_value.isString() ||
+        !archive.try_read(kConfigKey, config_value) || !config_value.isString()) {
+      return DataLossError(path + ": no " + kKindKey + "/" + kConfigKey +
+                           " entries (not a facedyn model)");
+    }
+    if (kind_value.toStringRef() != expected_kind) {
+      return DataLossError(path + ": is a " + kind_value.toStringRef() + " model, expected a " +
+                           expected_kind + " model");
+    }
+    try {
+      *config = Json::parse(config_value.toStringRef());
+    } catch (const std::exception& e) {
+      return DataLossError(path + ": " + kConfigKey + " is not JSON: " + e.what());
+    }
+    MlpShape shape;
+    try {
+      const Json& mlp = config->at("mlp");
+      shape.input_size = mlp.at("input_size").get<int>();
+      shape.hidden_units = mlp.at("hidden_units").get<int>();
+      shape.hidden_layers = mlp.at("hidden_layers").get<int>();
+      shape.output_size = mlp.at("output_size").get<int>();
+    } catch (const std::exception& e) {
+      return DataLossError(path + ": bad mlp shape in the config: " + e.what());
+    }
+    if (Status status = shape.Check(); !status.ok()) return status.WithContext(path);
+    Mlp model;
+    model.impl_ = std::make_unique<Impl>();
+    model.impl_->shape = shape;
+    model.impl_->net = Net(shape);
+    // Module::load replaces each tensor with the stored one whatever its shape: check them.
+    std::vector<std::vector<int64_t>> expected;
+    for (const auto& item : model.impl_->net->named_parameters()) {
+      expected.push_back(item.value().sizes().vec());
+    }
+    for (const auto& item : model.impl_->net->named_buffers()) {
+      expected.push_back(item.value().sizes().vec());
+    }
+    model.impl_->net->load(archive);
+    size_t k = 0;
+    for (const auto& item : model.impl_->net->named_parameters()) {
+      if (item.value().sizes().vec() != expected[k++]) {
+        return DataLossError(path + ": tensor " + item.key() + " has the wrong shape");
+      }
+    }
+    for (const auto& item : model.impl_->net->named_buffers()) {
+      if (item.value().sizes().vec() != expected[k++]) {
+        return DataLossError(path + ": tensor " + item.key() + " has the wrong shape");
+      }
+    }
+    model.impl_->net->eval();
+    return model;
+  } catch (const std::exception& e) {
+    return DataLossError(path + ": cannot read the model: " + e.what());
+  }
+}
+
+Eigen::MatrixXf Mlp::Predict(const Eigen::MatrixXf& inputs) const {
+  const MlpShape& shape = this->shape();
+  FACEDYN_CHECK(inputs.rows() == shape.input_size,
+                "Predict: inputs have " + std::to_string(inputs.rows()) + " rows, expected " +
+                    std::to_string(shape.input_size));
+  Eigen::MatrixXf out(shape.output_size, inputs.cols());
+  if (inputs.cols() == 0) return out;
+  torch::NoGradGuard no_grad;
+  const torch::Tensor output = impl_->net->Forward(AsRowMajorTensor(inputs)).contiguous();
+  std::memcpy(out.data(), output.data_ptr<float>(), sizeof(float) * out.size());
+  return out;
+}
+
+void Mlp::SetNormalisation(const Eigen::VectorXf& input_mean, const Eigen::VectorXf& input_std,
+                           const Eigen::VectorXf& output_mean,
+                           const Eigen::VectorXf& output_std) {
+  const MlpShape& shape = this->shape();
+  FACEDYN_CHECK(input_mean.size() == shape.input_size && input_std.size() == shape.input_size &&
+                    output_mean.size() == shape.output_size &&
+                    output_std.size() == shape.output_size,
+                "SetNormalisation: wrong sizes");
+  FACEDYN_CHECK(input_std.minCoeff() > 0 && output_std.minCoeff() > 0,
+                "SetNormalisation: standard deviations must be > 0");
+  torch::NoGradGuard no_grad;
+  auto copy = [](torch::Tensor& dst, const Eigen::VectorXf& src) {
+    std::memcpy(dst.data_ptr<float>(), src.data(), sizeof(float) * src.size());
+  };
+  copy(impl_->net->input_mean, input_mean);
+  copy(impl_->net->input_std, input_std);
+  copy(impl_->net->output_mean, output_mean);
+  copy(impl_->net->output_std, output_std);
+}
+
+std::vector<float> Mlp::FlatParameters() const {
+  FACEDYN_CHECK(valid(), "FlatParameters() on an empty Mlp");
+  std::vector<float> flat;
+  auto append = [&flat](const torch::Tensor& tensor) {
+    const torch::Tensor t = tensor.detach().contiguous();
+    const float* p = t.data_ptr<float>();
+    flat.insert(flat.end(), p, p + t.numel());
+  };
+  for (const auto& item : impl_->net->named_parameters()) append(item.value());
+  for (const auto& item : impl_->net->named_buffers()) append(item.value());
+  return flat;
+}
+
+Status MlpTrainOptions::Check() const {
+  if (epochs < 1) return InvalidArgumentError("epochs must be >= 1");
+  if (batch_size < 1) return InvalidArgumentError("batch_size must be >= 1");
+  if (!(learning_rate > 0)) return InvalidArgumentError("learning_rate must be > 0");
+  if (num_threads < 0) return InvalidArgumentError("num_threads must be >= 0");
+  return Status::Ok();
+}
+
+// Friend of Mlp: reaches the network for the optimisation.
+struct MlpTrainer {
+  static Net& NetOf(Mlp& model) { return model.impl_->net; }
+};
+
+namespace {
+
+// Mean and standard deviation per dimension of the gathered rows (double accumulation, in
+// batches so the assembled rows never all live at once).
+void FitNormalisation(const MlpDataset& data, const std::vector<long>& rows, long batch,
+                      Eigen::VectorXf* in_mean, Eigen::VectorXf* in_std, Eigen::VectorXf* out_mean,
+                      Eigen::VectorXf* out_std) {
+  const int ni = data.input_size();
+  const int no = data.output_size();
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(ni), sum_sq = Eigen::VectorXd::Zero(ni);
+  Eigen::VectorXd out_sum = Eigen::VectorXd::Zero(no), out_sum_sq = Eigen::VectorXd::Zero(no);
+  Eigen::MatrixXf inputs, targets;
+  for (size_t begin = 0; begin < rows.size(); begin += static_cast<size_t>(batch)) {
+    const long n = static_cast<long>(std::min(rows.size() - begin, static_cast<size_t>(batch)));
+    data.Gather(rows.data() + begin, n, &inputs, &targets);
+    const Eigen::MatrixXd x = inputs.cast<double>();
+    const Eigen::MatrixXd y = targets.cast<double>();
+    sum += x.rowwise().sum();
+    sum_sq += x.cwiseAbs2().rowwise().sum();
+    out_sum += y.rowwise().sum();
+    out_sum_sq += y.cwiseAbs2().rowwise().sum();
+  }
+  const double n = static_cast<double>(rows.size());
+  auto fill = [n](const Eigen::VectorXd& s, const Eigen::VectorXd& s2, Eigen::VectorXf* mean,
+                  Eigen::VectorXf* sd) {
+    mean->resize(s.size());
+    sd->resize(s.size());
+    for (Eigen::Index d = 0; d < s.size(); ++d) {
+      const double m = s[d] / n;
+      const double deviation = std::sqrt(std::max(0.0, s2[d] / n - m * m));
+      (*mean)[d] = static_cast<float>(m);
+      (*sd)[d] = static_cast<float>(deviation > 1e-9 ? deviation : 1.0);  // constants: centred
+    }
+  };
+  fill(sum, sum_sq, in_mean, in_std);
+  fill(out_sum, out_sum_sq, out_mean, out_std);
+}
+
+}  // namespace
+
+Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
+                const std::vector<long>& validation_rows, const MlpTrainOptions& options,
+                Mlp* model, MlpTrainSummary* summary) {
+  FACEDYN_RETURN_IF_ERROR(options.Check());
+  FACEDYN_CHECK(model != nullptr && model->valid(), "TrainMlp: no model");
+  if (train_rows.empty()) return FailedPreconditionError("TrainMlp: no training rows");
+  const MlpShape& shape = model->shape();
+  if (shape.input_size != data.input_size() || shape.output_size != data.output_size()) {
+    return InvalidArgumentError("TrainMlp: the model is " + std::to_string(shape.input_size) +
+                                " -> " + std::to_string(shape.output_size) +
+                                ", the data " + std::to_string(data.input_size()) + " -> " +
+                                std::to_string(data.output_size()));
+  }
+  if (options.num_threads > 0) torch::set_num_threads(options.num_threads);
+  const long batch = options.batch_size;
+
+  Eigen::VectorXf in_mean, in_std, out_mean, out_std;
+  FitNormalisation(data, train_rows, std::max(batch, 4096L), &in_mean, &in_std, &out_mean,
+                   &out_std);
+  model->SetNormalisation(in_mean, in_std, out_mean, out_std);
+  const Eigen::VectorXf in_inv_std = in_std.cwiseInverse();
+  const Eigen::VectorXf out_inv_std = out_std.cwiseInverse();
+  auto normalise = [&](Eigen::MatrixXf* inputs, Eigen::MatrixXf* targets) {
+    inputs->colwise() -= in_mean;
+    *inputs = in_inv_std.asDiagonal() * *inputs;
+    targets->colwise() -= out_mean;
+    *targets = out_inv_std.asDiagonal() * *targets;
+  };
+
+  Net& net = MlpTrainer::NetOf(*model);
+  net->train();
+  torch::optim::Adam optimizer(net->parameters(),
+                               torch::optim::AdamOptions(options.learning_rate));
+  MlpTrainSummary local;
+  local.training_rows = static_cast<long>(train_rows.size());
+  local.validation_rows = static_cast<long>(validation_rows.size());
+  Progress progress(options.progress_label, options.epochs,
+                    options.show_progress ? ProgressMode::kAuto : ProgressMode::kSilent);
+  std::vector<long> order = train_rows;
+  std::mt19937_64 rng(options.seed);
+  Eigen::MatrixXf inputs, targets;
+  const auto start = std::chrono::steady_clock::now();
+  for (int epoch = 0; epoch < options.epochs; ++epoch) {
+    std::shuffle(order.begin(), order.end(), rng);
+    double loss_sum = 0.0;
+    for (size_t begin = 0; begin < order.size(); begin += static_cast<size_t>(batch)) {
+      const long n = static_cast<long>(std::min(order.size() - begin, static_cast<size_t>(batch)));
+      data.Gather(order.data() + begin, n, &inputs, &targets);
+      normalise(&inputs, &targets);
+      optimizer.zero_grad();
+      const torch::Tensor loss =
+          torch::mse_loss(net->ForwardNormalised(AsRowMajorTensor(inputs)),
+                          AsRowMajorTensor(targets));
+      loss.backward();
+      optimizer.step();
+      loss_sum += loss.item<double>() * static_cast<double>(n);
+    }
+    local.train_loss.push_back(loss_sum / static_cast<double>(order.size()));
+    char status[96];
+    if (!validation_rows.empty()) {
+      torch::NoGradGuard no_grad;
+      double validation_sum = 0.0;
+      const long eval_batch = std::max(batch, 4096L);
+      for (size_t begin = 0; begin < validation_rows.size();
+           begin += static_cast<size_t>(eval_batch)) {
+        const long n = static_cast<long>(
+            std::min(validation_rows.size() - begin, static_cast<size_t>(eval_batch)));
+        data.Gather(validation_rows.data() + begin, n, &inputs, &targets);
+        normalise(&inputs, &targets);
+        validation_sum += torch::mse_loss(net->ForwardNormalised(AsRowMajorTensor(inputs)),
+                                          AsRowMajorTensor(targets))
+                              .item<double>() *
+                          static_cast<double>(n);
+      }
+      local.validation_loss.push_back(validation_sum /
+                                      static_cast<double>(validation_rows.size()));
+      std::snprintf(status, sizeof(status), "loss %.4g val %.4g", local.train_loss.back(),
+                    local.validation_loss.back());
+    } else {
+      std::snprintf(status, sizeof(status), "loss %.4g", local.train_loss.back());
+    }
+    progress.Update(epoch + 1, status);
+  }
+  progress.Finish();
+  net->eval();
+  local.train_s = SecondsSince(start);
+  local.rows_per_s = local.train_s > 0 ? static_cast<double>(options.epochs) *
+                                             static_cast<double>(order.size()) / local.train_s
+                                       : 0.0;
+  if (summary != nullptr) *summary = std::move(local);
+  return Status::Ok();
+}
+
+double MeasureGemmMultiplyAddsPerSecond(int m, int k, int n, double min_seconds) {
+  torch::NoGradGuard no_grad;
+  torch::manual_seed(0);
+  const torch::Tensor a = torch::randn({m, k});
+  const torch::Tensor b = torch::randn({k, n});
+  torch::Tensor c = torch::mm(a, b);  // warm-up
+  std::vector<double> rates;
+  const auto start = std::chrono::steady_clock::now();
+  while (rates.size() < 5 || SecondsSince(start) < min_seconds) {
+    const auto t0 = std::chrono::steady_clock::now();
+    c = torch::mm(a, b);
+    const double seconds = SecondsSince(t0);
+    rates.push_back(static_cast<double>(m) * k * n / std::max(seconds, 1e-9));
+  }
+  std::nth_element(rates.begin(), rates.begin() + rates.size() / 2, rates.end());
+  return rates[rates.size() / 2];
+}
+
+}  // namespace facedyn::dynamics

@@ -1,0 +1,132 @@
+// A normalised multilayer perceptron and its trainer: the shared engine of the removal network F
+// and the synthesis network H of Zoss et al. 2020 (sections 5.2 and 6.2), which differ only in
+// their features, sizes and batch sizes.
+//
+//   y = MLP((x - input_mean) / input_std) * output_std + output_mean
+//
+// MLP: `hidden_layers` fully connected layers of `hidden_units` with ReLU, then a linear output
+// layer. The per-dimension normalisation lives in the model as buffers, so callers always pass
+// raw features and receive raw outputs (mm).
+//
+// Mlp hides LibTorch behind a pointer to an implementation, so including this header costs no
+// LibTorch parse (only mlp.cc includes <torch/torch.h>).
+//
+// File format (Save / Load): one LibTorch archive (zip, torch::serialize) holding the parameters
+// and normalisation buffers under their module names ("fc1".."fcN", "input_mean", ...), plus two
+// string entries: "facedyn_model_kind" (e.g. "removal", "synthesis") and "facedyn_model_config",
+// a JSON object with the MLP's shape under "mlp" and the caller's own configuration beside it.
+// Loading checks the kind, the shape against every stored tensor, and returns the JSON.
+//
+// Determinism: training on CPU is reproducible for a seed and a LibTorch thread count
+// (MlpTrainOptions::num_threads; LibTorch's intra-op parallelism splits work statically, so the
+// same count gives the same summation order). torch::set_num_threads is process-wide.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/json_io.h"
+#include "core/status.h"
+
+namespace facedyn::dynamics {
+
+struct MlpShape {
+  int input_size = 0;
+  int hidden_units = 128;
+  int hidden_layers = 2;
+  int output_size = 3;
+  // All >= 1. The message names the field.
+  Status Check() const;
+  // Multiply-adds of one forward pass of one row (for throughput figures).
+  double ForwardMultiplyAdds() const;
+};
+
+class Mlp {
+ public:
+  Mlp();
+  ~Mlp();
+  Mlp(Mlp&&) noexcept;
+  Mlp& operator=(Mlp&&) noexcept;
+
+  // A freshly initialised network (torch::manual_seed(seed) first; identity normalisation).
+  static StatusOr<Mlp> Create(const MlpShape& shape, uint64_t seed);
+  // `config` must be a JSON object; its "mlp" key is written by Save.
+  Status Save(const std::string& path, const std::string& kind, Json config) const;
+  // DataLoss for a truncated or foreign file, a kind other than `expected_kind`, or tensors that
+  // disagree with the stored shape; the message starts with the path.
+  static StatusOr<Mlp> Load(const std::string& path, const std::string& expected_kind,
+                            Json* config);
+
+  bool valid() const { return impl_ != nullptr; }
+  const MlpShape& shape() const;
+
+  // Raw inputs (input_size x N, column per row) -> raw outputs (output_size x N).
+  // Precondition: inputs.rows() == shape().input_size.
+  Eigen::MatrixXf Predict(const Eigen::MatrixXf& inputs) const;
+
+  // Per-dimension normalisation (sizes input, input, output, output; std > 0).
+  void SetNormalisation(const Eigen::VectorXf& input_mean, const Eigen::VectorXf& input_std,
+                        const Eigen::VectorXf& output_mean, const Eigen::VectorXf& output_std);
+
+  // Every parameter and buffer, flattened in module order (for tests and fingerprints).
+  std::vector<float> FlatParameters() const;
+
+  struct Impl;
+
+ private:
+  friend struct MlpTrainer;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Where training rows come from. Rows are gathered a batch at a time (one virtual call per
+// batch), so a dataset may keep its features compactly (e.g. B(t) once per frame for all
+// samples) and assemble rows on demand.
+class MlpDataset {
+ public:
+  virtual ~MlpDataset() = default;
+  virtual int input_size() const = 0;
+  virtual int output_size() const = 0;
+  // Raw inputs (input_size x n) and targets (output_size x n) of rows[0..n).
+  virtual void Gather(const long* rows, long n, Eigen::MatrixXf* inputs,
+                      Eigen::MatrixXf* targets) const = 0;
+};
+
+struct MlpTrainOptions {
+  int epochs = 250;
+  int batch_size = 10000;
+  double learning_rate = 1e-3;  // Adam
+  uint64_t seed = 1;            // initialisation and shuffling
+  int num_threads = 0;          // LibTorch intra-op threads; 0 keeps the current setting
+  bool show_progress = true;
+  std::string progress_label = "train";
+  // epochs >= 1, batch_size >= 1, learning_rate > 0, num_threads >= 0. Names the field.
+  Status Check() const;
+};
+
+struct MlpTrainSummary {
+  long training_rows = 0;
+  long validation_rows = 0;
+  std::vector<double> train_loss;       // per epoch, mean L2 on normalised outputs
+  std::vector<double> validation_loss;  // per epoch (empty without validation rows)
+  double train_s = 0.0;                 // wall time of the optimisation
+  double rows_per_s = 0.0;              // training rows through forward + backward per second
+};
+
+// Fits the normalisation to the training rows (mean and standard deviation per dimension;
+// constant dimensions get std 1), then minimises the mean squared error of the normalised
+// outputs with Adam over shuffled mini-batches. `model` must have the dataset's sizes.
+// Errors: no training rows, a size mismatch.
+Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
+                const std::vector<long>& validation_rows, const MlpTrainOptions& options,
+                Mlp* model, MlpTrainSummary* summary);
+
+// Sustained single-precision GEMM rate of this machine through LibTorch (the library the
+// networks run on): C = A B with A m x k and B k x n, repeated for at least `min_seconds`;
+// returns the median of the repetitions in multiply-adds per second. For throughput ratios.
+double MeasureGemmMultiplyAddsPerSecond(int m, int k, int n, double min_seconds);
+
+}  // namespace facedyn::dynamics

@@ -1,0 +1,362 @@
+#include "dynamics/synthesis_model.h"
+
+#include <algorithm>
+#include <chrono>
+#include <optional>
+#include <cmath>
+#include <random>
+#include <utility>
+
+#include "core/check.h"
+#include "dynamics/features.h"
+
+namespace facedyn::dynamics {
+
+namespace {
+
+constexpr char kKind[] = "synthesis";
+constexpr int kSynthesisFormatVersion = 1;
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// [B(t); S(t)] for every frame: input_size x F.
+StatusOr<Eigen::MatrixXf> SynthesisFeatures(const Take& quasistatic,
+                                            const std::vector<Rigid3>& world_from_skull,
+                                            const FaceRig& rig, const FeatureSpec& spec,
+                                            const StretchStencil& stencil) {
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd skull,
+                           SkullDescriptors(world_from_skull, rig.skull_landmarks, spec.features));
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd stretch, StretchFeatures(quasistatic, stencil));
+  Eigen::MatrixXf features(skull.rows() + stretch.rows(), quasistatic.frame_count());
+  features.topRows(skull.rows()) = skull.cast<float>();
+  features.bottomRows(stretch.rows()) = stretch.cast<float>();
+  return features;
+}
+
+// Per-sample offsets of a per-vertex offset cache, one frame per column: 3S x F.
+Eigen::MatrixXf SampleOffsetsByFrame(const PointCache& offsets,
+                                     const std::vector<SurfacePoint>& samples) {
+  const int sample_count = static_cast<int>(samples.size());
+  Eigen::MatrixXf out(3 * sample_count, offsets.frame_count());
+  for (int t = 0; t < offsets.frame_count(); ++t) {
+    const auto frame = offsets.Frame(t);
+    for (int i = 0; i < sample_count; ++i) {
+      out.col(t).segment<3>(3 * i) = samples[i].Evaluate(frame).cast<float>();
+    }
+  }
+  return out;
+}
+
+// Rows are frames: take * F_max + frame.
+class SynthesisDataset final : public MlpDataset {
+ public:
+  explicit SynthesisDataset(int max_frames) : max_frames_(max_frames) {}
+  void Add(Eigen::MatrixXf features, Eigen::MatrixXf targets) {
+    features_.push_back(std::move(features));
+    targets_.push_back(std::move(targets));
+  }
+  long RowOf(int take, int frame) const { return static_cast<long>(take) * max_frames_ + frame; }
+  int input_size() const override { return static_cast<int>(features_.front().rows()); }
+  int output_size() const override { return static_cast<int>(targets_.front().rows()); }
+  void Gather(const long* rows, long n, Eigen::MatrixXf* inputs,
+              Eigen::MatrixXf* targets) const override {
+    inputs->resize(input_size(), n);
+    targets->resize(output_size(), n);
+    for (long r = 0; r < n; ++r) {
+      const int take = static_cast<int>(rows[r] / max_frames_);
+      const int frame = static_cast<int>(rows[r] % max_frames_);
+      inputs->col(r) = features_[take].col(frame);
+      targets->col(r) = targets_[take].col(frame);
+    }
+  }
+
+ private:
+  int max_frames_;
+  std::vector<Eigen::MatrixXf> features_;
+  std::vector<Eigen::MatrixXf> targets_;
+};
+
+// The quasistatic take re-posed by new poses: T(t) T_q(t)^-1 y(t).
+PointCache Repose(const Take& quasistatic, const std::vector<Rigid3>& world_from_skull) {
+  PointCache out = quasistatic.positions;
+  for (int t = 0; t < quasistatic.frame_count(); ++t) {
+    const Rigid3 new_from_old = world_from_skull[t] * quasistatic.world_from_skull[t].Inverse();
+    out.Frame(t) = new_from_old.Apply(quasistatic.positions.Frame(t).cast<double>()).cast<float>();
+  }
+  return out;
+}
+
+}  // namespace
+
+SynthesisConfig SynthesisConfig::ForRig(const FaceRig& rig, double fps) {
+  SynthesisConfig config;
+  static_cast<FeatureSpec&>(config) = FeatureSpec::ForRig(rig, fps);
+  return config;
+}
+
+Status SynthesisConfig::Check() const {
+  FACEDYN_RETURN_IF_ERROR(FeatureSpec::Check());
+  if (hidden_units < 1) return InvalidArgumentError("hidden_units must be >= 1");
+  return Status::Ok();
+}
+
+StatusOr<SynthesisModel> SynthesisModel::Create(const SynthesisConfig& config, uint64_t seed) {
+  FACEDYN_RETURN_IF_ERROR(config.Check());
+  MlpShape shape;
+  shape.input_size = config.input_size();
+  shape.hidden_units = config.hidden_units;
+  shape.output_size = config.output_size();
+  SynthesisModel model;
+  model.config_ = config;
+  FACEDYN_ASSIGN_OR_RETURN(model.mlp_, Mlp::Create(shape, seed));
+  return model;
+}
+
+Status SynthesisModel::Save(const std::string& path) const {
+  Json json = config_.ToJson();
+  json["format_version"] = kSynthesisFormatVersion;
+  return mlp_.Save(path, kKind, std::move(json));
+}
+
+StatusOr<SynthesisModel> SynthesisModel::Load(const std::string& path) {
+  Json json;
+  SynthesisModel model;
+  FACEDYN_ASSIGN_OR_RETURN(model.mlp_, Mlp::Load(path, kKind, &json));
+  if (json.value("format_version", 0) != kSynthesisFormatVersion) {
+    return DataLossError(path + ": synthesis format_version " +
+                         json.value("format_version", Json()).dump() + " is not supported");
+  }
+  StatusOr<FeatureSpec> spec = FeatureSpec::FromJson(json);
+  if (!spec.ok()) return spec.status().WithContext(path);
+  static_cast<FeatureSpec&>(model.config_) = *spec;
+  model.config_.hidden_units = model.mlp_.shape().hidden_units;
+  if (model.mlp_.shape().input_size != model.config_.input_size() ||
+      model.mlp_.shape().output_size != model.config_.output_size()) {
+    return DataLossError(path + ": network size disagrees with its features");
+  }
+  return model;
+}
+
+Status SynthesisTrainOptions::Check() const {
+  if (epochs < 1) return InvalidArgumentError("epochs must be >= 1");
+  if (batch_size < 1) return InvalidArgumentError("batch_size must be >= 1");
+  if (!(learning_rate > 0)) return InvalidArgumentError("learning_rate must be > 0");
+  if (!(validation_fraction >= 0 && validation_fraction <= 0.9)) {
+    return InvalidArgumentError("validation_fraction must be in [0, 0.9]");
+  }
+  if (num_threads < 0) return InvalidArgumentError("num_threads must be >= 0");
+  if (hidden_units < 1) return InvalidArgumentError("hidden_units must be >= 1");
+  if (!(window_s > 0 && window_s <= 1)) return InvalidArgumentError("window_s must be in (0, 1]");
+  if (!(stretch_step_mm > 0 && stretch_step_mm <= 50)) {
+    return InvalidArgumentError("stretch_step_mm must be in (0, 50]");
+  }
+  return Status::Ok();
+}
+
+StatusOr<Take> DecomposeExact(const Take& simulated) {
+  const auto quasistatic = simulated.channels.find("quasistatic");
+  const auto offsets = simulated.channels.find("dynamic_offset");
+  if (quasistatic == simulated.channels.end() || offsets == simulated.channels.end()) {
+    return FailedPreconditionError(
+        "the take has no exact quasistatic/dynamic_offset channels (only simulated takes do)");
+  }
+  Take out;
+  out.info = simulated.info;
+  out.info.source = "exact decomposition";
+  out.topology = simulated.topology;
+  out.time_s = simulated.time_s;
+  out.world_from_skull = simulated.world_from_skull;
+  out.skull_from_jaw = simulated.skull_from_jaw;
+  out.positions = quasistatic->second;
+  out.channels["dynamic_offset"] = offsets->second;
+  return out;
+}
+
+StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decomposed,
+                                        const SynthesisTrainOptions& options,
+                                        MlpTrainSummary* summary) {
+  FACEDYN_RETURN_IF_ERROR(options.Check());
+  if (decomposed.empty()) return InvalidArgumentError("train-synthesis: no training takes");
+  for (const TrainingTake& training : decomposed) {
+    FACEDYN_CHECK(training.take != nullptr && training.rig != nullptr,
+                  "TrainSynthesis: training take without take or rig");
+  }
+  SynthesisConfig config = SynthesisConfig::ForRig(*decomposed[0].rig, decomposed[0].take->info.fps);
+  config.features.window_s = options.window_s;
+  config.features.stretch_step_mm = options.stretch_step_mm;
+  config.hidden_units = options.hidden_units;
+  FACEDYN_ASSIGN_OR_RETURN(SynthesisModel model, SynthesisModel::Create(config, options.seed));
+  FACEDYN_ASSIGN_OR_RETURN(
+      const StretchStencil stencil,
+      BuildStretchStencil(*decomposed[0].rig, decomposed[0].rig->skin_samples,
+                          options.stretch_step_mm));
+
+  int max_frames = 0;
+  for (const TrainingTake& training : decomposed) {
+    max_frames = std::max(max_frames, training.take->frame_count());
+  }
+  SynthesisDataset data(max_frames);
+  const int window = config.features.window_frames();
+  std::vector<long> rows;
+  for (size_t k = 0; k < decomposed.size(); ++k) {
+    const Take& take = *decomposed[k].take;
+    const FaceRig& rig = *decomposed[k].rig;
+    const std::string context = "training take " + std::to_string(k) +
+                                (take.info.expression.empty() ? "" : " (" + take.info.expression + ")");
+    if (Status status = model.CheckCompatible(take, rig); !status.ok()) {
+      return status.WithContext(context);
+    }
+    const auto offsets = take.channels.find("dynamic_offset");
+    if (offsets == take.channels.end()) {
+      return FailedPreconditionError(context +
+                                     ": no dynamic_offset channel (train on the output of "
+                                     "`dynamics remove`, or on simulated takes with --exact)");
+    }
+    StatusOr<Eigen::MatrixXf> features =
+        SynthesisFeatures(take, take.world_from_skull, rig, config, stencil);
+    if (!features.ok()) return features.status().WithContext(context);
+    data.Add(std::move(features).value(), SampleOffsetsByFrame(offsets->second, rig.skin_samples));
+    for (int t = window; t < take.frame_count() - window; ++t) {
+      rows.push_back(data.RowOf(static_cast<int>(k), t));
+    }
+  }
+  if (rows.empty()) {
+    return FailedPreconditionError("train-synthesis: every take is shorter than two feature windows");
+  }
+  std::mt19937_64 rng(options.seed);
+  std::shuffle(rows.begin(), rows.end(), rng);
+  const size_t validation_count = static_cast<size_t>(
+      std::floor(options.validation_fraction * static_cast<double>(rows.size())));
+  const std::vector<long> validation_rows(rows.begin(), rows.begin() + validation_count);
+  const std::vector<long> train_rows(rows.begin() + validation_count, rows.end());
+  MlpTrainOptions train;
+  train.epochs = options.epochs;
+  train.batch_size = options.batch_size;
+  train.learning_rate = options.learning_rate;
+  train.seed = options.seed;
+  train.num_threads = options.num_threads;
+  train.show_progress = options.show_progress;
+  train.progress_label = "train-synthesis";
+  FACEDYN_RETURN_IF_ERROR(
+      TrainMlp(data, train_rows, validation_rows, train, model.mutable_mlp(), summary));
+  return model;
+}
+
+StatusOr<Take> SynthesizeDynamics(const SynthesisModel& model, const Take& quasistatic,
+                                  const std::vector<Rigid3>& world_from_skull,
+                                  const std::string& motion_name, const FaceRig& rig,
+                                  const SamplePropagation* propagation,
+                                  SynthesisSummary* summary) {
+  FACEDYN_RETURN_IF_ERROR(model.CheckCompatible(quasistatic, rig));
+  if (static_cast<int>(world_from_skull.size()) != quasistatic.frame_count()) {
+    return InvalidArgumentError("synthesize: the head motion has " +
+                                std::to_string(world_from_skull.size()) +
+                                " poses, the quasistatic take " +
+                                std::to_string(quasistatic.frame_count()) + " frames");
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const SynthesisConfig& config = model.config();
+  FACEDYN_ASSIGN_OR_RETURN(
+      const StretchStencil stencil,
+      BuildStretchStencil(rig, rig.skin_samples, config.features.stretch_step_mm));
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXf features,
+                           SynthesisFeatures(quasistatic, world_from_skull, rig, config, stencil));
+  const Eigen::MatrixXf by_frame = model.Predict(features);  // 3S x F
+  // Same memory as 3 x F*S with column t * S + i: the layout ComposeOffsets reads.
+  const Eigen::MatrixXf sample_offsets =
+      Eigen::Map<const Eigen::MatrixXf>(by_frame.data(), 3, by_frame.size() / 3);
+  const double predict_s = SecondsSince(start);
+
+  const auto propagate_start = std::chrono::steady_clock::now();
+  std::optional<SamplePropagation> built;
+  if (propagation == nullptr) {
+    FACEDYN_ASSIGN_OR_RETURN(built, SamplePropagation::Build(rig));
+    propagation = &*built;
+  }
+  Take result;
+  result.info = quasistatic.info;
+  result.info.source = "dynamics synthesize";
+  result.info.motion = motion_name;
+  result.topology = quasistatic.topology;
+  result.time_s = quasistatic.time_s;
+  result.world_from_skull = world_from_skull;
+  result.skull_from_jaw = quasistatic.skull_from_jaw;
+  result.positions = Repose(quasistatic, world_from_skull);
+  PointCache offsets, positions;
+  ComposeOffsets(result, *propagation, sample_offsets, +1.0f, &offsets, &positions);
+  result.channels["quasistatic"] = std::move(result.positions);
+  result.positions = std::move(positions);
+  result.channels["dynamic_offset"] = std::move(offsets);
+  if (summary != nullptr) {
+    summary->predict_s = predict_s;
+    summary->propagate_s = SecondsSince(propagate_start);
+    const double total = summary->predict_s + summary->propagate_s;
+    summary->frames_per_s = total > 0 ? quasistatic.frame_count() / total : 0.0;
+  }
+  return result;
+}
+
+Take HeldShapeTake(const FaceRig& rig, const Eigen::Matrix3Xd& shape_in_skull,
+                   const std::vector<Rigid3>& world_from_skull, double fps) {
+  FACEDYN_CHECK(shape_in_skull.cols() == rig.vertex_count(), "HeldShapeTake: wrong vertex count");
+  Take take;
+  take.info.fps = fps;
+  take.info.subject = rig.name;
+  take.info.source = "held shape";
+  take.topology = rig.neutral;
+  take.world_from_skull = world_from_skull;
+  const int frame_count = static_cast<int>(world_from_skull.size());
+  take.positions.vertex_count = rig.vertex_count();
+  take.positions.positions.resize(3 * static_cast<Eigen::Index>(rig.vertex_count()), frame_count);
+  for (int t = 0; t < frame_count; ++t) {
+    take.positions.Frame(t) = world_from_skull[t].Apply(shape_in_skull).cast<float>();
+  }
+  take.SetUniformTimes();
+  return take;
+}
+
+StatusOr<Take> NaiveDeltaTransfer(const Take& source, const FaceRig& source_rig,
+                                  const Take& target_quasistatic, const FaceRig& target_rig,
+                                  const SamplePropagation* target_propagation) {
+  const auto offsets = source.channels.find("dynamic_offset");
+  if (offsets == source.channels.end()) {
+    return FailedPreconditionError("naive transfer: the source take has no dynamic_offset channel");
+  }
+  if (source_rig.skin_samples.size() != target_rig.skin_samples.size()) {
+    return FailedPreconditionError("naive transfer: the source rig has " +
+                                   std::to_string(source_rig.skin_samples.size()) +
+                                   " samples, the target " +
+                                   std::to_string(target_rig.skin_samples.size()));
+  }
+  if (source.frame_count() != target_quasistatic.frame_count()) {
+    return FailedPreconditionError("naive transfer: the source has " +
+                                   std::to_string(source.frame_count()) + " frames, the target " +
+                                   std::to_string(target_quasistatic.frame_count()));
+  }
+  std::optional<SamplePropagation> built;
+  if (target_propagation == nullptr) {
+    FACEDYN_ASSIGN_OR_RETURN(built, SamplePropagation::Build(target_rig));
+    target_propagation = &*built;
+  }
+  const Eigen::MatrixXf by_frame = SampleOffsetsByFrame(offsets->second, source_rig.skin_samples);
+  const Eigen::MatrixXf sample_offsets =
+      Eigen::Map<const Eigen::MatrixXf>(by_frame.data(), 3, by_frame.size() / 3);
+  Take result;
+  result.info = target_quasistatic.info;
+  result.info.source = "naive delta transfer";
+  result.info.motion = source.info.motion;
+  result.topology = target_quasistatic.topology;
+  result.time_s = target_quasistatic.time_s;
+  result.world_from_skull = source.world_from_skull;
+  result.positions = Repose(target_quasistatic, source.world_from_skull);
+  PointCache vertex_offsets, positions;
+  ComposeOffsets(result, *target_propagation, sample_offsets, +1.0f, &vertex_offsets, &positions);
+  result.channels["quasistatic"] = std::move(result.positions);
+  result.positions = std::move(positions);
+  result.channels["dynamic_offset"] = std::move(vertex_offsets);
+  return result;
+}
+
+}  // namespace facedyn::dynamics

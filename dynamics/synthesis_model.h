@@ -1,0 +1,124 @@
+// The synthesis network H of Zoss et al. 2020, section 6: all sample offsets of a frame jointly
+// from the skull's kinematic history and the current expression,
+//
+//   dY(t) = H(B(t), S(t)),   x_i(t) = T(t) (T_q(t)^-1 y_i(t) + dy_i(t))
+//
+// with B(t) the skull descriptor of the (new) head motion T (Eq. 1-2), S(t) the per-sample uv
+// stretch of the quasistatic skin y against the neutral (Eq. 8), and T_q the poses the
+// quasistatic take was given in. Two hidden layers of 256 with ReLU, L2 loss, Adam 1e-3, batch
+// 50, 30 epochs (the paper's settings as defaults). Normalisation lives in the model (mlp.h).
+//
+// Training pairs are "decomposed" takes: positions = a quasistatic performance y, channel
+// "dynamic_offset" = its secondary dynamics dx (skull frame). The paper obtains them by running
+// the removal network F on captured takes (RemoveDynamics output is exactly such a take); the
+// simulator can give the exact decomposition (DecomposeExact).
+//
+// Root-motion retargeting (paper Figs. 9-10) is synthesis on the target subject's quasistatic
+// performance with the source's skull trajectory; NaiveDeltaTransfer is the baseline of
+// Fig. 10(b), copying the source's per-sample offsets onto the target.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/face_rig.h"
+#include "core/rigid3.h"
+#include "core/status.h"
+#include "core/take.h"
+#include "dynamics/feature_spec.h"
+#include "dynamics/mlp.h"
+#include "dynamics/propagation.h"
+#include "dynamics/removal_model.h"
+
+namespace facedyn::dynamics {
+
+struct SynthesisConfig : FeatureSpec {
+  int hidden_units = 256;
+
+  static SynthesisConfig ForRig(const FaceRig& rig, double fps);
+  int input_size() const { return skull_descriptor_size() + 2 * sample_count; }
+  int output_size() const { return 3 * sample_count; }
+  Status Check() const;
+};
+
+class SynthesisModel {
+ public:
+  static StatusOr<SynthesisModel> Create(const SynthesisConfig& config, uint64_t seed);
+  static StatusOr<SynthesisModel> Load(const std::string& path);
+  Status Save(const std::string& path) const;
+
+  const SynthesisConfig& config() const { return config_; }
+  Status CheckCompatible(const Take& take, const FaceRig& rig) const {
+    return config_.CheckCompatible(take, rig);
+  }
+  // Raw features (input_size x F, columns = [B(t); S(t)]) -> dY (3S x F, skull frame, mm).
+  Eigen::MatrixXf Predict(const Eigen::MatrixXf& features) const { return mlp_.Predict(features); }
+  std::vector<float> FlatParameters() const { return mlp_.FlatParameters(); }
+  Mlp* mutable_mlp() { return &mlp_; }
+
+ private:
+  SynthesisConfig config_;
+  Mlp mlp_;
+};
+
+struct SynthesisTrainOptions {
+  int epochs = 30;                   // the paper converges after 30
+  int batch_size = 50;               // the paper's batch
+  double learning_rate = 1e-3;       // Adam
+  double validation_fraction = 0.1;  // fraction of frames held out
+  uint64_t seed = 1;
+  int num_threads = 0;
+  int hidden_units = 256;
+  double window_s = 0.08;
+  double stretch_step_mm = 2.0;  // Eq. (8)'s ~2 mm uv steps
+  bool show_progress = true;
+  // Ranges as in RemovalTrainOptions; stretch_step_mm in (0, 50]. The message names the field.
+  Status Check() const;
+};
+
+// A simulated take (positions dynamic, channels "quasistatic" and "dynamic_offset") as a
+// decomposed take: positions = the exact quasistatic, channel dynamic_offset = the exact dx.
+// Errors when either channel is missing.
+StatusOr<Take> DecomposeExact(const Take& simulated);
+
+// Trains H on decomposed takes (positions quasistatic, channel "dynamic_offset"). Frames within
+// the feature window of either end are left out. Errors: no takes, a take without the channel,
+// mismatched rigs.
+StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decomposed,
+                                        const SynthesisTrainOptions& options,
+                                        MlpTrainSummary* summary = nullptr);
+
+struct SynthesisSummary {
+  double predict_s = 0.0;
+  double propagate_s = 0.0;
+  double frames_per_s = 0.0;
+};
+
+// New dynamics for a quasistatic take under a new head motion (one pose per frame of
+// `quasistatic`): the result's positions are T(t) (T_q(t)^-1 y(t) + d(t)), its channels
+// "quasistatic" (the re-posed quasistatic T(t) T_q(t)^-1 y(t)) and "dynamic_offset" (d, skull
+// frame); info.source "dynamics synthesize", info.motion `motion_name`. Errors: incompatible
+// take or rig, a pose count that differs from the frame count.
+StatusOr<Take> SynthesizeDynamics(const SynthesisModel& model, const Take& quasistatic,
+                                  const std::vector<Rigid3>& world_from_skull,
+                                  const std::string& motion_name, const FaceRig& rig,
+                                  const SamplePropagation* propagation = nullptr,
+                                  SynthesisSummary* summary = nullptr);
+
+// A held shape (3 x V, skull frame, mm) posed by `world_from_skull` at `fps`: the quasistatic
+// take of a subject holding one expression under a given head motion.
+Take HeldShapeTake(const FaceRig& rig, const Eigen::Matrix3Xd& shape_in_skull,
+                   const std::vector<Rigid3>& world_from_skull, double fps);
+
+// Paper Fig. 10(b): the source's per-sample dynamic offsets (channel "dynamic_offset" of a
+// decomposed or simulated source take, sampled at the source rig's samples) copied sample by
+// sample onto the target's quasistatic take, posed by the source motion. Requires the same
+// sample count and frame count. Channels as SynthesizeDynamics.
+StatusOr<Take> NaiveDeltaTransfer(const Take& source, const FaceRig& source_rig,
+                                  const Take& target_quasistatic, const FaceRig& target_rig,
+                                  const SamplePropagation* target_propagation = nullptr);
+
+}  // namespace facedyn::dynamics

@@ -1,0 +1,322 @@
+#include "app/dynamics_study.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+#include <utility>
+
+#include <spdlog/spdlog.h>
+
+#include "dynamics/baselines.h"
+#include "dynamics/evaluate.h"
+#include "dynamics/mlp.h"
+#include "dynamics/propagation.h"
+#include "dynamics/removal_model.h"
+#include "dynamics/synthesis_model.h"
+#include "sim/performance.h"
+#include "sim/procedural_face.h"
+#include "sim/skull_motion.h"
+
+namespace facedyn::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+double Round4(double x) { return std::round(x * 1e4) / 1e4; }
+
+// Vertices that jiggle: mean |true dynamic offset| over the evaluated frames at least 20% of
+// the largest vertex's. "Where the face jiggles" of issue 4; the forehead and nose bridge,
+// which hardly move relative to the skull, would otherwise dilute every ratio.
+std::vector<int> JiggleMask(const PointCache& true_offsets, int skip) {
+  const int v_count = true_offsets.vertex_count;
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(v_count);
+  const int frames = true_offsets.frame_count();
+  for (int t = skip; t < frames - skip; ++t) {
+    mean += true_offsets.Frame(t).colwise().norm().transpose().cast<double>();
+  }
+  const double threshold = 0.2 * mean.maxCoeff();
+  std::vector<int> mask;
+  for (int v = 0; v < v_count; ++v) {
+    if (mean[v] >= threshold && mean[v] > 0) mask.push_back(v);
+  }
+  return mask;
+}
+
+// Mean |a - b| over the mask and evaluated frames (mm).
+double MaskedMeanDistance(const PointCache& a, const PointCache& b, const std::vector<int>& mask,
+                          int skip) {
+  double sum = 0;
+  long count = 0;
+  for (int t = skip; t < a.frame_count() - skip; ++t) {
+    const auto fa = a.Frame(t);
+    const auto fb = b.Frame(t);
+    for (int v : mask) {
+      sum += (fa.col(v) - fb.col(v)).norm();
+      ++count;
+    }
+  }
+  return count > 0 ? sum / count : 0.0;
+}
+
+Json StatsJson(const dynamics::ErrorStats& stats) {
+  return {{"mean_mm", Round4(stats.mean_mm)}, {"p95_mm", Round4(stats.p95_mm)},
+          {"max_mm", Round4(stats.max_mm)}};
+}
+
+struct SimTake {
+  std::string name;
+  Take take;
+};
+
+StatusOr<Take> Simulate(const FaceRig& rig, const std::string& expression, double hz,
+                        const DynamicsStudyOptions& options, uint64_t seed) {
+  sim::PerformanceOptions perform;
+  perform.expression = expression;
+  perform.motion.kind = sim::MotionKind::kPlatform;
+  perform.motion.platform_hz = hz;
+  perform.motion.seed = seed;
+  perform.seed = seed;
+  perform.seconds = options.seconds;
+  perform.fps = options.fps;
+  return sim::SimulatePerformance(rig, perform);
+}
+
+}  // namespace
+
+Status DynamicsStudyOptions::Check() const {
+  auto hz_ok = [](double hz) { return hz >= 0.5 && hz <= 30; };
+  if (train_hz.empty()) return InvalidArgumentError("train_hz: at least one frequency");
+  for (double hz : train_hz) {
+    if (!hz_ok(hz)) return InvalidArgumentError("train_hz: " + std::to_string(hz) + " not in 0.5..30");
+  }
+  if (!hz_ok(test_hz)) return InvalidArgumentError("test_hz must be in 0.5..30");
+  if (expressions.empty()) return InvalidArgumentError("expressions: at least one");
+  if (!(seconds >= 0.5)) return InvalidArgumentError("seconds must be >= 0.5");
+  if (vertices < 4000 || vertices > 10000) return InvalidArgumentError("vertices must be in 4000..10000");
+  if (removal_epochs < 1 || synthesis_epochs < 1) return InvalidArgumentError("epochs must be >= 1");
+  if (removal_batch < 1 || synthesis_batch < 1) return InvalidArgumentError("batch sizes must be >= 1");
+  return Status::Ok();
+}
+
+StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options) {
+  FACEDYN_RETURN_IF_ERROR(options.Check());
+  const auto study_start = Clock::now();
+  sim::ProceduralFaceOptions face_options;
+  face_options.target_vertex_count = options.vertices;
+  FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, sim::MakeProceduralFace(face_options));
+  FACEDYN_ASSIGN_OR_RETURN(const dynamics::SamplePropagation propagation,
+                           dynamics::SamplePropagation::Build(rig));
+
+  // --- data: held expressions on the platform; the test frequency is never trained on. ---
+  const auto simulate_start = Clock::now();
+  std::vector<SimTake> train, test;
+  uint64_t seed = options.seed;
+  for (double hz : options.train_hz) {
+    for (const std::string& expression : options.expressions) {
+      spdlog::info("simulating training take {} at {} Hz", expression, hz);
+      FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, expression, hz, options, ++seed));
+      train.push_back({expression + "@" + fmt::format("{:g}Hz", hz), std::move(take)});
+    }
+  }
+  for (const std::string& expression : options.expressions) {
+    spdlog::info("simulating test take {} at {} Hz", expression, options.test_hz);
+    FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, expression, options.test_hz, options, ++seed));
+    test.push_back({expression + "@" + fmt::format("{:g}Hz", options.test_hz), std::move(take)});
+  }
+  if (options.speech_hz > 0) {
+    spdlog::info("simulating test take speech at {} Hz", options.speech_hz);
+    FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, "speech", options.speech_hz, options, ++seed));
+    test.push_back({"speech@" + fmt::format("{:g}Hz", options.speech_hz), std::move(take)});
+  }
+  const double simulate_s = SecondsSince(simulate_start);
+
+  std::vector<dynamics::TrainingTake> training;
+  for (const SimTake& t : train) training.push_back({&t.take, &rig});
+
+  // --- removal networks ---
+  struct Trained {
+    std::string name;
+    dynamics::RemovalModel model;
+    dynamics::MlpTrainSummary summary;
+  };
+  std::vector<Trained> models;
+  auto train_removal = [&](const std::string& name,
+                           dynamics::RemovalTargets targets) -> Status {
+    dynamics::RemovalTrainOptions train_options;
+    train_options.epochs = options.removal_epochs;
+    train_options.batch_size = options.removal_batch;
+    train_options.targets = targets;
+    train_options.seed = options.seed;
+    train_options.num_threads = options.threads;
+    train_options.show_progress = options.show_progress;
+    spdlog::info("training removal network {} ({} takes, {} epochs)", name, training.size(),
+                 train_options.epochs);
+    dynamics::MlpTrainSummary summary;
+    FACEDYN_ASSIGN_OR_RETURN(dynamics::RemovalModel model,
+                             dynamics::TrainRemoval(training, train_options, &summary));
+    models.push_back({name, std::move(model), std::move(summary)});
+    return Status::Ok();
+  };
+  FACEDYN_RETURN_IF_ERROR(train_removal("F_exact_targets", dynamics::RemovalTargets::kExact));
+  if (options.moving_average_targets) {
+    FACEDYN_RETURN_IF_ERROR(
+        train_removal("F_moving_average_targets", dynamics::RemovalTargets::kMovingAverage));
+  }
+
+  // --- removal evaluation against the exact quasistatic ---
+  Json removal = Json::array();
+  dynamics::EvaluateOptions evaluate_options;
+  const int skip = dynamics::WindowFrames(evaluate_options.window_s, options.fps);
+  std::vector<Take> removed_by_best;  // F_exact's removal of each test take (for synthesis)
+  for (const SimTake& t : test) {
+    const PointCache& truth = t.take.channels.at("quasistatic");
+    const std::vector<int> mask = JiggleMask(t.take.channels.at("dynamic_offset"), skip);
+    const double offset_mm = MaskedMeanDistance(t.take.positions, truth, mask, skip);
+    Json entry;
+    entry["take"] = t.name;
+    entry["jiggle_vertices"] = mask.size();
+    entry["mean_dynamic_offset_mm"] = Round4(offset_mm);
+    Json methods = Json::object();
+    auto add_method = [&](const std::string& name, const PointCache& predicted,
+                          const dynamics::ErrorStats& face) {
+      const double error_mm = MaskedMeanDistance(predicted, truth, mask, skip);
+      methods[name] = StatsJson(face);
+      methods[name]["jiggle_mean_mm"] = Round4(error_mm);
+      methods[name]["relative_to_offset"] = Round4(offset_mm > 0 ? error_mm / offset_mm : 0.0);
+    };
+    bool baselines_done = false;
+    for (const Trained& trained : models) {
+      dynamics::RemovalSummary removal_summary;
+      FACEDYN_ASSIGN_OR_RETURN(
+          Take removed,
+          dynamics::RemoveDynamics(trained.model, t.take, rig, &propagation, &removal_summary));
+      FACEDYN_ASSIGN_OR_RETURN(
+          const dynamics::Evaluation evaluation,
+          dynamics::Evaluate(removed, t.take, baselines_done ? nullptr : &t.take, &rig,
+                             evaluate_options));
+      add_method(trained.name, removed.positions, evaluation.reports.front().face);
+      if (!baselines_done) {
+        for (size_t r = 1; r < evaluation.reports.size(); ++r) {
+          const std::string& name = evaluation.reports[r].name;
+          const dynamics::BaselineKind kind =
+              name == "no_removal"  ? dynamics::BaselineKind::kNoRemoval
+              : name == "lowpass"   ? dynamics::BaselineKind::kLowPass
+                                    : dynamics::BaselineKind::kMovingAverage;
+          FACEDYN_ASSIGN_OR_RETURN(
+              const PointCache baseline,
+              dynamics::ComputeBaseline(t.take, kind, evaluate_options.baselines));
+          add_method(name, baseline, evaluation.reports[r].face);
+        }
+        baselines_done = true;
+      }
+      if (&trained == &models.front()) removed_by_best.push_back(std::move(removed));
+    }
+    entry["methods"] = methods;
+    const double best = methods["F_exact_targets"]["jiggle_mean_mm"].get<double>();
+    const double lowpass = methods["lowpass"]["jiggle_mean_mm"].get<double>();
+    entry["F_exact_vs_lowpass"] = Round4(best > 0 ? lowpass / best : 0.0);
+    removal.push_back(entry);
+    spdlog::info("{}: offset {:.3f} mm, F_exact {:.3f} mm, lowpass {:.3f} mm", t.name, offset_mm,
+                 best, lowpass);
+  }
+
+  Json result;
+  result["setup"] = {{"vertices", rig.vertex_count()},
+                     {"samples", rig.skin_samples.size()},
+                     {"fps", options.fps},
+                     {"seconds_per_take", options.seconds},
+                     {"train_hz", options.train_hz},
+                     {"test_hz", options.test_hz},
+                     {"speech_hz", options.speech_hz},
+                     {"expressions", options.expressions},
+                     {"training_takes", train.size()},
+                     {"removal_epochs", options.removal_epochs},
+                     {"removal_batch", options.removal_batch},
+                     {"simulate_s", Round4(simulate_s)},
+                     {"error_metric",
+                      "per-vertex |prediction - exact quasistatic| in mm over frames away from "
+                      "the feature window at the ends; jiggle_mean_mm over vertices whose mean "
+                      "true offset is >= 20% of the largest"}};
+  result["removal"] = removal;
+  Json training_json = Json::object();
+  for (const Trained& trained : models) {
+    training_json[trained.name] = {
+        {"training_rows", trained.summary.training_rows},
+        {"validation_rows", trained.summary.validation_rows},
+        {"final_train_loss", trained.summary.train_loss.back()},
+        {"final_validation_loss",
+         trained.summary.validation_loss.empty() ? 0.0 : trained.summary.validation_loss.back()},
+        {"train_s", Round4(trained.summary.train_s)},
+        {"rows_per_s", std::round(trained.summary.rows_per_s)},
+        {"input_size", trained.model.mlp().shape().input_size},
+        {"hidden_units", trained.model.mlp().shape().hidden_units},
+        {"forward_multiply_adds_per_row", trained.model.mlp().shape().ForwardMultiplyAdds()}};
+  }
+  result["training"] = training_json;
+
+  // --- synthesis: H trained on F's decomposition of the training takes (as in the paper),
+  //     then remove-and-resynthesise the unseen test takes with their own head motion. ---
+  if (options.synthesis) {
+    std::vector<Take> decomposed;
+    decomposed.reserve(train.size());
+    for (const SimTake& t : train) {
+      FACEDYN_ASSIGN_OR_RETURN(
+          Take take, dynamics::RemoveDynamics(models.front().model, t.take, rig, &propagation));
+      decomposed.push_back(std::move(take));
+    }
+    std::vector<dynamics::TrainingTake> synthesis_training;
+    for (const Take& take : decomposed) synthesis_training.push_back({&take, &rig});
+    dynamics::SynthesisTrainOptions synthesis_options;
+    synthesis_options.epochs = options.synthesis_epochs;
+    synthesis_options.batch_size = options.synthesis_batch;
+    synthesis_options.seed = options.seed;
+    synthesis_options.num_threads = options.threads;
+    synthesis_options.show_progress = options.show_progress;
+    spdlog::info("training synthesis network ({} takes, {} epochs)", decomposed.size(),
+                 synthesis_options.epochs);
+    dynamics::MlpTrainSummary synthesis_summary;
+    FACEDYN_ASSIGN_OR_RETURN(
+        const dynamics::SynthesisModel synthesis,
+        dynamics::TrainSynthesis(synthesis_training, synthesis_options, &synthesis_summary));
+    Json synthesis_json = Json::array();
+    for (size_t k = 0; k < test.size(); ++k) {
+      const Take& original = test[k].take;
+      FACEDYN_ASSIGN_OR_RETURN(
+          const Take resynthesised,
+          dynamics::SynthesizeDynamics(synthesis, removed_by_best[k], original.world_from_skull,
+                                       original.info.motion, rig, &propagation));
+      const std::vector<int> mask = JiggleMask(original.channels.at("dynamic_offset"), skip);
+      const double offset_mm =
+          MaskedMeanDistance(original.positions, original.channels.at("quasistatic"), mask, skip);
+      const double residual_mm =
+          MaskedMeanDistance(resynthesised.positions, original.positions, mask, skip);
+      // Without synthesis, the residual of the removed take is the dynamics themselves.
+      const double removed_only_mm =
+          MaskedMeanDistance(removed_by_best[k].positions, original.positions, mask, skip);
+      synthesis_json.push_back({{"take", test[k].name},
+                                {"mean_dynamic_offset_mm", Round4(offset_mm)},
+                                {"resynthesis_residual_mm", Round4(residual_mm)},
+                                {"relative_to_offset", Round4(offset_mm > 0 ? residual_mm / offset_mm : 0)},
+                                {"removed_without_synthesis_mm", Round4(removed_only_mm)}});
+      spdlog::info("{}: resynthesis residual {:.3f} mm of {:.3f} mm offset", test[k].name,
+                   residual_mm, offset_mm);
+    }
+    result["synthesis"] = {{"takes", synthesis_json},
+                           {"training_rows", synthesis_summary.training_rows},
+                           {"epochs", options.synthesis_epochs},
+                           {"batch", options.synthesis_batch},
+                           {"train_s", Round4(synthesis_summary.train_s)},
+                           {"final_validation_loss", synthesis_summary.validation_loss.empty()
+                                                         ? 0.0
+                                                         : synthesis_summary.validation_loss.back()}};
+  }
+  result["total_s"] = Round4(SecondsSince(study_start));
+  return result;
+}
+
+}  // namespace facedyn::app

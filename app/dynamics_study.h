@@ -1,0 +1,51 @@
+// The dynamics validation protocols of Zoss et al. 2020 run end to end on simulated takes, where
+// the simulator's exact quasistatic lets facedyn measure what the paper could only estimate:
+//
+//   - removal (paper Fig. 5): F trained on held-expression platform takes at some frequencies,
+//     tested on a frequency never seen, and on a speech take with changing expression;
+//   - synthesis (paper Fig. 7): H trained on decomposed takes, then remove-and-resynthesise an
+//     unseen take and measure the residual against the original;
+//   - speed: training rows/s next to the machine's LibTorch GEMM rate, removal + propagation
+//     frames/s.
+//
+// Shared by bench/dynamics_bench (the figures of issue 4) and `facedyn demo` (a small version).
+// It lives in app/ because it wires sim/ (the data) to dynamics/ (the method); neither module may
+// depend on the other.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/json_io.h"
+#include "core/status.h"
+
+namespace facedyn::app {
+
+struct DynamicsStudyOptions {
+  std::vector<double> train_hz = {6, 7, 8, 9, 10};
+  double test_hz = 11.0;
+  std::vector<std::string> expressions = {"neutral", "smile", "jaw_open"};
+  double seconds = 2.0;        // per simulated take
+  double fps = 128.0;
+  int vertices = 4000;         // procedural face size
+  double speech_hz = 8.0;      // platform frequency of the speech test take; <= 0: no speech test
+  int removal_epochs = 40;
+  int removal_batch = 10000;   // the paper's
+  int synthesis_epochs = 30;   // the paper's
+  int synthesis_batch = 50;    // the paper's
+  bool moving_average_targets = true;  // also train F on the paper's moving-average targets
+  bool synthesis = true;
+  int threads = 0;             // LibTorch threads; 0: leave
+  uint64_t seed = 1;
+  bool show_progress = true;
+  // Frequencies in 0.5..30, at least one expression, seconds >= 0.5, vertices 4000..10000,
+  // epochs and batches >= 1. The message names the field.
+  Status Check() const;
+};
+
+// Runs the study; the JSON has "setup", "removal" (per test take: each method's mean, p95, max
+// error over the face and the mean error over the jiggling vertices relative to the mean true
+// dynamic offset there), "synthesis" and "training" sections. Progress on the terminal.
+StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options);
+
+}  // namespace facedyn::app

@@ -1,0 +1,150 @@
+// dynamics_bench: the figures of issue 4, printed as JSON.
+//
+//   - fidelity (app/dynamics_study.h): removal trained on platform takes at 6-10 Hz, tested on
+//     11 Hz never seen and on a speech take, against the simulator's exact quasistatic, next to
+//     the baselines (no removal, zero-phase low-pass, moving average); remove-then-resynthesise
+//     residual (paper Fig. 7);
+//   - speed: training rows/s of F converted to multiply-adds/s (forward + backward = 3x the
+//     forward multiply-adds) next to the machine's own LibTorch GEMM rate measured in the same
+//     run (the ratio is the figure; machines are shared and noisy), and removal + propagation
+//     frames/s on a 10k-vertex take (median of 3).
+//
+//   dynamics_bench [--quick] [--threads N] [--epochs N] [--seconds S]
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include <spdlog/spdlog.h>
+
+#include "app/dynamics_study.h"
+#include "core/log.h"
+#include "core/progress.h"
+#include "dynamics/mlp.h"
+#include "dynamics/propagation.h"
+#include "dynamics/removal_model.h"
+#include "dynamics/synthesis_model.h"
+#include "sim/procedural_face.h"
+#include "sim/skull_motion.h"
+
+namespace {
+
+using facedyn::Json;
+using Clock = std::chrono::steady_clock;
+double Seconds(Clock::time_point a) { return std::chrono::duration<double>(Clock::now() - a).count(); }
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+// Removal + propagation speed on a procedural face of ~10k vertices: the head moves on the
+// platform, the skin holds the neutral (speed does not depend on the skin's motion or on the
+// network's weights, which are freshly initialised here).
+Json RemovalSpeed(double seconds) {
+  facedyn::sim::ProceduralFaceOptions face_options;
+  face_options.target_vertex_count = 10000;
+  const facedyn::FaceRig rig = facedyn::sim::MakeProceduralFace(face_options).value();
+  facedyn::sim::MotionOptions motion;
+  motion.platform_hz = 11;
+  const auto skull = facedyn::sim::MakeSkullMotion(motion).value();
+  const double fps = 128;
+  std::vector<facedyn::Rigid3> poses;
+  for (int t = 0; t < static_cast<int>(seconds * fps); ++t) poses.push_back(skull->WorldFromSkull(t / fps));
+  const facedyn::Take take = facedyn::dynamics::HeldShapeTake(rig, rig.neutral.positions_mm, poses, fps);
+  const auto build_start = Clock::now();
+  const auto propagation = facedyn::dynamics::SamplePropagation::Build(rig).value();
+  const double build_s = Seconds(build_start);
+  const auto model =
+      facedyn::dynamics::RemovalModel::Create(facedyn::dynamics::RemovalConfig::ForRig(rig, fps), 1)
+          .value();
+  std::vector<double> fps_runs, predict, propagate;
+  for (int r = 0; r < 3; ++r) {
+    facedyn::dynamics::RemovalSummary summary;
+    const auto removed = facedyn::dynamics::RemoveDynamics(model, take, rig, &propagation, &summary);
+    if (!removed.ok()) {
+      std::fprintf(stderr, "removal failed: %s\n", removed.status().message().c_str());
+      std::exit(1);
+    }
+    fps_runs.push_back(summary.frames_per_s);
+    predict.push_back(summary.predict_s);
+    propagate.push_back(summary.propagate_s);
+  }
+  return {{"vertices", rig.vertex_count()},
+          {"samples", rig.skin_samples.size()},
+          {"frames", take.frame_count()},
+          {"frames_per_s_median", std::round(Median(fps_runs))},
+          {"predict_s_median", Median(predict)},
+          {"propagate_s_median", Median(propagate)},
+          {"propagation_build_s", build_s},
+          {"target_frames_per_s", 200}};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  facedyn::app::DynamicsStudyOptions options;
+  bool quick = false;
+  int threads = 0;
+  for (int k = 1; k < argc; ++k) {
+    const std::string arg = argv[k];
+    auto next = [&]() -> const char* {
+      if (k + 1 >= argc) {
+        std::fprintf(stderr, "dynamics_bench: %s needs a value\n", arg.c_str());
+        std::exit(2);
+      }
+      return argv[++k];
+    };
+    if (arg == "--quick") {
+      quick = true;
+    } else if (arg == "--threads") {
+      threads = std::atoi(next());
+    } else if (arg == "--epochs") {
+      options.removal_epochs = std::atoi(next());
+    } else if (arg == "--seconds") {
+      options.seconds = std::atof(next());
+    } else {
+      std::fprintf(stderr, "usage: dynamics_bench [--quick] [--threads N] [--epochs N] [--seconds S]\n");
+      return 2;
+    }
+  }
+  facedyn::InitLogging(facedyn::Verbosity::kNormal);
+  if (quick) {
+    options.train_hz = {7, 9};
+    options.expressions = {"neutral", "smile"};
+    options.seconds = 1.5;
+    options.removal_epochs = std::min(options.removal_epochs, 10);
+    options.synthesis_epochs = 10;
+  }
+  options.threads = threads;
+  const auto study = facedyn::app::RunDynamicsStudy(options);
+  if (!study.ok()) {
+    std::fprintf(stderr, "dynamics_bench: %s\n", study.status().message().c_str());
+    return 1;
+  }
+  Json out;
+  out["fidelity"] = *study;
+
+  // Speed: F's training throughput against the GEMM rate, measured now, side by side.
+  const Json& training = (*study)["training"]["F_exact_targets"];
+  const double rows_per_s = training["rows_per_s"].get<double>();
+  const double train_macs = rows_per_s * 3.0 * training["forward_multiply_adds_per_row"].get<double>();
+  const double gemm_square = facedyn::dynamics::MeasureGemmMultiplyAddsPerSecond(1024, 1024, 1024, 2.0);
+  const double gemm_layer = facedyn::dynamics::MeasureGemmMultiplyAddsPerSecond(
+      options.removal_batch, training["input_size"].get<int>(), training["hidden_units"].get<int>(), 2.0);
+  out["speed"] = {
+      {"training_rows_per_s", rows_per_s},
+      {"training_multiply_adds_per_s", train_macs},
+      {"gemm_1024_multiply_adds_per_s", gemm_square},
+      {"gemm_first_layer_shape_multiply_adds_per_s", gemm_layer},
+      {"training_over_gemm_1024", train_macs / gemm_square},
+      {"training_over_gemm_first_layer", train_macs / gemm_layer},
+      {"target_ratio", 0.5},
+      {"removal", RemovalSpeed(quick ? 1.0 : 2.0)}};
+  std::printf("%s\n", out.dump(2).c_str());
+  return 0;
+}

@@ -1,0 +1,116 @@
+// The shared normalised MLP and its trainer (dynamics/mlp.h).
+
+#include "dynamics/mlp.h"
+
+#include <cstring>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "tests/support/test_support.h"
+
+namespace facedyn::dynamics {
+namespace {
+
+using ::testing::HasSubstr;
+
+// y = A x + b with a fixed A, b: rows are columns of a fixed random input matrix.
+class LinearDataset final : public MlpDataset {
+ public:
+  explicit LinearDataset(int rows) {
+    inputs_ = Eigen::MatrixXf::Random(4, rows) * 10.0f;
+    a_ = Eigen::MatrixXf::Random(2, 4);
+    b_ = Eigen::Vector2f(100.0f, -50.0f);
+    targets_ = (a_ * inputs_).colwise() + b_;
+  }
+  int input_size() const override { return 4; }
+  int output_size() const override { return 2; }
+  void Gather(const long* rows, long n, Eigen::MatrixXf* inputs,
+              Eigen::MatrixXf* targets) const override {
+    inputs->resize(4, n);
+    targets->resize(2, n);
+    for (long r = 0; r < n; ++r) {
+      inputs->col(r) = inputs_.col(rows[r]);
+      targets->col(r) = targets_.col(rows[r]);
+    }
+  }
+  Eigen::MatrixXf inputs_, targets_, a_;
+  Eigen::Vector2f b_;
+};
+
+MlpShape SmallShape() {
+  MlpShape shape;
+  shape.input_size = 4;
+  shape.hidden_units = 32;
+  shape.output_size = 2;
+  return shape;
+}
+
+TEST(MlpShape, CheckAndMultiplyAdds) {
+  MlpShape shape = SmallShape();
+  EXPECT_TRUE(shape.Check().ok());
+  EXPECT_DOUBLE_EQ(shape.ForwardMultiplyAdds(), 4 * 32 + 32 * 32 + 32 * 2);
+  shape.hidden_layers = 0;
+  EXPECT_THAT(shape.Check().message(), HasSubstr("hidden_layers"));
+}
+
+TEST(TrainMlp, FitsALinearMapInRawUnits) {
+  const LinearDataset data(2000);
+  std::vector<long> train, validation;
+  for (long r = 0; r < 2000; ++r) (r % 10 == 0 ? validation : train).push_back(r);
+  Mlp model = Mlp::Create(SmallShape(), 3).value();
+  MlpTrainOptions options;
+  options.epochs = 60;
+  options.batch_size = 64;
+  options.show_progress = false;
+  MlpTrainSummary summary;
+  ASSERT_TRUE(TrainMlp(data, train, validation, options, &model, &summary).ok());
+  EXPECT_EQ(summary.training_rows, 1800);
+  EXPECT_EQ(summary.validation_rows, 200);
+  ASSERT_EQ(summary.train_loss.size(), 60u);
+  EXPECT_LT(summary.validation_loss.back(), 0.01);  // normalised units
+  // Predictions come back in raw units (the normalisation is inside the model).
+  Eigen::MatrixXf inputs(4, 200);
+  for (int r = 0; r < 200; ++r) inputs.col(r) = data.inputs_.col(validation[r]);
+  const Eigen::MatrixXf predicted = model.Predict(inputs);
+  const Eigen::MatrixXf truth = (data.a_ * inputs).colwise() + data.b_;
+  const double rms = std::sqrt((predicted - truth).squaredNorm() / predicted.size());
+  const double spread = std::sqrt((truth.colwise() - truth.rowwise().mean()).squaredNorm() / truth.size());
+  EXPECT_LT(rms, 0.1 * spread) << "rms " << rms << " spread " << spread;
+}
+
+TEST(TrainMlp, RefusesMismatchedSizesAndNoRows) {
+  const LinearDataset data(10);
+  MlpShape shape = SmallShape();
+  shape.input_size = 5;
+  Mlp model = Mlp::Create(shape, 1).value();
+  MlpTrainOptions options;
+  options.show_progress = false;
+  EXPECT_THAT(TrainMlp(data, {0, 1}, {}, options, &model, nullptr).message(), HasSubstr("4 -> 2"));
+  Mlp small = Mlp::Create(SmallShape(), 1).value();
+  EXPECT_EQ(TrainMlp(data, {}, {}, options, &small, nullptr).code(),
+            StatusCode::kFailedPrecondition);
+}
+
+TEST(Mlp, SaveLoadRoundTripAndKindCheck) {
+  const Mlp model = Mlp::Create(SmallShape(), 5).value();
+  testing::TempDir dir;
+  ASSERT_TRUE(model.Save(dir.Join("m.pt"), "removal", Json{{"note", "x"}}).ok());
+  Json config;
+  const auto loaded = Mlp::Load(dir.Join("m.pt"), "removal", &config);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+  EXPECT_EQ(loaded->FlatParameters(), model.FlatParameters());
+  EXPECT_EQ(config["note"], "x");
+  EXPECT_EQ(config["mlp"]["hidden_units"], 32);
+  const auto wrong = Mlp::Load(dir.Join("m.pt"), "synthesis", &config);
+  EXPECT_EQ(wrong.status().code(), StatusCode::kDataLoss);
+  EXPECT_THAT(wrong.status().message(), HasSubstr("is a removal model, expected a synthesis model"));
+}
+
+TEST(MeasureGemm, GivesAPositiveRate) {
+  const double rate = MeasureGemmMultiplyAddsPerSecond(64, 64, 64, 0.0);
+  EXPECT_GT(rate, 1e6);  // any machine this runs on does more than a million per second
+}
+
+}  // namespace
+}  // namespace facedyn::dynamics

@@ -8,6 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "core/face_rig.h"
 #include "core/status.h"
 
 namespace facedyn::app {
@@ -20,5 +21,11 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected);
 void AddSimCommands(CLI::App& app, CommandRunner* selected);
 void AddDynamicsCommands(CLI::App& app, CommandRunner* selected);
 void AddRigCommands(CLI::App& app, CommandRunner* selected);
+// train-removal, remove, train-synthesis, synthesize, retarget under `facedyn dynamics`.
+void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected);
+
+// A FaceRig from a command-line spec: "procedural" (the embedded default, as `sim perform`
+// uses it) or a FaceRig folder (`facedyn sim face --out`).
+StatusOr<FaceRig> LoadFace(const std::string& spec);
 
 }  // namespace facedyn::app

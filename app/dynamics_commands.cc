@@ -18,7 +18,9 @@ namespace facedyn::app {
 
 void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
   auto* dynamics = app.add_subcommand(
-      "dynamics", "Secondary dynamics: quasistatic extraction and evaluation (Zoss et al. 2020)");
+      "dynamics",
+      "Secondary dynamics (Zoss et al. 2020): quasistatic extraction, removal and synthesis "
+      "networks, retargeting, evaluation");
   dynamics->require_subcommand(1);
 
   struct QuasistaticCommandOptions {
@@ -120,6 +122,7 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
       return Status::Ok();
     };
   });
+  AddDynamicsNetworkCommands(dynamics, selected);
 }
 
 }  // namespace facedyn::app

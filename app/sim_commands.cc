@@ -15,15 +15,10 @@
 #include "sim/procedural_face.h"
 
 namespace facedyn::app {
-namespace {
-
-// "procedural" (the embedded default) or a FaceRig folder.
 StatusOr<FaceRig> LoadFace(const std::string& spec) {
   if (spec == "procedural") return sim::MakeProceduralFace(sim::ProceduralFaceOptions());
   return LoadFaceRig(spec);
 }
-
-}  // namespace
 
 void AddSimCommands(CLI::App& app, CommandRunner* selected) {
   auto* sim = app.add_subcommand("sim", "The simulated stage: faces and their physics");

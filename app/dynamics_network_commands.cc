@@ -1,0 +1,358 @@
+// `facedyn dynamics train-removal | remove | train-synthesis | synthesize | retarget`: the
+// networks of Zoss et al. 2020 on Take folders (dynamics/removal_model.h, synthesis_model.h).
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <spdlog/spdlog.h>
+
+#include "app/command.h"
+#include "core/face_rig.h"
+#include "core/json_io.h"
+#include "core/take.h"
+#include "dynamics/propagation.h"
+#include "dynamics/removal_model.h"
+#include "dynamics/synthesis_model.h"
+#include "sim/expressions.h"
+
+namespace facedyn::app {
+namespace {
+
+StatusOr<std::vector<Take>> LoadTakes(const std::vector<std::string>& dirs) {
+  std::vector<Take> takes;
+  for (const std::string& dir : dirs) {
+    StatusOr<Take> take = LoadTake(dir);
+    if (!take.ok()) return take.status();
+    spdlog::info("loaded {} ({} frames at {} fps)", dir, take->frame_count(), take->info.fps);
+    takes.push_back(std::move(take).value());
+  }
+  return takes;
+}
+
+std::vector<dynamics::TrainingTake> AsTraining(const std::vector<Take>& takes, const FaceRig& rig) {
+  std::vector<dynamics::TrainingTake> training;
+  for (const Take& take : takes) training.push_back({&take, &rig});
+  return training;
+}
+
+Json SummaryJson(const dynamics::MlpTrainSummary& summary) {
+  return {{"training_rows", summary.training_rows},
+          {"validation_rows", summary.validation_rows},
+          {"epochs", summary.train_loss.size()},
+          {"final_train_loss", summary.train_loss.empty() ? 0.0 : summary.train_loss.back()},
+          {"final_validation_loss",
+           summary.validation_loss.empty() ? 0.0 : summary.validation_loss.back()},
+          {"train_s", summary.train_s},
+          {"rows_per_s", summary.rows_per_s}};
+}
+
+// Head motion for synthesis: a take folder (its skull.csv) or a skull.csv file.
+StatusOr<std::vector<Rigid3>> LoadMotion(const std::string& spec) {
+  if (std::filesystem::is_directory(spec)) {
+    FACEDYN_ASSIGN_OR_RETURN(const Take take, LoadTake(spec));
+    return take.world_from_skull;
+  }
+  std::vector<double> time_s;
+  std::vector<Rigid3> poses;
+  FACEDYN_RETURN_IF_ERROR(ReadTransformCsv(spec, &time_s, &poses));
+  return poses;
+}
+
+// Trims a take to its first `frames` frames (positions, poses, times, channels).
+void TrimTake(int frames, Take* take) {
+  take->positions.positions.conservativeResize(Eigen::NoChange, frames);
+  for (auto& [name, cache] : take->channels) cache.positions.conservativeResize(Eigen::NoChange, frames);
+  take->world_from_skull.resize(frames);
+  if (!take->skull_from_jaw.empty()) take->skull_from_jaw.resize(frames);
+  take->time_s.resize(frames);
+}
+
+}  // namespace
+
+void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
+  // --- train-removal ---
+  struct TrainRemovalCommand {
+    std::vector<std::string> takes;
+    std::string face = "procedural";
+    std::string out;
+    std::string targets = "moving-average";
+    dynamics::RemovalTrainOptions options;
+    bool json = false;
+  };
+  auto train_removal = std::make_shared<TrainRemovalCommand>();
+  auto* train_removal_cmd = dynamics->add_subcommand(
+      "train-removal",
+      "Train the removal network F (Zoss et al. 2020, sec. 5) on held-expression takes");
+  train_removal_cmd->add_option("--takes", train_removal->takes, "Training take folders")
+      ->required()
+      ->expected(1, -1);
+  train_removal_cmd->add_option("--face", train_removal->face, "FaceRig folder, or 'procedural'")
+      ->capture_default_str();
+  train_removal_cmd->add_option("--out", train_removal->out, "Model file to write (e.g. F.pt)")
+      ->required();
+  train_removal_cmd
+      ->add_option("--targets", train_removal->targets,
+                   "moving-average (Eq. 5-6, the paper) or exact (simulated takes' quasistatic)")
+      ->check(CLI::IsMember({"moving-average", "exact"}))
+      ->capture_default_str();
+  train_removal_cmd->add_option("--epochs", train_removal->options.epochs)->capture_default_str();
+  train_removal_cmd->add_option("--batch", train_removal->options.batch_size)->capture_default_str();
+  train_removal_cmd->add_option("--learning-rate", train_removal->options.learning_rate)
+      ->capture_default_str();
+  train_removal_cmd->add_option("--validation", train_removal->options.validation_fraction,
+                                "Fraction of frames held out for validation")
+      ->capture_default_str();
+  train_removal_cmd->add_option("--seed", train_removal->options.seed)->capture_default_str();
+  train_removal_cmd->add_option("--threads", train_removal->options.num_threads,
+                                "LibTorch threads (0: default); the same count gives the same model")
+      ->capture_default_str();
+  train_removal_cmd->add_flag("--json", train_removal->json, "Print the training summary as JSON");
+  train_removal_cmd->callback([train_removal, selected] {
+    *selected = [train_removal]() -> Status {
+      train_removal->options.targets = train_removal->targets == "exact"
+                                           ? dynamics::RemovalTargets::kExact
+                                           : dynamics::RemovalTargets::kMovingAverage;
+      if (Status status = train_removal->options.Check(); !status.ok()) {
+        return InvalidArgumentError("train-removal: " + status.message());
+      }
+      FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(train_removal->face));
+      FACEDYN_ASSIGN_OR_RETURN(const std::vector<Take> takes, LoadTakes(train_removal->takes));
+      dynamics::MlpTrainSummary summary;
+      FACEDYN_ASSIGN_OR_RETURN(
+          const dynamics::RemovalModel model,
+          dynamics::TrainRemoval(AsTraining(takes, rig), train_removal->options, &summary));
+      FACEDYN_RETURN_IF_ERROR(model.Save(train_removal->out));
+      spdlog::info("wrote {} ({} training rows, validation loss {:.4g})", train_removal->out,
+                   summary.training_rows,
+                   summary.validation_loss.empty() ? 0.0 : summary.validation_loss.back());
+      if (train_removal->json) std::printf("%s\n", SummaryJson(summary).dump(2).c_str());
+      return Status::Ok();
+    };
+  });
+
+  // --- remove ---
+  struct RemoveCommand {
+    std::string take, model, face = "procedural", out;
+    bool json = false;
+  };
+  auto remove = std::make_shared<RemoveCommand>();
+  auto* remove_cmd = dynamics->add_subcommand(
+      "remove", "Remove secondary dynamics from a take with a trained F (Eq. 7), propagated to "
+                "every vertex; writes the quasistatic take with channel dynamic_offset");
+  remove_cmd->add_option("--take", remove->take, "Dynamic take folder")->required();
+  remove_cmd->add_option("--model", remove->model, "Removal model (train-removal --out)")->required();
+  remove_cmd->add_option("--face", remove->face, "FaceRig folder, or 'procedural'")->capture_default_str();
+  remove_cmd->add_option("--out", remove->out, "Output take folder")->required();
+  remove_cmd->add_flag("--json", remove->json, "Print timings as JSON");
+  remove_cmd->callback([remove, selected] {
+    *selected = [remove]() -> Status {
+      FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel model,
+                               dynamics::RemovalModel::Load(remove->model));
+      FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(remove->face));
+      FACEDYN_ASSIGN_OR_RETURN(const Take take, LoadTake(remove->take));
+      dynamics::RemovalSummary summary;
+      StatusOr<Take> removed = dynamics::RemoveDynamics(model, take, rig, nullptr, &summary);
+      if (!removed.ok()) return removed.status().WithContext(remove->take);
+      FACEDYN_RETURN_IF_ERROR(SaveTake(*removed, remove->out));
+      spdlog::info("wrote {} ({} frames, {:.0f} frames/s)", remove->out, removed->frame_count(),
+                   summary.frames_per_s);
+      if (remove->json) {
+        std::printf("%s\n", Json({{"frames", removed->frame_count()},
+                                  {"predict_s", summary.predict_s},
+                                  {"propagate_s", summary.propagate_s},
+                                  {"frames_per_s", summary.frames_per_s}})
+                                .dump(2)
+                                .c_str());
+      }
+      return Status::Ok();
+    };
+  });
+
+  // --- train-synthesis ---
+  struct TrainSynthesisCommand {
+    std::vector<std::string> takes;
+    std::string face = "procedural", out, removal_model;
+    bool exact = false;
+    dynamics::SynthesisTrainOptions options;
+    bool json = false;
+  };
+  auto train_synthesis = std::make_shared<TrainSynthesisCommand>();
+  auto* train_synthesis_cmd = dynamics->add_subcommand(
+      "train-synthesis",
+      "Train the synthesis network H (Zoss et al. 2020, sec. 6) on decomposed takes: the output "
+      "of `dynamics remove`, dynamic takes with --removal-model F.pt, or simulated takes with "
+      "--exact");
+  train_synthesis_cmd->add_option("--takes", train_synthesis->takes, "Training take folders")
+      ->required()
+      ->expected(1, -1);
+  train_synthesis_cmd->add_option("--face", train_synthesis->face, "FaceRig folder, or 'procedural'")
+      ->capture_default_str();
+  train_synthesis_cmd->add_option("--out", train_synthesis->out, "Model file to write (e.g. H.pt)")
+      ->required();
+  auto* removal_option = train_synthesis_cmd->add_option(
+      "--removal-model", train_synthesis->removal_model,
+      "Decompose dynamic takes with this removal model first (the paper's way)");
+  train_synthesis_cmd
+      ->add_flag("--exact", train_synthesis->exact,
+                 "Decompose simulated takes exactly (their quasistatic and dynamic_offset channels)")
+      ->excludes(removal_option);
+  train_synthesis_cmd->add_option("--epochs", train_synthesis->options.epochs)->capture_default_str();
+  train_synthesis_cmd->add_option("--batch", train_synthesis->options.batch_size)->capture_default_str();
+  train_synthesis_cmd->add_option("--learning-rate", train_synthesis->options.learning_rate)
+      ->capture_default_str();
+  train_synthesis_cmd->add_option("--validation", train_synthesis->options.validation_fraction)
+      ->capture_default_str();
+  train_synthesis_cmd->add_option("--seed", train_synthesis->options.seed)->capture_default_str();
+  train_synthesis_cmd->add_option("--threads", train_synthesis->options.num_threads)
+      ->capture_default_str();
+  train_synthesis_cmd->add_flag("--json", train_synthesis->json, "Print the training summary as JSON");
+  train_synthesis_cmd->callback([train_synthesis, selected] {
+    *selected = [train_synthesis]() -> Status {
+      if (Status status = train_synthesis->options.Check(); !status.ok()) {
+        return InvalidArgumentError("train-synthesis: " + status.message());
+      }
+      FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(train_synthesis->face));
+      FACEDYN_ASSIGN_OR_RETURN(std::vector<Take> takes, LoadTakes(train_synthesis->takes));
+      if (train_synthesis->exact) {
+        for (size_t k = 0; k < takes.size(); ++k) {
+          StatusOr<Take> decomposed = dynamics::DecomposeExact(takes[k]);
+          if (!decomposed.ok()) return decomposed.status().WithContext(train_synthesis->takes[k]);
+          takes[k] = std::move(decomposed).value();
+        }
+      } else if (!train_synthesis->removal_model.empty()) {
+        FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel removal,
+                                 dynamics::RemovalModel::Load(train_synthesis->removal_model));
+        FACEDYN_ASSIGN_OR_RETURN(const dynamics::SamplePropagation propagation,
+                                 dynamics::SamplePropagation::Build(rig));
+        for (size_t k = 0; k < takes.size(); ++k) {
+          StatusOr<Take> removed = dynamics::RemoveDynamics(removal, takes[k], rig, &propagation);
+          if (!removed.ok()) return removed.status().WithContext(train_synthesis->takes[k]);
+          takes[k] = std::move(removed).value();
+        }
+      }
+      dynamics::MlpTrainSummary summary;
+      FACEDYN_ASSIGN_OR_RETURN(
+          const dynamics::SynthesisModel model,
+          dynamics::TrainSynthesis(AsTraining(takes, rig), train_synthesis->options, &summary));
+      FACEDYN_RETURN_IF_ERROR(model.Save(train_synthesis->out));
+      spdlog::info("wrote {} ({} training frames)", train_synthesis->out, summary.training_rows);
+      if (train_synthesis->json) std::printf("%s\n", SummaryJson(summary).dump(2).c_str());
+      return Status::Ok();
+    };
+  });
+
+  // --- synthesize and retarget share the composition ---
+  struct SynthesizeCommand {
+    std::string take, motion, model, face = "procedural", out;
+    std::string expression;       // retarget: held expression of the target face
+    std::string naive_out;        // retarget: also write the naive per-vertex transfer
+    std::string source_face = "procedural";
+  };
+  auto synthesize = std::make_shared<SynthesizeCommand>();
+  auto* synthesize_cmd = dynamics->add_subcommand(
+      "synthesize",
+      "Compose new secondary dynamics for a quasistatic take under a new head motion with a "
+      "trained H (Zoss et al. 2020, sec. 6)");
+  synthesize_cmd->add_option("--take", synthesize->take, "Quasistatic take folder")->required();
+  synthesize_cmd->add_option("--motion", synthesize->motion,
+                             "New head motion: a take folder or a skull.csv file")
+      ->required();
+  synthesize_cmd->add_option("--model", synthesize->model, "Synthesis model (train-synthesis --out)")
+      ->required();
+  synthesize_cmd->add_option("--face", synthesize->face, "FaceRig folder, or 'procedural'")
+      ->capture_default_str();
+  synthesize_cmd->add_option("--out", synthesize->out, "Output take folder")->required();
+  synthesize_cmd->callback([synthesize, selected] {
+    *selected = [synthesize]() -> Status {
+      FACEDYN_ASSIGN_OR_RETURN(const dynamics::SynthesisModel model,
+                               dynamics::SynthesisModel::Load(synthesize->model));
+      FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(synthesize->face));
+      FACEDYN_ASSIGN_OR_RETURN(Take quasistatic, LoadTake(synthesize->take));
+      FACEDYN_ASSIGN_OR_RETURN(std::vector<Rigid3> motion, LoadMotion(synthesize->motion));
+      const int frames = std::min<int>(quasistatic.frame_count(), static_cast<int>(motion.size()));
+      if (frames < 1) return InvalidArgumentError("synthesize: the motion has no poses");
+      if (frames != quasistatic.frame_count() || frames != static_cast<int>(motion.size())) {
+        spdlog::warn("synthesize: the take has {} frames and the motion {} poses; using the first {}",
+                     quasistatic.frame_count(), motion.size(), frames);
+        TrimTake(frames, &quasistatic);
+        motion.resize(frames);
+      }
+      StatusOr<Take> result = dynamics::SynthesizeDynamics(model, quasistatic, motion,
+                                                           synthesize->motion, rig);
+      if (!result.ok()) return result.status().WithContext(synthesize->take);
+      FACEDYN_RETURN_IF_ERROR(SaveTake(*result, synthesize->out));
+      spdlog::info("wrote {} ({} frames)", synthesize->out, result->frame_count());
+      return Status::Ok();
+    };
+  });
+
+  auto retarget = std::make_shared<SynthesizeCommand>();
+  auto* retarget_cmd = dynamics->add_subcommand(
+      "retarget",
+      "Root-motion retargeting (Zoss et al. 2020, Figs. 9-10): the source take's head motion on "
+      "the target subject, with dynamics from the target's H; optionally the naive per-vertex "
+      "transfer for comparison");
+  retarget_cmd->add_option("--source", retarget->motion,
+                           "Source take (its head motion; with --naive-out also its dynamic_offset)")
+      ->required();
+  retarget_cmd->add_option("--face", retarget->face, "Target FaceRig folder, or 'procedural'")
+      ->capture_default_str();
+  retarget_cmd->add_option("--model", retarget->model, "The target subject's synthesis model")
+      ->required();
+  auto* take_option = retarget_cmd->add_option(
+      "--take", retarget->take, "Target quasistatic take (default: the target holds --expression)");
+  retarget_cmd->add_option("--expression", retarget->expression,
+                           "Held expression of the target face (default neutral)")
+      ->excludes(take_option);
+  retarget_cmd->add_option("--out", retarget->out, "Output take folder")->required();
+  retarget_cmd->add_option("--naive-out", retarget->naive_out,
+                           "Also write the naive per-vertex delta transfer here (Fig. 10b)");
+  retarget_cmd->add_option("--source-face", retarget->source_face,
+                           "Source FaceRig (samples for --naive-out), or 'procedural'")
+      ->capture_default_str();
+  retarget_cmd->callback([retarget, selected] {
+    *selected = [retarget]() -> Status {
+      FACEDYN_ASSIGN_OR_RETURN(const dynamics::SynthesisModel model,
+                               dynamics::SynthesisModel::Load(retarget->model));
+      FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(retarget->face));
+      FACEDYN_ASSIGN_OR_RETURN(const Take source, LoadTake(retarget->motion));
+      Take target;
+      if (!retarget->take.empty()) {
+        FACEDYN_ASSIGN_OR_RETURN(target, LoadTake(retarget->take));
+        if (target.frame_count() < source.frame_count()) {
+          return InvalidArgumentError("retarget: the target take has " +
+                                      std::to_string(target.frame_count()) +
+                                      " frames, fewer than the source's " +
+                                      std::to_string(source.frame_count()));
+        }
+        TrimTake(source.frame_count(), &target);
+      } else {
+        const std::string expression = retarget->expression.empty() ? "neutral" : retarget->expression;
+        FACEDYN_ASSIGN_OR_RETURN(const Eigen::VectorXd weights,
+                                 sim::ExpressionWeights(rig, expression));
+        target = dynamics::HeldShapeTake(rig, rig.Evaluate(weights), source.world_from_skull,
+                                         source.info.fps);
+        target.info.expression = expression;
+      }
+      StatusOr<Take> result = dynamics::SynthesizeDynamics(
+          model, target, source.world_from_skull, "retargeted from " + retarget->motion, rig);
+      if (!result.ok()) return result.status().WithContext(retarget->motion);
+      FACEDYN_RETURN_IF_ERROR(SaveTake(*result, retarget->out));
+      spdlog::info("wrote {} ({} frames)", retarget->out, result->frame_count());
+      if (!retarget->naive_out.empty()) {
+        FACEDYN_ASSIGN_OR_RETURN(const FaceRig source_rig, LoadFace(retarget->source_face));
+        FACEDYN_ASSIGN_OR_RETURN(const Take naive,
+                                 dynamics::NaiveDeltaTransfer(source, source_rig, target, rig));
+        FACEDYN_RETURN_IF_ERROR(SaveTake(naive, retarget->naive_out));
+        spdlog::info("wrote the naive transfer to {}", retarget->naive_out);
+      }
+      return Status::Ok();
+    };
+  });
+}
+
+}  // namespace facedyn::app

@@ -214,6 +214,16 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
                                      ": no dynamic_offset channel (train on the output of "
                                      "`dynamics remove`, or on simulated takes with --exact)");
     }
+    // A simulated dynamic take also carries a dynamic_offset channel, but its positions are
+    // the dynamic skin: training on it would teach H to add dynamics to dynamics.
+    if (const auto quasistatic = take.channels.find("quasistatic");
+        quasistatic != take.channels.end() &&
+        (quasistatic->second.positions - take.positions.positions).cwiseAbs().maxCoeff() > 1e-3f) {
+      return FailedPreconditionError(
+          context + ": its positions are not quasistatic (they differ from its quasistatic "
+                    "channel: a simulated dynamic take?); decompose it first (DecomposeExact, "
+                    "`train-synthesis --exact`, or `--removal-model F.pt`)");
+    }
     StatusOr<Eigen::MatrixXf> features =
         SynthesisFeatures(take, take.world_from_skull, rig, config, stencil);
     if (!features.ok()) return features.status().WithContext(context);

@@ -1,0 +1,127 @@
+// `facedyn dynamics train-removal | remove | train-synthesis | synthesize | retarget | eval`
+// end to end on small simulated takes: exit codes, files, JSON, and bad input.
+
+#include <filesystem>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "tests/support/test_support.h"
+
+namespace facedyn {
+namespace {
+
+using ::facedyn::testing::FacedynExecutable;
+using ::facedyn::testing::RunCommand;
+using ::facedyn::testing::TempDir;
+using ::testing::HasSubstr;
+
+std::string Facedyn(const std::string& args) { return FacedynExecutable() + " --quiet " + args; }
+
+// Three 1 s simulated platform takes (7, 9 and 8 Hz) on the procedural face, made once.
+const TempDir& Takes() {
+  static const TempDir* dir = [] {
+    auto* d = new TempDir();
+    for (const char* hz : {"7", "9", "8"}) {
+      std::string out;
+      const int rc = RunCommand(Facedyn(std::string("sim perform --expression neutral --motion "
+                                                    "platform --seconds 1 --hz ") +
+                                        hz + " --out " + d->Join(std::string("p") + hz)),
+                                &out);
+      EXPECT_EQ(rc, 0) << out;
+    }
+    return d;
+  }();
+  return *dir;
+}
+
+TEST(DynamicsCli, TrainRemoveSynthesizeRetargetEvaluate) {
+  const TempDir& takes = Takes();
+  TempDir dir;
+  std::string out;
+  ASSERT_EQ(RunCommand(Facedyn("dynamics train-removal --takes " + takes.Join("p7") + " " +
+                               takes.Join("p9") + " --targets exact --epochs 3 --batch 4000 --out " +
+                               dir.Join("F.pt") + " --json"),
+                       &out),
+            0)
+      << out;
+  const auto summary = nlohmann::json::parse(out.substr(out.find('{')));
+  EXPECT_EQ(summary["epochs"], 3);
+  EXPECT_GT(summary["training_rows"].get<long>(), 0);
+
+  ASSERT_EQ(RunCommand(Facedyn("dynamics remove --take " + takes.Join("p8") + " --model " +
+                               dir.Join("F.pt") + " --out " + dir.Join("removed")),
+                       &out),
+            0)
+      << out;
+  EXPECT_TRUE(std::filesystem::exists(dir.Join("removed/dynamic_offset.pc2")));
+
+  ASSERT_EQ(RunCommand(Facedyn("dynamics eval --pred " + dir.Join("removed") + " --truth " +
+                               takes.Join("p8") + " --input " + takes.Join("p8") + " --json"),
+                       &out),
+            0)
+      << out;
+  const auto evaluation = nlohmann::json::parse(out.substr(out.find('{')));
+  EXPECT_EQ(evaluation["reports"].size(), 4u) << out;
+
+  ASSERT_EQ(RunCommand(Facedyn("dynamics train-synthesis --takes " + takes.Join("p7") + " " +
+                               takes.Join("p9") + " --removal-model " + dir.Join("F.pt") +
+                               " --epochs 2 --out " + dir.Join("H.pt")),
+                       &out),
+            0)
+      << out;
+  ASSERT_EQ(RunCommand(Facedyn("dynamics synthesize --take " + dir.Join("removed") + " --motion " +
+                               takes.Join("p9") + " --model " + dir.Join("H.pt") + " --out " +
+                               dir.Join("synth")),
+                       &out),
+            0)
+      << out;
+  EXPECT_TRUE(std::filesystem::exists(dir.Join("synth/quasistatic.pc2")));
+  ASSERT_EQ(RunCommand(Facedyn("dynamics retarget --source " + takes.Join("p9") + " --model " +
+                               dir.Join("H.pt") + " --expression smile --out " +
+                               dir.Join("retarget") + " --naive-out " + dir.Join("naive")),
+                       &out),
+            0)
+      << out;
+  EXPECT_TRUE(std::filesystem::exists(dir.Join("retarget/take.json")));
+  EXPECT_TRUE(std::filesystem::exists(dir.Join("naive/dynamic_offset.pc2")));
+
+  // A synthesis model is not a removal model, and says so.
+  EXPECT_EQ(RunCommand(Facedyn("dynamics remove --take " + takes.Join("p8") + " --model " +
+                               dir.Join("H.pt") + " --out " + dir.Join("bad")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("is a synthesis model, expected a removal model"));
+}
+
+TEST(DynamicsCli, BadArgumentsNameTheField) {
+  const TempDir& takes = Takes();
+  TempDir dir;
+  std::string out;
+  EXPECT_EQ(RunCommand(Facedyn("dynamics train-removal --takes " + takes.Join("p7") +
+                               " --epochs 0 --out " + dir.Join("F.pt")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("epochs"));
+  EXPECT_EQ(RunCommand(Facedyn("dynamics train-removal --takes " + takes.Join("p7") +
+                               " --targets magic --out " + dir.Join("F.pt")),
+                       &out),
+            2);
+  EXPECT_EQ(RunCommand(Facedyn("dynamics train-removal --takes " + dir.Join("missing") +
+                               " --out " + dir.Join("F.pt")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("missing"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("F.pt")));
+  // A dynamic take is not decomposed: train-synthesis says what to do.
+  EXPECT_EQ(RunCommand(Facedyn("dynamics train-synthesis --takes " + takes.Join("p7") +
+                               " --epochs 1 --out " + dir.Join("H.pt")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("not quasistatic"));
+}
+
+}  // namespace
+}  // namespace facedyn

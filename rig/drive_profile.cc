@@ -84,6 +84,7 @@ int DriveProfile::MaxRegister() const {
   int highest = std::max({command_register, setpoint_register, status_register,
                           output_frequency_register, fault_reset_register});
   if (fault_code_register) highest = std::max(highest, *fault_code_register);
+  if (oscillation_register) highest = std::max(highest, *oscillation_register);
   if (comm_watchdog && comm_watchdog->register_address) {
     highest = std::max(highest, *comm_watchdog->register_address);
   }
@@ -131,6 +132,10 @@ StatusOr<DriveProfile> ParseDriveProfile(const ConfigNode& root) {
   FACEDYN_ASSIGN_OR_RETURN(p.output_frequency_register, GetAddress(registers, "output_frequency"));
   if (registers.Has("fault_code")) {
     FACEDYN_ASSIGN_OR_RETURN(p.fault_code_register, GetAddress(registers, "fault_code"));
+  }
+  if (registers.Has("oscillation_frequency")) {
+    FACEDYN_ASSIGN_OR_RETURN(p.oscillation_register, GetAddress(registers, "oscillation_frequency"));
+    FACEDYN_ASSIGN_OR_RETURN(p.oscillation_scaling, ParseScaling(root, "oscillation_scaling"));
   }
   // Command and setpoint are written; sharing an address would make one overwrite the other.
   if (p.command_register == p.setpoint_register) {

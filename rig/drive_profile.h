@@ -53,9 +53,13 @@ struct DriveProfile {
   int status_register = 0;
   int output_frequency_register = 0;
   std::optional<int> fault_code_register;
+  // The platform's measured oscillation frequency (an accelerometer or proximity sensor wired
+  // to the drive or a PLC), when the map has one; the closed-loop trim reads it.
+  std::optional<int> oscillation_register;
 
   FrequencyScaling setpoint_scaling;
   FrequencyScaling output_scaling;
+  FrequencyScaling oscillation_scaling;  // meaningful when oscillation_register is set
 
   uint16_t run_value = 0;
   uint16_t stop_value = 0;

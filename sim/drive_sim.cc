@@ -18,6 +18,8 @@
 
 namespace facedyn::sim {
 
+using Clock = std::chrono::steady_clock;
+
 Status DriveModelOptions::Check() const {
   if (!(accel_hz_per_s > 0.0 && accel_hz_per_s <= 1000.0)) {
     return InvalidArgumentError(fmt::format("model.accel_hz_per_s: {} is outside (0, 1000]", accel_hz_per_s));
@@ -32,8 +34,68 @@ Status DriveModelOptions::Check() const {
     return InvalidArgumentError(fmt::format("model.watchdog_fault_code: {} is outside 0..65535",
                                             watchdog_fault_code));
   }
+  if (!(platform_ratio > 0.0 && platform_ratio <= 100.0)) {
+    return InvalidArgumentError(fmt::format("model.platform_ratio: {} is outside (0, 100]", platform_ratio));
+  }
+  if (!(slip_base >= 0.0 && slip_load >= 0.0 && slip_base + slip_load < 0.5)) {
+    return InvalidArgumentError(fmt::format(
+        "model.slip_base/slip_load: {} + {} must be non-negative and below 0.5", slip_base, slip_load));
+  }
+  if (!(slip_reference_hz > 0.0)) {
+    return InvalidArgumentError(fmt::format("model.slip_reference_hz: {} must be positive", slip_reference_hz));
+  }
+  if (!(sensor_window_s >= 0.01 && sensor_window_s <= 10.0)) {
+    return InvalidArgumentError(fmt::format("model.sensor_window_s: {} is outside [0.01, 10] s", sensor_window_s));
+  }
+  if (!(sensor_noise_hz >= 0.0 && sensor_noise_hz <= 1.0)) {
+    return InvalidArgumentError(fmt::format("model.sensor_noise_hz: {} is outside [0, 1]", sensor_noise_hz));
+  }
   return Status::Ok();
 }
+
+Status ParseDriveModelOptions(const ConfigNode& node, DriveModelOptions* options) {
+  if (!node.IsMap()) return node.Error("expected a map");
+  struct Field {
+    const char* key;
+    double* value;
+    double min, max;
+  };
+  const Field fields[] = {
+      {"accel_hz_per_s", &options->accel_hz_per_s, 0.01, 1000.0},
+      {"max_hz", &options->max_hz, 0.1, 1000.0},
+      {"platform_ratio", &options->platform_ratio, 1e-3, 100.0},
+      {"slip_base", &options->slip_base, 0.0, 0.49},
+      {"slip_load", &options->slip_load, 0.0, 0.49},
+      {"slip_reference_hz", &options->slip_reference_hz, 0.1, 1000.0},
+      {"sensor_window_s", &options->sensor_window_s, 0.01, 10.0},
+      {"sensor_noise_hz", &options->sensor_noise_hz, 0.0, 1.0},
+  };
+  for (const std::string& key : node.Keys()) {
+    bool known = key == "watchdog_fault_code" || key == "seed";
+    for (const Field& field : fields) known = known || key == field.key;
+    if (!known) {
+      return node.Error(key, "unknown field (expected accel_hz_per_s, max_hz, watchdog_fault_code, "
+                             "platform_ratio, slip_base, slip_load, slip_reference_hz, "
+                             "sensor_window_s, sensor_noise_hz or seed)");
+    }
+  }
+  for (const Field& field : fields) {
+    if (!node.Has(field.key)) continue;
+    FACEDYN_ASSIGN_OR_RETURN(*field.value, node.GetInRange(field.key, field.min, field.max));
+  }
+  if (node.Has("watchdog_fault_code")) {
+    FACEDYN_ASSIGN_OR_RETURN(options->watchdog_fault_code, node.Get<int>("watchdog_fault_code"));
+  }
+  if (node.Has("seed")) {
+    FACEDYN_ASSIGN_OR_RETURN(const int seed, node.Get<int>("seed"));
+    options->seed = static_cast<uint64_t>(seed);
+  }
+  const Status valid = options->Check();
+  if (!valid.ok()) return node.Error(valid.message());
+  return Status::Ok();
+}
+
+DriveModel::DriveModel(const DriveModelOptions& options) : options_(options), random_(options.seed) {}
 
 void DriveModel::SetSetpointHz(double hz) {
   state_.setpoint_hz = std::clamp(hz, 0.0, options_.max_hz);
@@ -59,31 +121,76 @@ void DriveModel::ForceFault(int code) {
   state_.run_commanded = false;
 }
 
+void DriveModel::ScheduleTrip(double after_s, int code) {
+  trip_after_s_ = after_s;
+  trip_code_ = code;
+}
+
+double DriveModel::SlipAt(double output_hz) const {
+  const double load = output_hz / options_.slip_reference_hz;
+  return options_.slip_base + options_.slip_load * load * load;
+}
+
 void DriveModel::Advance(double dt_s) {
   if (dt_s <= 0.0) return;
+  state_.time_s += dt_s;
   silent_s_ += dt_s;
   if (options_.watchdog_s > 0.0 && state_.run_commanded && silent_s_ >= options_.watchdog_s) {
     state_.run_commanded = false;
     state_.watchdog_fired = true;
     if (options_.watchdog_fault_code != 0) state_.fault_code = options_.watchdog_fault_code;
   }
+  if (trip_after_s_ >= 0.0 && running()) {
+    trip_after_s_ -= dt_s;
+    if (trip_after_s_ < 0.0) ForceFault(trip_code_);
+  }
   if (state_.fault_code != 0) {
-    state_.output_hz = 0.0;  // a trip removes the output: the motor coasts
-    return;
-  }
-  const double target_hz = state_.run_commanded ? state_.setpoint_hz : 0.0;
-  const double step_hz = options_.accel_hz_per_s * dt_s;
-  if (state_.output_hz < target_hz) {
-    state_.output_hz = std::min(target_hz, state_.output_hz + step_hz);
+    state_.output_hz = 0.0;  // a trip removes the output: the motor coasts (modelled as instant)
   } else {
-    state_.output_hz = std::max(target_hz, state_.output_hz - step_hz);
+    const double target_hz = state_.run_commanded ? state_.setpoint_hz : 0.0;
+    const double step_hz = options_.accel_hz_per_s * dt_s;
+    if (state_.output_hz < target_hz) {
+      state_.output_hz = std::min(target_hz, state_.output_hz + step_hz);
+    } else {
+      state_.output_hz = std::max(target_hz, state_.output_hz - step_hz);
+    }
   }
+  state_.platform_hz =
+      state_.output_hz * options_.platform_ratio * (1.0 - SlipAt(state_.output_hz));
+  phase_cycles_ += state_.platform_hz * dt_s;
+  phase_history_.emplace_back(state_.time_s, phase_cycles_);
+  while (phase_history_.size() > 2 &&
+         phase_history_[1].first <= state_.time_s - options_.sensor_window_s) {
+    phase_history_.pop_front();
+  }
+  const auto& [then_s, then_cycles] = phase_history_.front();
+  const double span_s = state_.time_s - then_s;
+  const double mean_hz = span_s > 0.0 ? (phase_cycles_ - then_cycles) / span_s : 0.0;
+  const double noisy_hz = mean_hz + options_.sensor_noise_hz * noise_(random_);
+  state_.sensor_hz = state_.platform_hz == 0.0 && mean_hz == 0.0 ? 0.0 : std::max(0.0, noisy_hz);
 }
 
 Status DriveSimOptions::Check() const {
-  if (host.empty()) return InvalidArgumentError("sim.host: must not be empty");
-  if (port < 0 || port > 65535) return InvalidArgumentError(fmt::format("sim.port: {} is outside 0..65535", port));
-  if (!(step_s > 0.0 && step_s <= 1.0)) return InvalidArgumentError(fmt::format("sim.step_s: {} is outside (0, 1]", step_s));
+  if (is_rtu()) {
+    if (baud <= 0) return InvalidArgumentError(fmt::format("sim.baud: {} must be positive", baud));
+    if (parity != 'N' && parity != 'E' && parity != 'O') {
+      return InvalidArgumentError(fmt::format("sim.parity: '{}' is not N, E or O", parity));
+    }
+    if (data_bits < 5 || data_bits > 8) {
+      return InvalidArgumentError(fmt::format("sim.data_bits: {} is outside 5..8", data_bits));
+    }
+    if (stop_bits != 1 && stop_bits != 2) {
+      return InvalidArgumentError(fmt::format("sim.stop_bits: {} is not 1 or 2", stop_bits));
+    }
+  } else {
+    if (host.empty()) return InvalidArgumentError("sim.host: must not be empty");
+    if (port < 0 || port > 65535) {
+      return InvalidArgumentError(fmt::format("sim.port: {} is outside 0..65535", port));
+    }
+  }
+  if (!(step_s > 0.0 && step_s <= 1.0)) {
+    return InvalidArgumentError(fmt::format("sim.step_s: {} is outside (0, 1]", step_s));
+  }
   return model.Check();
 }
 
@@ -94,10 +201,28 @@ StatusOr<std::unique_ptr<DriveSim>> DriveSim::Start(const rig::DriveProfile& pro
                                                      const DriveSimOptions& options) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   std::unique_ptr<DriveSim> sim(new DriveSim(profile, options));
-  FACEDYN_RETURN_IF_ERROR(sim->Listen());
+  sim->mapping_ = modbus_mapping_new(0, 0, profile.MaxRegister() + 1, 0);
+  if (sim->mapping_ == nullptr) {
+    return InternalError(fmt::format("simulated drive: cannot allocate {} registers: {}",
+                                     profile.MaxRegister() + 1, modbus_strerror(errno)));
+  }
+  FACEDYN_RETURN_IF_ERROR(options.is_rtu() ? sim->OpenSerial() : sim->Listen());
+  sim->header_length_ = modbus_get_header_length(sim->ctx_);
   sim->RefreshRegisters();
-  sim->thread_ = std::thread([raw = sim.get()] { raw->Serve(); });
+  sim->last_advance_ = Clock::now();
+  sim->thread_ = std::thread([raw = sim.get()] {
+    if (raw->options_.is_rtu()) {
+      raw->ServeRtu();
+    } else {
+      raw->Serve();
+    }
+  });
   return sim;
+}
+
+std::string DriveSim::Describe() const {
+  if (options_.is_rtu()) return fmt::format("rtu {}", options_.rtu_device);
+  return fmt::format("tcp {}:{}", options_.host, port_);
 }
 
 Status DriveSim::Listen() {
@@ -105,11 +230,6 @@ Status DriveSim::Listen() {
   if (ctx_ == nullptr) {
     return InvalidArgumentError(fmt::format("simulated drive: cannot create a context for {}:{}: {}",
                                             options_.host, options_.port, modbus_strerror(errno)));
-  }
-  mapping_ = modbus_mapping_new(0, 0, profile_.MaxRegister() + 1, 0);
-  if (mapping_ == nullptr) {
-    return InternalError(fmt::format("simulated drive: cannot allocate {} registers: {}",
-                                     profile_.MaxRegister() + 1, modbus_strerror(errno)));
   }
   listen_socket_ = modbus_tcp_listen(ctx_, 8);
   if (listen_socket_ == -1) {
@@ -125,17 +245,45 @@ Status DriveSim::Listen() {
   return Status::Ok();
 }
 
+Status DriveSim::OpenSerial() {
+  ctx_ = modbus_new_rtu(options_.rtu_device.c_str(), options_.baud, options_.parity,
+                        options_.data_bits, options_.stop_bits);
+  if (ctx_ == nullptr) {
+    return InvalidArgumentError(fmt::format("simulated drive: cannot create an RTU context for {}: {}",
+                                            options_.rtu_device, modbus_strerror(errno)));
+  }
+  modbus_set_slave(ctx_, profile_.unit_id);
+  if (modbus_connect(ctx_) == -1) {
+    return UnavailableError(fmt::format("simulated drive: cannot open {}: {}", options_.rtu_device,
+                                        modbus_strerror(errno)));
+  }
+  return Status::Ok();
+}
+
 DriveSim::~DriveSim() {
   stopping_ = true;
   if (thread_.joinable()) thread_.join();
   if (listen_socket_ != -1) ::close(listen_socket_);
   if (mapping_ != nullptr) modbus_mapping_free(mapping_);
-  if (ctx_ != nullptr) modbus_free(ctx_);
+  if (ctx_ != nullptr) {
+    if (options_.is_rtu()) modbus_close(ctx_);
+    modbus_free(ctx_);
+  }
+}
+
+void DriveSim::ExceptionNextReplies(int count, int code) {
+  exception_code_ = code;
+  exception_replies_ = count;
 }
 
 void DriveSim::ForceFault(int code) {
   std::lock_guard<std::mutex> lock(model_mutex_);
   model_.ForceFault(code);
+}
+
+void DriveSim::ScheduleTrip(double after_s, int code) {
+  std::lock_guard<std::mutex> lock(model_mutex_);
+  model_.ScheduleTrip(after_s, code);
 }
 
 DriveModelState DriveSim::state() const {
@@ -153,6 +301,10 @@ void DriveSim::RefreshRegisters() {
   registers[profile_.status_register] = status;
   const auto output = profile_.output_scaling.HzToRegister(s.output_hz, "simulated output");
   registers[profile_.output_frequency_register] = output.ok() ? *output : 0xFFFF;
+  if (profile_.oscillation_register) {
+    const auto sensor = profile_.oscillation_scaling.HzToRegister(s.sensor_hz, "simulated sensor");
+    registers[*profile_.oscillation_register] = sensor.ok() ? *sensor : 0xFFFF;
+  }
   if (profile_.fault_code_register) {
     const uint16_t code_bits =
         static_cast<uint16_t>((s.fault_code << profile_.fault_code_shift) & profile_.fault_code_mask);
@@ -190,11 +342,58 @@ void DriveSim::HandleWrite(int function, int address, int count) {
   }
 }
 
+void DriveSim::AdvanceModel() {
+  const auto now = Clock::now();
+  std::lock_guard<std::mutex> lock(model_mutex_);
+  model_.Advance(std::chrono::duration<double>(now - last_advance_).count());
+  RefreshRegisters();
+  last_advance_ = now;
+}
+
+bool DriveSim::Answer(const uint8_t* query, int length) {
+  if (link_cut_ || drop_requests_ > 0) {
+    if (!link_cut_) --drop_requests_;
+    ++requests_dropped_;
+    return true;  // lost on the wire: neither applied nor answered
+  }
+  const double delay_s = reply_delay_s_;
+  if (delay_s > 0.0) std::this_thread::sleep_for(std::chrono::duration<double>(delay_s));
+  AdvanceModel();
+  std::lock_guard<std::mutex> lock(model_mutex_);
+  model_.NoteRequest();
+  if (garble_replies_ > 0) {
+    --garble_replies_;
+    ++replies_garbled_;
+    // Random bytes where the reply should be: a CRC error on RTU, a bad header on TCP.
+    uint8_t noise[12];
+    for (uint8_t& byte : noise) byte = static_cast<uint8_t>(garble_random_());
+    const ssize_t written = ::write(modbus_get_socket(ctx_), noise, sizeof(noise));
+    (void)written;
+    return true;
+  }
+  if (exception_replies_ > 0) {
+    --exception_replies_;
+    return modbus_reply_exception(ctx_, query, static_cast<unsigned>(exception_code_.load())) != -1;
+  }
+  // Replies to reads carry the refreshed values; writes land in the mapping and are then
+  // interpreted.
+  if (modbus_reply(ctx_, query, length, mapping_) == -1) {
+    spdlog::debug("simulated drive: reply failed: {}", modbus_strerror(errno));
+    return false;
+  }
+  const int function = query[header_length_];
+  const int address = (query[header_length_ + 1] << 8) | query[header_length_ + 2];
+  const int count = function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS
+                        ? ((query[header_length_ + 3] << 8) | query[header_length_ + 4])
+                        : 1;
+  HandleWrite(function, address, count);
+  RefreshRegisters();
+  ++requests_served_;
+  return true;
+}
+
 void DriveSim::Serve() {
-  using Clock = std::chrono::steady_clock;
   std::vector<int> clients;
-  auto last = Clock::now();
-  const int header_length = modbus_get_header_length(ctx_);
   uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH];
   while (!stopping_) {
     fd_set readable;
@@ -207,13 +406,7 @@ void DriveSim::Serve() {
     }
     timeval timeout{0, static_cast<suseconds_t>(options_.step_s * 1e6)};
     const int ready = select(highest + 1, &readable, nullptr, nullptr, &timeout);
-    const auto now = Clock::now();
-    {
-      std::lock_guard<std::mutex> lock(model_mutex_);
-      model_.Advance(std::chrono::duration<double>(now - last).count());
-      RefreshRegisters();
-    }
-    last = now;
+    AdvanceModel();
     if (ready <= 0) continue;
 
     if (FD_ISSET(listen_socket_, &readable)) {
@@ -235,33 +428,38 @@ void DriveSim::Serve() {
       }
       ++it;
       if (length == 0) continue;  // addressed to another unit
-      if (drop_requests_ > 0) {
-        --drop_requests_;
-        ++requests_dropped_;
-        continue;  // lost on the wire: neither applied nor answered
-      }
-      const double delay_s = reply_delay_s_;
-      if (delay_s > 0.0) std::this_thread::sleep_for(std::chrono::duration<double>(delay_s));
-      std::lock_guard<std::mutex> lock(model_mutex_);
-      model_.NoteRequest();
-      RefreshRegisters();
-      // Replies to reads of status registers carry the refreshed values; writes land in the
-      // mapping and are then interpreted.
-      if (modbus_reply(ctx_, query, length, mapping_) == -1) {
-        spdlog::debug("simulated drive: reply failed: {}", modbus_strerror(errno));
-        continue;
-      }
-      const int function = query[header_length];
-      const int address = (query[header_length + 1] << 8) | query[header_length + 2];
-      const int count = function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS
-                            ? ((query[header_length + 3] << 8) | query[header_length + 4])
-                            : 1;
-      HandleWrite(function, address, count);
-      RefreshRegisters();
-      ++requests_served_;
+      Answer(query, length);
     }
   }
   for (const int fd : clients) ::close(fd);
+}
+
+void DriveSim::ServeRtu() {
+  uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH];
+  const int fd = modbus_get_socket(ctx_);
+  while (!stopping_) {
+    fd_set readable;
+    FD_ZERO(&readable);
+    FD_SET(fd, &readable);
+    timeval timeout{0, static_cast<suseconds_t>(options_.step_s * 1e6)};
+    const int ready = select(fd + 1, &readable, nullptr, nullptr, &timeout);
+    AdvanceModel();
+    if (ready <= 0) continue;
+    const int length = modbus_receive(ctx_, query);
+    if (length == -1) {
+      // A bad CRC, a half frame or line noise: a serial slave resynchronises on the silence
+      // after it rather than giving up the line. A hung-up line (the peer closed its end)
+      // stays readable, so back off instead of spinning.
+      const int error = errno;
+      modbus_flush(ctx_);
+      if (error != EMBBADCRC && error != EMBBADDATA && error != ETIMEDOUT) {
+        std::this_thread::sleep_for(std::chrono::duration<double>(options_.step_s));
+      }
+      continue;
+    }
+    if (length == 0) continue;  // addressed to another unit
+    Answer(query, length);
+  }
 }
 
 }  // namespace facedyn::sim

@@ -1,30 +1,47 @@
-// A simulated variable-frequency drive behind a real libmodbus TCP server.
+// A simulated variable-frequency drive and vibrating platform behind a real libmodbus server.
 //
 // Two parts, so the physics can be tested on a virtual clock and the protocol on a real one:
 //
-// - DriveModel: the drive's state machine and motor, advanced by explicit time steps. The
-//   output frequency ramps toward the setpoint (or toward 0 when stopped) at accel_hz_per_s;
-//   a forced trip stops the output at once, as a real drive coasts on a trip; the comm
-//   watchdog stops the motor (and latches watchdog_fault_code, if non-zero) when no valid
-//   request arrived for watchdog_s seconds while running.
-// - DriveSim: a server thread that owns a libmodbus TCP context, listens on 127.0.0.1 (port 0
-//   picks a free port), serves any number of clients with modbus_receive/modbus_reply over a
-//   modbus_mapping_t laid out by a DriveProfile, and steps the model on steady_clock. Writes
-//   to the profile's command register are interpreted as run/stop/fault-reset; the setpoint
-//   register is scaled to Hz; status, output frequency and fault code are refreshed before
-//   every reply. Fault injection: drop the next N requests unanswered, delay replies, force a
-//   fault code.
+// - DriveModel: the drive's state machine, motor and platform, advanced by explicit time steps.
+//   The output frequency ramps toward the setpoint (or toward 0 when stopped) at
+//   accel_hz_per_s; a trip removes the output at once, as a real drive coasts on a trip; the
+//   comm watchdog stops the motor (and latches watchdog_fault_code, if non-zero) when no valid
+//   request arrived for watchdog_s seconds while running. The platform (an eccentric mass on
+//   an induction motor) oscillates at
+//
+//       platform_hz = output_hz * platform_ratio * (1 - s),   s = slip_base + slip_load * (output_hz / slip_reference_hz)^2
+//
+//   i.e. the rotor lags the drive's electrical frequency by a slip that grows with the load the
+//   mass puts on it. The oscillation sensor integrates the platform's phase and reports the
+//   mean frequency over the last sensor_window_s (what counting accelerometer zero crossings
+//   over a window gives) plus Gaussian noise of sensor_noise_hz. The slip the controller
+//   assumes (RIG.yaml platform.slip) is a single number, so open loop it misses the true
+//   platform frequency by up to a few tenths of a hertz; the closed-loop trim has to fix that.
+// - DriveSim: a server thread that owns a libmodbus context — TCP on host:port (port 0 picks
+//   a free port) serving any number of clients, or RTU on a serial device (e.g. one end of a
+//   socat pty pair) — answering with modbus_receive/modbus_reply over a modbus_mapping_t laid
+//   out by a DriveProfile, stepping the model on steady_clock. Writes to the profile's command
+//   register are interpreted as run/stop/fault-reset; the setpoint register is scaled to Hz;
+//   status, output frequency, oscillation frequency and fault code are refreshed before every
+//   reply. Fault injection: drop the next N requests unanswered, delay replies, garble the
+//   next N replies (random bytes: CRC errors on RTU, a bad header on TCP), answer the next N
+//   requests with a Modbus exception, cut the link (requests vanish, as on a cut cable), and
+//   trip on command or after a given running time.
 #pragma once
 
 #include <atomic>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <mutex>
+#include <random>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include <modbus.h>
 
+#include "core/config_node.h"
 #include "core/status.h"
 #include "rig/drive_profile.h"
 
@@ -36,8 +53,22 @@ struct DriveModelOptions {
   double watchdog_s = 0.0;       // 0 = off
   int watchdog_fault_code = 0;   // latched when the watchdog fires (0 = stop without a trip)
 
+  // Platform (see the header comment).
+  double platform_ratio = 1.0;      // platform cycles per electrical cycle at zero slip
+  double slip_base = 0.015;
+  double slip_load = 0.03;
+  double slip_reference_hz = 11.0;
+  double sensor_window_s = 0.5;
+  double sensor_noise_hz = 0.004;  // standard deviation of one sensor reading
+  uint64_t seed = 1;
+
   Status Check() const;
 };
+
+// Reads a RIG.yaml `sim:` section (the simulated drive's and platform's physics; see
+// config/rigs/sim-tcp.yaml) into *options; unknown fields and out-of-range values are errors
+// naming the field.
+Status ParseDriveModelOptions(const ConfigNode& node, DriveModelOptions* options);
 
 struct DriveModelState {
   bool run_commanded = false;
@@ -45,45 +76,70 @@ struct DriveModelState {
   double output_hz = 0.0;
   int fault_code = 0;
   bool watchdog_fired = false;
+  double platform_hz = 0.0;  // true oscillation frequency (ground truth)
+  double sensor_hz = 0.0;    // what the oscillation sensor reports
+  double time_s = 0.0;       // model time
 };
 
 class DriveModel {
  public:
-  explicit DriveModel(const DriveModelOptions& options) : options_(options) {}
+  explicit DriveModel(const DriveModelOptions& options);
 
   void SetSetpointHz(double hz);
   void Run();
   void Stop();
   void ResetFault();
   void ForceFault(int code);
+  // Trips with `code` once the motor has been running for `after_s` more seconds.
+  void ScheduleTrip(double after_s, int code);
   // A valid request arrived (feeds the comm watchdog).
   void NoteRequest() { silent_s_ = 0.0; }
   // The drive-side watchdog time as written over Modbus (0 = off).
   void SetWatchdogS(double watchdog_s) { options_.watchdog_s = watchdog_s; }
-  // Advances the motor and the watchdog by dt_s seconds.
+  // Advances the motor, platform, sensor and watchdog by dt_s seconds.
   void Advance(double dt_s);
 
+  // Slip at a given output frequency (see the header comment).
+  double SlipAt(double output_hz) const;
+
   const DriveModelState& state() const { return state_; }
+  const DriveModelOptions& options() const { return options_; }
   bool running() const { return state_.run_commanded && state_.fault_code == 0; }
 
  private:
   DriveModelOptions options_;
   DriveModelState state_;
   double silent_s_ = 0.0;
+  double phase_cycles_ = 0.0;
+  std::deque<std::pair<double, double>> phase_history_;  // (time_s, phase_cycles)
+  double trip_after_s_ = -1.0;  // < 0: none scheduled
+  int trip_code_ = 0;
+  std::mt19937_64 random_;
+  std::normal_distribution<double> noise_{0.0, 1.0};
 };
 
 struct DriveSimOptions {
+  // TCP endpoint, used when rtu_device is empty.
   std::string host = "127.0.0.1";
   int port = 0;  // 0: any free port (see DriveSim::port())
+  // RTU: the serial device to serve on (e.g. a socat pty), and its line settings.
+  std::string rtu_device;
+  int baud = 19200;
+  char parity = 'N';
+  int data_bits = 8;
+  int stop_bits = 1;
+
   DriveModelOptions model;
   double step_s = 0.005;  // server loop period when idle
 
   Status Check() const;
+  bool is_rtu() const { return !rtu_device.empty(); }
 };
 
 class DriveSim {
  public:
-  // Binds and starts the server thread; errors name the address.
+  // Binds (TCP) or opens the device (RTU) and starts the server thread; errors name the
+  // address or device.
   static StatusOr<std::unique_ptr<DriveSim>> Start(const rig::DriveProfile& profile,
                                                     const DriveSimOptions& options);
   ~DriveSim();  // stops the thread and closes every socket
@@ -92,22 +148,37 @@ class DriveSim {
 
   int port() const { return port_; }
   const std::string& host() const { return options_.host; }
+  // "tcp 127.0.0.1:5020" or "rtu /dev/pts/3".
+  std::string Describe() const;
 
   // Fault injection, callable from any thread.
   void DropNextRequests(int count) { drop_requests_ = count; }
   void SetReplyDelayS(double delay_s) { reply_delay_s_ = delay_s; }
+  void GarbleNextReplies(int count) { garble_replies_ = count; }
+  // Answers the next `count` requests with exception `code` (MODBUS_EXCEPTION_*).
+  void ExceptionNextReplies(int count, int code);
+  // While cut, requests are read and discarded: neither applied nor answered nor counted by
+  // the drive's watchdog, as when the cable is pulled.
+  void CutLink(bool cut) { link_cut_ = cut; }
   void ForceFault(int code);
+  void ScheduleTrip(double after_s, int code);
 
   DriveModelState state() const;
   long requests_served() const { return requests_served_; }
   long requests_dropped() const { return requests_dropped_; }
+  long replies_garbled() const { return replies_garbled_; }
 
  private:
   DriveSim(const rig::DriveProfile& profile, const DriveSimOptions& options);
   Status Listen();
+  Status OpenSerial();
   void Serve();
+  void ServeRtu();
+  // Handles one received frame on the current socket; false when the reply could not be sent.
+  bool Answer(const uint8_t* query, int length);
   void HandleWrite(int function, int address, int count);
   void RefreshRegisters();
+  void AdvanceModel();
 
   rig::DriveProfile profile_;
   DriveSimOptions options_;
@@ -115,15 +186,23 @@ class DriveSim {
   modbus_t* ctx_ = nullptr;             // server thread only after Start()
   modbus_mapping_t* mapping_ = nullptr;  // server thread only after Start()
   int listen_socket_ = -1;
+  int header_length_ = 0;
+  std::chrono::steady_clock::time_point last_advance_;
 
   mutable std::mutex model_mutex_;
   DriveModel model_;
 
   std::atomic<int> drop_requests_{0};
   std::atomic<double> reply_delay_s_{0.0};
+  std::atomic<int> garble_replies_{0};
+  std::atomic<int> exception_replies_{0};
+  std::atomic<int> exception_code_{MODBUS_EXCEPTION_SLAVE_OR_SERVER_BUSY};
+  std::atomic<bool> link_cut_{false};
   std::atomic<long> requests_served_{0};
   std::atomic<long> requests_dropped_{0};
+  std::atomic<long> replies_garbled_{0};
   std::atomic<bool> stopping_{false};
+  std::mt19937 garble_random_{12345};
   std::thread thread_;
 };
 

@@ -26,6 +26,14 @@ inline std::string DriveProfilePath(const std::string& name) {
   return std::string(FACEDYN_SOURCE_DIR) + "/config/drives/" + name + ".yaml";
 }
 
+inline std::string RigConfigPath(const std::string& name) {
+  return std::string(FACEDYN_SOURCE_DIR) + "/config/rigs/" + name + ".yaml";
+}
+
+inline std::string SweepConfigPath(const std::string& name) {
+  return std::string(FACEDYN_SOURCE_DIR) + "/config/sweeps/" + name + ".yaml";
+}
+
 inline std::string RigTestScript(const std::string& name) {
   return std::string(FACEDYN_SOURCE_DIR) + "/tests/rig/" + name;
 }

@@ -1,0 +1,44 @@
+// Synthetic cameras and images with known truth, for tests, benches and the simulated stage:
+// a ring of cameras around a subject, planar targets rendered through a camera (lens
+// distortion included), and painted dots rendered as a camera would see them.
+#pragma once
+
+#include <random>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "core/rigid3.h"
+#include "reconstruct/camera.h"
+
+namespace facedyn::reconstruct {
+
+struct CameraRingOptions {
+  int camera_count = 8;
+  double radius_mm = 600.0;       // distance of each centre from the target
+  double arc_deg = 120.0;         // cameras spread over this horizontal arc, centred on +Z
+  double elevation_deg = 15.0;    // alternate cameras sit this much above / below the equator
+  int width_px = 1280;
+  int height_px = 1024;
+  double focal_px = 2600.0;
+  Eigen::Vector3d target_in_world = Eigen::Vector3d::Zero();
+};
+
+// Cameras on an arc in front of the target (the face looks along +Z, world +Y up), all looking
+// at it, named cam0..camN-1.
+std::vector<Camera> MakeCameraRing(const CameraRingOptions& options);
+
+// The view through `camera` of a planar texture (8-bit gray, `pixels_per_mm`, its pixel
+// (0, 0) centred at board point (-margin_mm, -margin_mm) + half a texel) lying in the
+// board's z = 0 plane at `world_from_board`. Every image pixel is traced back through the
+// lens (Camera::Undistort) to the plane and sampled bilinearly; pixels whose ray misses the
+// texture are `background`. Supersampled `supersample`^2 times per pixel.
+cv::Mat RenderPlanarView(const cv::Mat& texture, double pixels_per_mm, double margin_mm,
+                         const Camera& camera, const Rigid3& world_from_board,
+                         int supersample = 2, unsigned char background = 128);
+
+// Adds zero-mean Gaussian noise of `sigma` gray levels to an 8-bit image (saturating).
+void AddImageNoise(double sigma, std::mt19937* rng, cv::Mat* image);
+
+}  // namespace facedyn::reconstruct

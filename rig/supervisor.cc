@@ -1,0 +1,508 @@
+#include "rig/supervisor.h"
+
+#include <algorithm>
+#include <cmath>
+#include <thread>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+namespace facedyn::rig {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+constexpr double kStartGraceS = 1.5;      // a drive may take this long to report "running"
+constexpr double kStoppedBelowHz = 0.05;  // output frequency counted as standstill
+
+Json StatusJson(const Status& status) {
+  if (status.ok()) return "ok";
+  return status.message();
+}
+
+}  // namespace
+
+const char* RigStateName(RigState state) {
+  switch (state) {
+    case RigState::kIdle: return "idle";
+    case RigState::kRamping: return "ramping";
+    case RigState::kSettling: return "settling";
+    case RigState::kSettled: return "settled";
+    case RigState::kStopping: return "stopping";
+    case RigState::kStopped: return "stopped";
+    case RigState::kFaulted: return "faulted";
+    case RigState::kLinkLost: return "link_lost";
+  }
+  return "?";
+}
+
+Json PlatformReading::ToJson() const {
+  Json json;
+  json["time_s"] = time_s;
+  json["running"] = running;
+  json["faulted"] = faulted;
+  json["fault_code"] = fault_code;
+  json["fault_text"] = fault_text;
+  json["output_hz"] = output_hz;
+  json["measured_hz"] = measured_hz;
+  json["target_hz"] = target_hz;
+  json["commanded_hz"] = commanded_hz;
+  json["correction_hz"] = correction_hz;
+  json["motor_setpoint_hz"] = motor_setpoint_hz;
+  json["settled"] = settled;
+  return json;
+}
+
+Json HoldSummary::ToJson() const {
+  Json json;
+  json["seconds"] = seconds;
+  json["samples"] = samples;
+  json["target_hz"] = target_hz;
+  json["mean_measured_hz"] = mean_measured_hz;
+  json["max_abs_error_hz"] = max_abs_error_hz;
+  json["rms_error_hz"] = rms_error_hz;
+  return json;
+}
+
+RigSupervisor::RigSupervisor(const RigConfig& config, SessionLog* log,
+                             const std::atomic<bool>* stop_requested)
+    : config_(config),
+      log_(log),
+      stop_requested_(stop_requested),
+      model_(config.platform),
+      trim_(config.trim),
+      settle_(config.settle),
+      exposure_(config.amplitude_mm),
+      start_(Clock::now()),
+      last_tick_(start_) {}
+
+StatusOr<std::unique_ptr<RigSupervisor>> RigSupervisor::Connect(const RigConfig& config, SessionLog* log,
+                                                                const std::atomic<bool>* stop_requested) {
+  FACEDYN_RETURN_IF_ERROR(config.Check());
+  std::unique_ptr<RigSupervisor> supervisor(new RigSupervisor(config, log, stop_requested));
+  auto transport = ModbusTransport::Open(config.transport);
+  if (!transport.ok()) {
+    if (log) log->Write("connect", {{"rig", config.name}, {"result", transport.status().message()}});
+    return transport.status().WithContext(fmt::format("rig {}", config.name));
+  }
+  supervisor->transport_ = std::move(transport).value();
+  supervisor->client_ = std::make_unique<DriveClient>(supervisor->transport_.get(), config.profile,
+                                                      config.MotorLimits());
+  if (log) {
+    log->Write("connect", {{"rig", config.name},
+                           {"config", config.source_path},
+                           {"profile", config.profile.name},
+                           {"transport", config.transport.Describe()},
+                           {"result", "ok"}});
+  }
+  return supervisor;
+}
+
+RigSupervisor::~RigSupervisor() {
+  const Status closed = Close();
+  if (!closed.ok()) spdlog::error("rig {}: {}", config_.name, closed.message());
+}
+
+double RigSupervisor::ElapsedS() const {
+  return std::chrono::duration<double>(Clock::now() - start_).count();
+}
+
+void RigSupervisor::SetState(RigState state, const std::string& reason) {
+  if (state == state_) return;
+  if (log_) log_->Write("state", {{"from", RigStateName(state_)}, {"to", RigStateName(state)}, {"reason", reason}});
+  spdlog::debug("rig {}: {} -> {} ({})", config_.name, RigStateName(state_), RigStateName(state), reason);
+  state_ = state;
+}
+
+void RigSupervisor::LogCommand(const std::string& what, Json fields, const Status& result) {
+  if (!log_) return;
+  fields["command"] = what;
+  fields["result"] = StatusJson(result);
+  log_->Write("command", std::move(fields));
+}
+
+Status RigSupervisor::WriteWatchdog(double seconds) {
+  const auto& watchdog = config_.profile.comm_watchdog;
+  if (!watchdog || !watchdog->register_address) return Status::Ok();
+  const double counts = std::round(seconds * watchdog->counts_per_s);
+  if (counts < 0 || counts > 65535 || (watchdog->max_s > 0.0 && seconds > watchdog->max_s)) {
+    return InvalidArgumentError(fmt::format("safety.comm_watchdog_s: {} s does not fit {} (max {} s)",
+                                            seconds, watchdog->parameter, watchdog->max_s));
+  }
+  const Status written = transport_->WriteRegister(*watchdog->register_address, static_cast<uint16_t>(counts));
+  LogCommand("comm_watchdog", {{"register", *watchdog->register_address}, {"value", counts}, {"seconds", seconds},
+                               {"parameter", watchdog->parameter}}, written);
+  return written.WithContext(fmt::format("drive {} {}", config_.profile.name, watchdog->parameter));
+}
+
+Status RigSupervisor::Arm() {
+  PlatformReading reading;
+  FACEDYN_RETURN_IF_ERROR(ReadPlatform(&reading));
+  if (reading.faulted) {
+    SetState(RigState::kFaulted, reading.fault_text);
+    return FailedPreconditionError(fmt::format(
+        "rig {}: the drive is tripped: fault {}; check the platform, then acknowledge with "
+        "`facedyn rig reset --config {}`", config_.name, reading.fault_text, config_.source_path));
+  }
+  const double watchdog_s = config_.safety.comm_watchdog_s;
+  const auto& watchdog = config_.profile.comm_watchdog;
+  if (watchdog_s > 0.0) {
+    if (watchdog && watchdog->register_address) {
+      FACEDYN_RETURN_IF_ERROR(WriteWatchdog(watchdog_s));
+      watchdog_armed_ = true;
+    } else {
+      const std::string where = watchdog ? watchdog->parameter : std::string("its comm-loss parameter");
+      spdlog::warn("rig {}: drive profile {} cannot set the comm watchdog over Modbus: set {} on the "
+                   "drive to {} s", config_.name, config_.profile.name, where, watchdog_s);
+      if (log_) log_->Write("warning", {{"message", fmt::format("comm watchdog not set over Modbus; set {}", where)}});
+    }
+  }
+  if (log_) log_->Write("armed", {{"comm_watchdog_s", watchdog_armed_ ? watchdog_s : 0.0}});
+  return Status::Ok();
+}
+
+Status RigSupervisor::ReadPlatform(PlatformReading* reading) {
+  auto status = client_->ReadStatus();
+  if (!status.ok()) return status.status();
+  reading->time_s = ElapsedS();
+  reading->running = status->running;
+  reading->faulted = status->faulted;
+  reading->fault_code = status->fault_code;
+  reading->fault_text = status->fault_text;
+  reading->output_hz = status->output_hz;
+  if (config_.feedback == "sensor") {
+    auto words = transport_->ReadRegisters(*config_.profile.oscillation_register, 1);
+    if (!words.ok()) return words.status().WithContext(fmt::format("drive {} oscillation sensor", config_.profile.name));
+    reading->measured_hz = config_.profile.oscillation_scaling.RegisterToHz((*words)[0]);
+  } else {
+    reading->measured_hz = model_.PlatformHzFor(status->output_hz);
+  }
+  reading->target_hz = target_hz_;
+  reading->commanded_hz = commanded_hz_;
+  reading->correction_hz = trim_.correction_hz();
+  reading->motor_setpoint_hz = std::max(0.0, written_motor_hz_);
+  return Status::Ok();
+}
+
+StatusOr<PlatformReading> RigSupervisor::ReadOnce() {
+  PlatformReading reading;
+  const Status read = ReadPlatform(&reading);
+  if (log_) {
+    Json fields = read.ok() ? reading.ToJson() : Json::object();
+    fields["result"] = StatusJson(read);
+    log_->Write("reply", std::move(fields));
+  }
+  if (!read.ok()) return read.WithContext(fmt::format("rig {}", config_.name));
+  last_ = reading;
+  return reading;
+}
+
+Status RigSupervisor::WriteMotorSetpoint(double motor_hz) {
+  const Status written = client_->SetFrequencyHz(motor_hz);
+  LogCommand("setpoint", {{"register", config_.profile.setpoint_register}, {"motor_hz", motor_hz},
+                          {"platform_hz", commanded_hz_ + trim_.correction_hz()}}, written);
+  if (written.ok()) written_motor_hz_ = motor_hz;
+  return written;
+}
+
+Status RigSupervisor::SetTargetHz(double hz) {
+  const RigLimits& limits = config_.limits;
+  Status refused;
+  if (!std::isfinite(hz)) {
+    refused = InvalidArgumentError(fmt::format("hz: {} is not a number", hz));
+  } else if (hz > limits.absolute_max_hz) {
+    refused = InvalidArgumentError(fmt::format("hz: {} Hz is above limits.absolute_max_hz {} Hz of rig {}", hz,
+                                               limits.absolute_max_hz, config_.name));
+  } else if (hz < limits.min_hz || hz > limits.max_hz) {
+    refused = InvalidArgumentError(fmt::format("hz: {} Hz is outside limits.min_hz..max_hz {}..{} Hz of rig {}", hz,
+                                               limits.min_hz, limits.max_hz, config_.name));
+  }
+  if (!refused.ok()) {
+    if (log_) log_->Write("refused", {{"hz", std::isfinite(hz) ? Json(hz) : Json(nullptr)}, {"reason", refused.message()}});
+    return refused;
+  }
+  if (log_) log_->Write("target", {{"hz", hz}});
+  const bool was_moving = state_ == RigState::kRamping || state_ == RigState::kSettling || state_ == RigState::kSettled;
+  target_hz_ = hz;
+  settle_.Restart();
+  jumped_for_target_ = false;
+  at_speed_since_s_ = -1.0;
+  if (!was_moving) {
+    // From standstill the drive's own acceleration ramp takes the motor up to the first
+    // setpoint; from there the supervisor's ramp-rate limit governs every change.
+    commanded_hz_ = std::min(hz, std::max(limits.min_hz, std::min(last_.measured_hz, limits.max_hz)));
+    trim_.Reset();
+    FACEDYN_RETURN_IF_ERROR(FailAndStop(WriteMotorSetpoint(model_.MotorHzFor(commanded_hz_))));
+    const Status started = client_->Start();
+    LogCommand("run", {{"register", config_.profile.command_register}, {"value", config_.profile.run_value}}, started);
+    FACEDYN_RETURN_IF_ERROR(FailAndStop(started));
+    run_commanded_at_s_ = ElapsedS();
+  }
+  last_tick_ = Clock::now();
+  SetState(RigState::kRamping, fmt::format("target {} Hz", hz));
+  return Status::Ok();
+}
+
+Status RigSupervisor::LinkLost(const Status& error) {
+  SetState(RigState::kLinkLost, error.message());
+  const auto& watchdog = config_.profile.comm_watchdog;
+  std::string fallback;
+  if (watchdog_armed_) {
+    fallback = fmt::format("the drive's own comm watchdog ({}, {} s) stops the motor", watchdog->parameter,
+                           config_.safety.comm_watchdog_s);
+  } else if (watchdog) {
+    fallback = fmt::format("the drive stops only if its {} is set on the drive: check the platform", watchdog->parameter);
+  } else {
+    fallback = "the drive has no comm watchdog known to facedyn: STOP THE PLATFORM BY HAND";
+  }
+  // One stop attempt: the link may come back for it.
+  const Status stop = client_->Stop();
+  LogCommand("stop", {{"register", config_.profile.command_register}, {"value", config_.profile.stop_value},
+                      {"reason", "link lost"}}, stop);
+  if (stop.ok()) fallback = "a stop command got through after it";
+  if (log_) log_->Write("link_lost", {{"error", error.message()}, {"fallback", fallback}});
+  return UnavailableError(fmt::format("rig {}: link to the drive lost ({}); {}", config_.name,
+                                      error.message(), fallback));
+}
+
+Status RigSupervisor::FailAndStop(const Status& error) {
+  if (error.ok()) return error;
+  if (state_ == RigState::kLinkLost || state_ == RigState::kStopping) return error;
+  const Status stopped = RampToStop(error.message());
+  if (!stopped.ok()) return error.WithContext(fmt::format("also, ramp to stop failed: {}", stopped.message()));
+  return error;
+}
+
+Status RigSupervisor::Tick() {
+  if (StopRequested()) return AbortedError(fmt::format("rig {}: stop requested (signal)", config_.name));
+  const auto period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(config_.safety.control_period_s));
+  const auto next = last_tick_ + period;
+  while (Clock::now() < next) {
+    if (StopRequested()) return AbortedError(fmt::format("rig {}: stop requested (signal)", config_.name));
+    std::this_thread::sleep_until(std::min(next, Clock::now() + std::chrono::milliseconds(10)));
+  }
+  const auto now = Clock::now();
+  const double dt_s = std::clamp(std::chrono::duration<double>(now - last_tick_).count(), 0.0, 1.0);
+  last_tick_ = now;
+
+  PlatformReading reading;
+  const Status read = ReadPlatform(&reading);
+  const TransportStats stats = transport_->stats();
+  if (log_ && (stats.retries != logged_stats_.retries || stats.failures != logged_stats_.failures ||
+               stats.reconnects != logged_stats_.reconnects)) {
+    // Retried timeouts and corrupt replies (CRC errors) are visible in the journal.
+    log_->Write("link", {{"retries", stats.retries}, {"failures", stats.failures},
+                         {"reconnects", stats.reconnects}, {"transactions", stats.transactions}});
+  }
+  logged_stats_ = stats;
+  if (!read.ok()) {
+    if (log_) log_->Write("reply", {{"result", read.message()}});
+    return LinkLost(read);
+  }
+  last_ = reading;
+  if (reading.faulted) {
+    SetState(RigState::kFaulted, reading.fault_text);
+    if (log_) log_->Write("reply", reading.ToJson());
+    // Drop the run command so that acknowledging the trip later cannot restart the motor.
+    const Status stop = client_->Stop();
+    LogCommand("stop", {{"register", config_.profile.command_register}, {"value", config_.profile.stop_value},
+                        {"reason", "drive tripped"}}, stop);
+    run_commanded_at_s_ = -1.0;
+    target_hz_ = 0.0;
+    return FailedPreconditionError(fmt::format(
+        "rig {}: the drive tripped: fault {}; check the platform, then acknowledge with "
+        "`facedyn rig reset --config {}`", config_.name, reading.fault_text, config_.source_path));
+  }
+  if (reading.measured_hz > config_.limits.absolute_max_hz + config_.limits.overspeed_margin_hz) {
+    if (log_) log_->Write("reply", reading.ToJson());
+    return FailAndStop(FailedPreconditionError(fmt::format(
+        "rig {}: overspeed: the platform measures {:.3f} Hz, above limits.absolute_max_hz {} Hz + "
+        "overspeed_margin_hz {} Hz", config_.name, reading.measured_hz, config_.limits.absolute_max_hz,
+        config_.limits.overspeed_margin_hz)));
+  }
+  const bool moving_state = state_ == RigState::kRamping || state_ == RigState::kSettling || state_ == RigState::kSettled;
+  if (moving_state && !reading.running && run_commanded_at_s_ >= 0.0 &&
+      reading.time_s - run_commanded_at_s_ > kStartGraceS) {
+    if (log_) log_->Write("reply", reading.ToJson());
+    return FailAndStop(FailedPreconditionError(fmt::format(
+        "rig {}: the drive stopped on its own (not running, output {:.2f} Hz) while facedyn held "
+        "{} Hz: a local stop, its comm watchdog, or an interlock", config_.name, reading.output_hz, target_hz_)));
+  }
+  exposure_.Add(reading.measured_hz, dt_s);
+
+  if (moving_state) {
+    // Ramp-rate limit on the platform frequency.
+    const double step_hz = config_.limits.max_ramp_hz_per_s * dt_s;
+    commanded_hz_ = commanded_hz_ < target_hz_ ? std::min(target_hz_, commanded_hz_ + step_hz)
+                                               : std::max(target_hz_, commanded_hz_ - step_hz);
+    const bool ramp_done = commanded_hz_ == target_hz_;
+    const double count_hz = 1.0 / config_.profile.setpoint_scaling.CountsPerHz();
+    const bool at_speed = written_motor_hz_ >= 0.0 &&
+                          std::abs(reading.output_hz - written_motor_hz_) <= 0.02 + count_hz;
+    if (ramp_done && at_speed) {
+      if (at_speed_since_s_ < 0.0) at_speed_since_s_ = reading.time_s;
+    } else {
+      at_speed_since_s_ = -1.0;
+    }
+    const bool trim_ready = at_speed_since_s_ >= 0.0 && reading.time_s - at_speed_since_s_ >= config_.trim.delay_s;
+    if (trim_ready) {
+      if (!jumped_for_target_) {
+        trim_.Jump(target_hz_, reading.measured_hz);
+        jumped_for_target_ = true;
+        at_speed_since_s_ = -1.0;  // wait for the sensor to see the corrected speed
+      } else {
+        trim_.Update(target_hz_, reading.measured_hz, dt_s);
+      }
+    }
+    settle_.Update(reading.time_s, target_hz_, reading.measured_hz, trim_ready && jumped_for_target_);
+    if (ramp_done && state_ == RigState::kRamping) SetState(RigState::kSettling, "ramp done");
+    if (settle_.settled() && state_ == RigState::kSettling) {
+      SetState(RigState::kSettled, fmt::format("within {} Hz for {} s", config_.settle.tolerance_hz, config_.settle.time_s));
+    }
+    if (!settle_.settled() && state_ == RigState::kSettled) SetState(RigState::kSettling, "left the tolerance");
+
+    const double motor_hz = model_.MotorHzFor(commanded_hz_ + trim_.correction_hz());
+    if (std::abs(motor_hz - written_motor_hz_) >= 0.5 * count_hz) {
+      const Status written = WriteMotorSetpoint(motor_hz);
+      if (!written.ok()) {
+        if (written.code() == StatusCode::kUnavailable) return LinkLost(written);
+        return FailAndStop(written);
+      }
+    }
+    reading.commanded_hz = commanded_hz_;
+    reading.correction_hz = trim_.correction_hz();
+    reading.motor_setpoint_hz = written_motor_hz_;
+    reading.settled = settle_.settled();
+    last_ = reading;
+  }
+  if (log_) {
+    Json fields = reading.ToJson();
+    fields["state"] = RigStateName(state_);
+    fields["vibrating_s"] = exposure_.vibrating_s();
+    fields["dose_m2_s3"] = exposure_.dose_m2_s3();
+    log_->Write("reply", std::move(fields));
+    FACEDYN_RETURN_IF_ERROR(FailAndStop(log_->status()));
+  }
+  return Status::Ok();
+}
+
+Status RigSupervisor::WaitSettled(double timeout_s) {
+  const double deadline_s = ElapsedS() + timeout_s;
+  while (state_ != RigState::kSettled) {
+    const Status ticked = Tick();
+    if (!ticked.ok()) return FailAndStop(ticked);
+    if (ElapsedS() > deadline_s) {
+      return FailAndStop(FailedPreconditionError(fmt::format(
+          "rig {}: the platform did not settle at {} Hz within {} s (measured {:.3f} Hz, trim {:+.3f} Hz{})",
+          config_.name, target_hz_, timeout_s, last_.measured_hz, trim_.correction_hz(),
+          trim_.saturated() ? ", at its limit platform.trim.max_correction_hz" : "")));
+    }
+  }
+  if (log_) log_->Write("settled", {{"target_hz", target_hz_}, {"measured_hz", last_.measured_hz},
+                                    {"correction_hz", trim_.correction_hz()}});
+  return Status::Ok();
+}
+
+StatusOr<HoldSummary> RigSupervisor::Hold(double seconds) {
+  HoldSummary summary;
+  summary.target_hz = target_hz_;
+  const double begin_s = ElapsedS();
+  double sum_hz = 0.0;
+  double sum_sq_error = 0.0;
+  while (ElapsedS() - begin_s < seconds) {
+    const Status ticked = Tick();
+    if (!ticked.ok()) return FailAndStop(ticked);
+    const double error_hz = last_.measured_hz - target_hz_;
+    ++summary.samples;
+    sum_hz += last_.measured_hz;
+    sum_sq_error += error_hz * error_hz;
+    summary.max_abs_error_hz = std::max(summary.max_abs_error_hz, std::abs(error_hz));
+  }
+  summary.seconds = ElapsedS() - begin_s;
+  if (summary.samples > 0) {
+    summary.mean_measured_hz = sum_hz / summary.samples;
+    summary.rms_error_hz = std::sqrt(sum_sq_error / summary.samples);
+  }
+  if (log_) log_->Write("hold", summary.ToJson());
+  return summary;
+}
+
+Status RigSupervisor::RampToStop(const std::string& reason) {
+  SetState(RigState::kStopping, reason);
+  target_hz_ = 0.0;
+  run_commanded_at_s_ = -1.0;
+  const Status stop = client_->Stop();
+  LogCommand("stop", {{"register", config_.profile.command_register}, {"value", config_.profile.stop_value},
+                      {"reason", reason}}, stop);
+  if (!stop.ok()) {
+    if (stop.code() == StatusCode::kUnavailable) return LinkLost(stop);
+    return stop;
+  }
+  const double deadline_s = ElapsedS() + config_.safety.stop_timeout_s;
+  for (;;) {
+    std::this_thread::sleep_for(std::chrono::duration<double>(config_.safety.control_period_s));
+    PlatformReading reading;
+    const Status read = ReadPlatform(&reading);
+    if (!read.ok()) return LinkLost(read);
+    const auto now = Clock::now();
+    exposure_.Add(reading.measured_hz, std::chrono::duration<double>(now - last_tick_).count());
+    last_tick_ = now;
+    last_ = reading;
+    if (log_) {
+      Json fields = reading.ToJson();
+      fields["state"] = RigStateName(state_);
+      fields["vibrating_s"] = exposure_.vibrating_s();
+      fields["dose_m2_s3"] = exposure_.dose_m2_s3();
+      log_->Write("reply", std::move(fields));
+    }
+    if (reading.output_hz < kStoppedBelowHz) break;
+    if (ElapsedS() > deadline_s) {
+      return FailedPreconditionError(fmt::format("rig {}: still at {:.2f} Hz {} s after the stop command "
+                                                 "(safety.stop_timeout_s)", config_.name, reading.output_hz,
+                                                 config_.safety.stop_timeout_s));
+    }
+  }
+  commanded_hz_ = 0.0;
+  written_motor_hz_ = -1.0;
+  trim_.Reset();
+  SetState(last_.faulted ? RigState::kFaulted : RigState::kStopped, "output at 0 Hz");
+  return Status::Ok();
+}
+
+Status RigSupervisor::ResetFault() {
+  const Status reset = client_->ResetFault();
+  LogCommand("fault_reset", {{"register", config_.profile.fault_reset_register}}, reset);
+  FACEDYN_RETURN_IF_ERROR(reset.WithContext(fmt::format("rig {}", config_.name)));
+  if (state_ == RigState::kFaulted) SetState(RigState::kStopped, "fault acknowledged");
+  return Status::Ok();
+}
+
+Status RigSupervisor::Close() {
+  if (closed_ || !client_) return Status::Ok();
+  closed_ = true;
+  Status result;
+  const bool maybe_moving = state_ == RigState::kRamping || state_ == RigState::kSettling ||
+                            state_ == RigState::kSettled;
+  if (maybe_moving) result = RampToStop("session closed");
+  if (watchdog_armed_ && state_ != RigState::kLinkLost) {
+    // A stopped drive with an armed comm watchdog would trip once facedyn goes quiet.
+    const Status disarmed = WriteWatchdog(0.0);
+    if (result.ok()) result = disarmed;
+    watchdog_armed_ = false;
+  }
+  if (log_) log_->Write("close", {{"state", RigStateName(state_)}, {"exposure", exposure_.ToJson()}});
+  return result;
+}
+
+Status RigSupervisor::Detach() {
+  if (watchdog_armed_) {
+    FACEDYN_RETURN_IF_ERROR(WriteWatchdog(0.0));
+    watchdog_armed_ = false;
+  }
+  if (log_) log_->Write("detach", {{"target_hz", target_hz_}, {"motor_setpoint_hz", written_motor_hz_}});
+  closed_ = true;
+  return Status::Ok();
+}
+
+}  // namespace facedyn::rig

@@ -1,0 +1,183 @@
+#include "capture/session.h"
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "capture/frame_file.h"
+#include "capture/recorder.h"
+#include "core/file_util.h"
+#include "tests/support/test_support.h"
+
+namespace facedyn::capture {
+namespace {
+
+std::vector<SessionCameraInfo> Cameras(int count) {
+  std::vector<SessionCameraInfo> cameras;
+  for (int k = 0; k < count; ++k) cameras.push_back({"cam" + std::to_string(k), "sim", 32, 16, "mono8"});
+  return cameras;
+}
+
+Frame MakeFrame(int camera, int64_t trigger) {
+  Frame frame;
+  frame.camera_index = camera;
+  frame.trigger_index = trigger;
+  frame.width_px = 32;
+  frame.height_px = 16;
+  frame.pixels.assign(frame.ExpectedBytes(), 9);
+  return frame;
+}
+
+// Records `frames` triggers on every camera into a new take and ends it.
+void RecordTake(SessionWriter* session, const std::string& name, int cameras, int frames, int skip_trigger = -1) {
+  auto take_dir = session->BeginTake(name, 128.0, frames);
+  ASSERT_TRUE(take_dir.ok()) << take_dir.status().message();
+  std::vector<std::string> paths;
+  for (int k = 0; k < cameras; ++k) paths.push_back(*take_dir + "/cam" + std::to_string(k) + "/" + kFrameFileName);
+  auto recorder = Recorder::Start(RecorderOptions(), paths);
+  ASSERT_TRUE(recorder.ok());
+  TakeResult result;
+  result.status = "complete";
+  result.fps = 128.0;
+  result.triggers_requested = frames;
+  result.triggers_emitted = frames;
+  for (int k = 0; k < cameras; ++k) {
+    FrameSyncChecker checker(0);
+    for (int t = 0; t < frames; ++t) {
+      if (k == 0 && t == skip_trigger) continue;
+      (void)checker.Observe(t, 0, 0, frames);
+      ASSERT_EQ((*recorder)->Push(k, MakeFrame(k, t)), PushResult::kQueued);
+    }
+    checker.Finish(frames);
+    result.cameras.push_back({"cam" + std::to_string(k), "cam" + std::to_string(k), checker.counts(), {}});
+  }
+  ASSERT_TRUE((*recorder)->Finish().ok());
+  const auto stats = (*recorder)->stats();
+  for (int k = 0; k < cameras; ++k) result.cameras[k].record = stats[k];
+  if (skip_trigger >= 0) {
+    result.status = "aborted";
+    result.reason = "cam0 missed a trigger";
+  }
+  ASSERT_TRUE(session->EndTake(name, result).ok());
+}
+
+TEST(Session, CompleteTakeChecksComplete) {
+  testing::TempDir dir;
+  auto session = SessionWriter::Open(dir.path(), "virtual", Cameras(2), Json{{"config", "test"}});
+  ASSERT_TRUE(session.ok()) << session.status().message();
+  RecordTake(session->get(), "t1", 2, 20);
+  auto check = CheckSession(dir.path());
+  ASSERT_TRUE(check.ok()) << check.status().message();
+  EXPECT_TRUE(check->Complete()) << check->ToText();
+  ASSERT_EQ(check->takes.size(), 1u);
+  EXPECT_EQ(check->takes[0].cameras[1].frames, 20);
+  EXPECT_EQ(check->events, 3);  // session_open, take_start, take_stop
+  EXPECT_FALSE(std::filesystem::exists(dir.path() + "/takes/t1/.reserve"));
+
+  auto info = ReadSession(dir.path());
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info->takes[0].status, "complete");
+  EXPECT_EQ(info->takes[0].cameras[0].frames_in_manifest, 20);
+  EXPECT_EQ(info->cameras.size(), 2u);
+}
+
+TEST(Session, ReopenAppendsAndRefusesExistingTake) {
+  testing::TempDir dir;
+  {
+    auto session = SessionWriter::Open(dir.path(), "virtual", Cameras(1), Json::object());
+    ASSERT_TRUE(session.ok());
+    RecordTake(session->get(), "a", 1, 5);
+  }
+  auto session = SessionWriter::Open(dir.path(), "virtual", Cameras(1), Json::object());
+  ASSERT_TRUE(session.ok()) << session.status().message();
+  auto again = (*session)->BeginTake("a", 128, 5);
+  ASSERT_FALSE(again.ok());
+  EXPECT_NE(again.status().message().find("already exists"), std::string::npos);
+  EXPECT_FALSE((*session)->BeginTake("../x", 128, 5).ok());
+  RecordTake(session->get(), "b", 1, 5);
+  auto check = CheckSession(dir.path());
+  ASSERT_TRUE(check.ok());
+  EXPECT_EQ(check->takes.size(), 2u);
+  EXPECT_TRUE(check->Complete()) << check->ToText();
+  EXPECT_FALSE(SessionWriter::Open(dir.path(), "virtual", Cameras(3), Json::object()).ok());
+}
+
+TEST(Session, MissingFrameAndTornEventLineAreReported) {
+  testing::TempDir dir;
+  auto session = SessionWriter::Open(dir.path(), "virtual", Cameras(2), Json::object());
+  ASSERT_TRUE(session.ok());
+  RecordTake(session->get(), "gap", 2, 10, /*skip_trigger=*/4);
+  {
+    std::FILE* f = std::fopen((dir.path() + "/events.jsonl").c_str(), "a");
+    std::fputs("{\"event\":\"take_st", f);
+    std::fclose(f);
+  }
+  auto check = CheckSession(dir.path());
+  ASSERT_TRUE(check.ok());
+  EXPECT_FALSE(check->Complete());
+  EXPECT_NE(check->events_problem.find("torn"), std::string::npos);
+  EXPECT_FALSE(check->takes[0].complete);
+  EXPECT_EQ(check->takes[0].cameras[0].missing, 1);
+  EXPECT_EQ(check->takes[0].cameras[1].missing, 0);
+  const std::string text = check->ToText();
+  EXPECT_NE(text.find("1 of 10 triggers have no frame"), std::string::npos) << text;
+}
+
+TEST(Session, CorruptSessionJsonIsAnError) {
+  testing::TempDir dir;
+  auto session = SessionWriter::Open(dir.path(), "virtual", Cameras(1), Json::object());
+  ASSERT_TRUE(session.ok());
+  std::string text = testing::ReadBytes(dir.Join("session.json"));
+  testing::WriteBytes(dir.Join("session.json"), text.substr(0, text.size() / 2));
+  auto check = CheckSession(dir.path());
+  ASSERT_FALSE(check.ok());
+  EXPECT_NE(check.status().message().find("session.json"), std::string::npos);
+  EXPECT_FALSE(CheckSession(dir.Join("nothing")).ok());
+}
+
+// kill -9 in the middle of a take: the session stays readable and reports what it holds.
+TEST(Session, KillNineMidTakeLeavesReadableSession) {
+  testing::TempDir dir;
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    auto session = SessionWriter::Open(dir.path(), "virtual", Cameras(2), Json::object());
+    if (!session.ok()) ::_exit(3);
+    RecordTake(session->get(), "done", 2, 8);
+    auto take_dir = (*session)->BeginTake("killed", 128.0, 1000000);
+    if (!take_dir.ok()) ::_exit(4);
+    auto recorder = Recorder::Start(RecorderOptions(), {*take_dir + "/cam0/frames.fdr", *take_dir + "/cam1/frames.fdr"});
+    if (!recorder.ok()) ::_exit(5);
+    for (int64_t t = 0;; ++t) {
+      for (int k = 0; k < 2; ++k) (void)(*recorder)->Push(k, MakeFrame(k, t));
+      if (t % 50 == 0) (void)(*session)->events().Append({{"event", "progress"}, {"t", t}});
+    }
+  }
+  const std::string frames = dir.path() + "/takes/killed/cam1/frames.fdr";
+  for (int i = 0; i < 500; ++i) {
+    std::error_code ec;
+    if (std::filesystem::exists(frames, ec) && std::filesystem::file_size(frames, ec) > 200000) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ::kill(child, SIGKILL);
+  int wait_status = 0;
+  ::waitpid(child, &wait_status, 0);
+  ASSERT_TRUE(WIFSIGNALED(wait_status));
+  auto check = CheckSession(dir.path());
+  ASSERT_TRUE(check.ok()) << check.status().message();
+  ASSERT_EQ(check->takes.size(), 2u);
+  EXPECT_TRUE(check->takes[0].complete) << check->ToText();
+  EXPECT_FALSE(check->takes[1].complete);
+  EXPECT_EQ(check->takes[1].status, "recording");
+  EXPECT_GT(check->takes[1].cameras[1].frames, 100);
+  EXPECT_NE(check->ToText().find("never stopped"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace facedyn::capture

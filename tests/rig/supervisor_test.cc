@@ -1,0 +1,251 @@
+// RigSupervisor against facedyn's simulated drive and platform (sim/drive_sim.h), in process,
+// on a free loopback port. The simulator's true platform frequency is the ground truth the
+// supervisor never sees.
+#include "rig/supervisor.h"
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <string>
+#include <thread>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "rig/session_log.h"
+#include "sim/drive_sim.h"
+#include "tests/rig/rig_test_util.h"
+
+namespace facedyn::rig {
+namespace {
+
+using ::testing::HasSubstr;
+using Clock = std::chrono::steady_clock;
+
+struct Bench {
+  RigConfig config;
+  std::unique_ptr<sim::DriveSim> sim;
+  testing::TempDir dir;
+  std::unique_ptr<SessionLog> log;
+};
+
+// sim-tcp.yaml with its sim: physics, served on a free port.
+std::unique_ptr<Bench> StartBench(double sim_watchdog_fault_code = 10) {
+  auto bench = std::make_unique<Bench>();
+  auto config = LoadRigConfig(testing::RigConfigPath("sim-tcp"));
+  EXPECT_TRUE(config.ok()) << config.status().ToString();
+  if (!config.ok()) return nullptr;
+  bench->config = *config;
+  sim::DriveSimOptions options;
+  options.model.accel_hz_per_s = 5.0;
+  options.model.watchdog_fault_code = static_cast<int>(sim_watchdog_fault_code);
+  auto sim = sim::DriveSim::Start(bench->config.profile, options);
+  EXPECT_TRUE(sim.ok()) << sim.status().ToString();
+  if (!sim.ok()) return nullptr;
+  bench->sim = std::move(sim).value();
+  bench->config.transport.port = bench->sim->port();
+  auto log = SessionLog::Open(bench->dir.Join("log.jsonl"));
+  EXPECT_TRUE(log.ok());
+  bench->log = std::move(log).value();
+  return bench;
+}
+
+std::vector<Json> Records(const Bench& bench) {
+  auto records = ReadSessionLog(bench.dir.Join("log.jsonl"));
+  EXPECT_TRUE(records.ok()) << records.status().ToString();
+  return records.ok() ? *records : std::vector<Json>();
+}
+
+TEST(RigSupervisor, HoldsTheRequestedFrequencyWhereOpenLoopMisses) {
+  auto bench = StartBench();
+  ASSERT_NE(bench, nullptr);
+  const double target_hz = 10.5;
+  {
+    auto supervisor = RigSupervisor::Connect(bench->config, bench->log.get(), nullptr);
+    ASSERT_TRUE(supervisor.ok()) << supervisor.status().ToString();
+    ASSERT_TRUE((*supervisor)->Arm().ok());
+    ASSERT_TRUE((*supervisor)->SetTargetHz(target_hz).ok());
+    const Status settled = (*supervisor)->WaitSettled(15.0);
+    ASSERT_TRUE(settled.ok()) << settled.ToString();
+    auto hold = (*supervisor)->Hold(1.0);
+    ASSERT_TRUE(hold.ok()) << hold.status().ToString();
+    // Ground truth: the simulated platform, not the sensor the controller used.
+    EXPECT_NEAR(bench->sim->state().platform_hz, target_hz, 0.05);
+    EXPECT_NEAR(hold->mean_measured_hz, target_hz, 0.05);
+    EXPECT_GT((*supervisor)->last().correction_hz, 0.05);  // the sim slips more than assumed here
+  }
+  EXPECT_EQ(bench->sim->state().output_hz, 0.0);  // closing ramped to stop
+
+  // The same request without the trim: the nominal slip leaves a visible error.
+  RigConfig open_loop = bench->config;
+  open_loop.trim.enabled = false;
+  open_loop.settle.tolerance_hz = 0.5;
+  auto supervisor = RigSupervisor::Connect(open_loop, nullptr, nullptr);
+  ASSERT_TRUE(supervisor.ok());
+  ASSERT_TRUE((*supervisor)->Arm().ok());
+  ASSERT_TRUE((*supervisor)->SetTargetHz(target_hz).ok());
+  ASSERT_TRUE((*supervisor)->WaitSettled(15.0).ok());
+  EXPECT_GT(std::abs(bench->sim->state().platform_hz - target_hz), 0.05);
+}
+
+TEST(RigSupervisor, RefusesOutOfRangeBeforeWritingAnything) {
+  auto bench = StartBench();
+  ASSERT_NE(bench, nullptr);
+  auto supervisor = RigSupervisor::Connect(bench->config, bench->log.get(), nullptr);
+  ASSERT_TRUE(supervisor.ok());
+  const long served = bench->sim->requests_served();
+  Status high = (*supervisor)->SetTargetHz(12.0);
+  EXPECT_EQ(high.code(), StatusCode::kInvalidArgument);
+  EXPECT_THAT(high.message(), HasSubstr("hz: 12 Hz is above limits.absolute_max_hz 11 Hz"));
+  Status low = (*supervisor)->SetTargetHz(5.9);
+  EXPECT_THAT(low.message(), HasSubstr("outside limits.min_hz..max_hz 6..11 Hz"));
+  EXPECT_FALSE((*supervisor)->SetTargetHz(std::nan("")).ok());
+  EXPECT_EQ(bench->sim->requests_served(), served);
+  int refused = 0;
+  for (const Json& r : Records(*bench)) refused += r["event"] == "refused";
+  EXPECT_EQ(refused, 3);
+}
+
+TEST(RigSupervisor, RampRateIsLimitedAndEveryCommandIsLogged) {
+  auto bench = StartBench();
+  ASSERT_NE(bench, nullptr);
+  {
+    auto supervisor = RigSupervisor::Connect(bench->config, bench->log.get(), nullptr);
+    ASSERT_TRUE(supervisor.ok());
+    ASSERT_TRUE((*supervisor)->Arm().ok());
+    ASSERT_TRUE((*supervisor)->SetTargetHz(11.0).ok());
+    ASSERT_TRUE((*supervisor)->WaitSettled(15.0).ok());
+  }
+  double last_t = -1.0, last_commanded = -1.0;
+  int setpoints = 0, replies = 0;
+  bool saw_run = false, saw_stop = false, saw_watchdog = false;
+  for (const Json& r : Records(*bench)) {
+    if (r["event"] == "command") {
+      saw_run |= r["command"] == "run";
+      saw_stop |= r["command"] == "stop";
+      saw_watchdog |= r["command"] == "comm_watchdog" && r["value"] == 10;  // 1.0 s at 10 counts/s
+      setpoints += r["command"] == "setpoint";
+      EXPECT_EQ(r["result"], "ok");
+    }
+    if (r["event"] == "reply" && r.contains("commanded_hz") && r["state"] != "stopping" && r["target_hz"] == 11.0) {
+      ++replies;
+      const double t = r["time_s"].get<double>(), commanded = r["commanded_hz"].get<double>();
+      if (last_t >= 0.0) {
+        // The supervisor measures its own tick interval; the logged read time jitters by a few ms.
+        EXPECT_LE(commanded - last_commanded, bench->config.limits.max_ramp_hz_per_s * (t - last_t) + 0.01)
+            << "at t = " << t;
+      }
+      last_t = t;
+      last_commanded = commanded;
+    }
+  }
+  EXPECT_TRUE(saw_run && saw_stop && saw_watchdog);
+  EXPECT_GT(setpoints, 5);
+  EXPECT_GT(replies, 20);
+}
+
+TEST(RigSupervisor, LinkCutDuringHoldStopsTheDriveWithinItsWatchdog) {
+  auto bench = StartBench(/*sim_watchdog_fault_code=*/0);
+  ASSERT_NE(bench, nullptr);
+  auto supervisor = RigSupervisor::Connect(bench->config, bench->log.get(), nullptr);
+  ASSERT_TRUE(supervisor.ok());
+  ASSERT_TRUE((*supervisor)->Arm().ok());
+  ASSERT_TRUE((*supervisor)->SetTargetHz(8.0).ok());
+  ASSERT_TRUE((*supervisor)->WaitSettled(15.0).ok());
+  StatusOr<HoldSummary> hold = InternalError("not run");
+  std::thread holder([&] { hold = (*supervisor)->Hold(10.0); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const auto cut = Clock::now();
+  bench->sim->CutLink(true);
+  double fired_after_s = -1.0;
+  while (Clock::now() - cut < std::chrono::seconds(5)) {
+    if (bench->sim->state().watchdog_fired) {
+      fired_after_s = std::chrono::duration<double>(Clock::now() - cut).count();
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  holder.join();
+  ASSERT_GE(fired_after_s, 0.0) << "the simulated drive's watchdog never fired";
+  // The last request before the cut was < 1 control period earlier.
+  EXPECT_LE(fired_after_s, bench->config.safety.comm_watchdog_s + 0.05);
+  EXPECT_GE(fired_after_s, bench->config.safety.comm_watchdog_s - bench->config.safety.control_period_s - 0.05);
+  ASSERT_FALSE(hold.ok());
+  EXPECT_EQ(hold.status().code(), StatusCode::kUnavailable);
+  EXPECT_THAT(hold.status().message(), HasSubstr("link to the drive lost"));
+  EXPECT_THAT(hold.status().message(), HasSubstr("comm watchdog"));
+  EXPECT_EQ((*supervisor)->state(), RigState::kLinkLost);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1800));  // the sim's own ramp down from 8 Hz
+  EXPECT_EQ(bench->sim->state().output_hz, 0.0);
+  bool logged = false;
+  for (const Json& r : Records(*bench)) logged |= r["event"] == "link_lost";
+  EXPECT_TRUE(logged);
+}
+
+TEST(RigSupervisor, TripMidRunIsReportedAndOnlyAnExplicitResetClearsIt) {
+  auto bench = StartBench();
+  ASSERT_NE(bench, nullptr);
+  auto supervisor = RigSupervisor::Connect(bench->config, bench->log.get(), nullptr);
+  ASSERT_TRUE(supervisor.ok());
+  ASSERT_TRUE((*supervisor)->Arm().ok());
+  ASSERT_TRUE((*supervisor)->SetTargetHz(7.0).ok());
+  bench->sim->ScheduleTrip(0.8, 2);
+  const Status settled = (*supervisor)->WaitSettled(15.0);
+  ASSERT_FALSE(settled.ok());
+  EXPECT_EQ(settled.code(), StatusCode::kFailedPrecondition);
+  EXPECT_THAT(settled.message(), HasSubstr("2 (over-current)"));
+  EXPECT_THAT(settled.message(), HasSubstr("facedyn rig reset"));
+  EXPECT_EQ((*supervisor)->state(), RigState::kFaulted);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(bench->sim->state().fault_code, 2);  // nothing cleared it behind our back
+  // A new session refuses to move a tripped drive.
+  auto again = RigSupervisor::Connect(bench->config, nullptr, nullptr);
+  ASSERT_TRUE(again.ok());
+  EXPECT_THAT((*again)->Arm().message(), HasSubstr("tripped"));
+  ASSERT_TRUE((*again)->ResetFault().ok());
+  EXPECT_EQ(bench->sim->state().fault_code, 0);
+  EXPECT_FALSE(bench->sim->state().run_commanded);  // acknowledging does not restart the motor
+  EXPECT_TRUE((*again)->Arm().ok());
+}
+
+TEST(RigSupervisor, StopRequestRampsToStop) {
+  auto bench = StartBench();
+  ASSERT_NE(bench, nullptr);
+  std::atomic<bool> stop{false};
+  auto supervisor = RigSupervisor::Connect(bench->config, bench->log.get(), &stop);
+  ASSERT_TRUE(supervisor.ok());
+  ASSERT_TRUE((*supervisor)->Arm().ok());
+  ASSERT_TRUE((*supervisor)->SetTargetHz(7.0).ok());
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    stop = true;
+  });
+  const Status settled = (*supervisor)->WaitSettled(15.0);
+  stopper.join();
+  ASSERT_FALSE(settled.ok());
+  EXPECT_EQ(settled.code(), StatusCode::kAborted);
+  EXPECT_EQ((*supervisor)->state(), RigState::kStopped);
+  EXPECT_EQ(bench->sim->state().output_hz, 0.0);
+  EXPECT_FALSE(bench->sim->state().run_commanded);
+}
+
+TEST(RigSupervisor, RetriedTimeoutsAreLogged) {
+  auto bench = StartBench();
+  ASSERT_NE(bench, nullptr);
+  auto supervisor = RigSupervisor::Connect(bench->config, bench->log.get(), nullptr);
+  ASSERT_TRUE(supervisor.ok());
+  ASSERT_TRUE((*supervisor)->Arm().ok());
+  ASSERT_TRUE((*supervisor)->SetTargetHz(6.5).ok());
+  bench->sim->DropNextRequests(1);
+  bench->sim->GarbleNextReplies(1);
+  ASSERT_TRUE((*supervisor)->WaitSettled(15.0).ok());
+  EXPECT_GE((*supervisor)->transport().stats().retries, 2);
+  long logged_retries = 0;
+  for (const Json& r : Records(*bench)) {
+    if (r["event"] == "link") logged_retries = r["retries"].get<long>();
+  }
+  EXPECT_GE(logged_retries, 2);
+}
+
+}  // namespace
+}  // namespace facedyn::rig

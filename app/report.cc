@@ -1,0 +1,122 @@
+#include "app/report.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <utility>
+#include <vector>
+
+#include <fmt/format.h>
+
+namespace facedyn::app {
+namespace {
+
+std::string Escape(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    switch (c) {
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '&': out += "&amp;"; break;
+      case '"': out += "&quot;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+// Bars for the methods of one removal test take, in a fixed order; the networks first.
+std::vector<std::pair<std::string, double>> RemovalBars(const Json& entry) {
+  std::vector<std::pair<std::string, double>> bars;
+  for (const auto& [method, figures] : entry["methods"].items()) {
+    bars.emplace_back(method, figures["jiggle_mean_mm"].get<double>());
+  }
+  std::stable_sort(bars.begin(), bars.end(), [](const auto& a, const auto& b) {
+    return (a.first.rfind("F_", 0) == 0) > (b.first.rfind("F_", 0) == 0);
+  });
+  return bars;
+}
+
+}  // namespace
+
+std::string SvgBarChart(const std::string& title,
+                        const std::vector<std::pair<std::string, double>>& bars,
+                        const std::string& unit) {
+  const int label_w = 220, bar_w = 360, row_h = 22, top = 28;
+  const int height = top + row_h * static_cast<int>(bars.size()) + 8;
+  double max_value = 0;
+  for (const auto& bar : bars) max_value = std::max(max_value, bar.second);
+  if (max_value <= 0) max_value = 1;
+  std::string svg = fmt::format(
+      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" role=\"img\">"
+      "<text x=\"4\" y=\"18\" font-size=\"14\" font-weight=\"bold\">{}</text>",
+      label_w + bar_w + 90, height, Escape(title));
+  for (size_t k = 0; k < bars.size(); ++k) {
+    const int y = top + static_cast<int>(k) * row_h;
+    const int w = std::max(1, static_cast<int>(bar_w * bars[k].second / max_value));
+    const bool network = bars[k].first.rfind("F_", 0) == 0 || bars[k].first.rfind("H", 0) == 0;
+    svg += fmt::format(
+        "<text x=\"{}\" y=\"{}\" font-size=\"12\" text-anchor=\"end\">{}</text>"
+        "<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\"/>"
+        "<text x=\"{}\" y=\"{}\" font-size=\"12\">{:.3f} {}</text>",
+        label_w - 6, y + 14, Escape(bars[k].first), label_w, y + 2, w, row_h - 6,
+        network ? "#c0392b" : "#7f8c8d", label_w + w + 6, y + 14, bars[k].second, Escape(unit));
+  }
+  svg += "</svg>";
+  return svg;
+}
+
+Status WriteDemoReport(const Json& metrics, const std::string& path) {
+  std::string html =
+      "<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>facedyn demo report</title>"
+      "<style>body{font-family:sans-serif;max-width:960px;margin:2em auto;color:#222}"
+      "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}"
+      "th{background:#f4f4f4}td:first-child{text-align:left}</style></head><body>"
+      "<h1>facedyn demo report</h1><p>Everything below ran on the simulated stage; errors are "
+      "measured against the simulator's exact quasistatic skin. Figures are also in "
+      "metrics.json beside this file.</p>";
+  if (metrics.contains("dynamics")) {
+    const Json& dynamics = metrics["dynamics"];
+    const Json& setup = dynamics["setup"];
+    html += "<h2>Secondary dynamics removal at a frequency never trained on</h2>";
+    html += fmt::format("<p>Removal network F trained on platform takes at {} Hz ({} takes, {} "
+                        "epochs); mean error over the jiggling vertices (mm).</p>",
+                        Escape(setup["train_hz"].dump()), setup["training_takes"].dump(),
+                        setup["removal_epochs"].dump());
+    for (const Json& entry : dynamics["removal"]) {
+      html += SvgBarChart(entry["take"].get<std::string>() + " (mean true offset " +
+                              fmt::format("{:.3f}", entry["mean_dynamic_offset_mm"].get<double>()) +
+                              " mm)",
+                          RemovalBars(entry), "mm");
+      html += "<br>";
+    }
+    if (dynamics.contains("synthesis")) {
+      html += "<h2>Remove, then resynthesise (paper Fig. 7)</h2><table><tr><th>take</th>"
+              "<th>mean dynamic offset mm</th><th>resynthesis residual mm</th><th>relative</th></tr>";
+      for (const Json& entry : dynamics["synthesis"]["takes"]) {
+        html += fmt::format("<tr><td>{}</td><td>{:.3f}</td><td>{:.3f}</td><td>{:.1f}%</td></tr>",
+                            Escape(entry["take"].get<std::string>()),
+                            entry["mean_dynamic_offset_mm"].get<double>(),
+                            entry["resynthesis_residual_mm"].get<double>(),
+                            100 * entry["relative_to_offset"].get<double>());
+      }
+      html += "</table>";
+    }
+  }
+  if (metrics.contains("stages_s")) {
+    std::vector<std::pair<std::string, double>> bars;
+    for (const auto& [stage, seconds] : metrics["stages_s"].items()) {
+      bars.emplace_back(stage, seconds.get<double>());
+    }
+    html += "<h2>Time per stage</h2>" + SvgBarChart("wall time", bars, "s");
+  }
+  html += "</body></html>\n";
+  std::ofstream out(path, std::ios::binary);
+  if (!out) return UnavailableError(path + ": cannot open for writing");
+  out << html;
+  out.close();
+  if (!out) return UnavailableError(path + ": write failed");
+  return Status::Ok();
+}
+
+}  // namespace facedyn::app

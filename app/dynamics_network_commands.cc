@@ -99,15 +99,15 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
                    "moving-average (Eq. 5-6, the paper) or exact (simulated takes' quasistatic)")
       ->check(CLI::IsMember({"moving-average", "exact"}))
       ->capture_default_str();
-  train_removal_cmd->add_option("--epochs", train_removal->options.epochs)->capture_default_str();
-  train_removal_cmd->add_option("--batch", train_removal->options.batch_size)->capture_default_str();
-  train_removal_cmd->add_option("--learning-rate", train_removal->options.learning_rate)
+  train_removal_cmd->add_option("--epochs", train_removal->options.train.epochs)->capture_default_str();
+  train_removal_cmd->add_option("--batch", train_removal->options.train.batch_size)->capture_default_str();
+  train_removal_cmd->add_option("--learning-rate", train_removal->options.train.learning_rate)
       ->capture_default_str();
   train_removal_cmd->add_option("--validation", train_removal->options.validation_fraction,
                                 "Fraction of frames held out for validation")
       ->capture_default_str();
-  train_removal_cmd->add_option("--seed", train_removal->options.seed)->capture_default_str();
-  train_removal_cmd->add_option("--threads", train_removal->options.num_threads,
+  train_removal_cmd->add_option("--seed", train_removal->options.train.seed)->capture_default_str();
+  train_removal_cmd->add_option("--threads", train_removal->options.train.num_threads,
                                 "LibTorch threads (0: default); the same count gives the same model")
       ->capture_default_str();
   train_removal_cmd->add_flag("--json", train_removal->json, "Print the training summary as JSON");
@@ -200,14 +200,14 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       ->add_flag("--exact", train_synthesis->exact,
                  "Decompose simulated takes exactly (their quasistatic and dynamic_offset channels)")
       ->excludes(removal_option);
-  train_synthesis_cmd->add_option("--epochs", train_synthesis->options.epochs)->capture_default_str();
-  train_synthesis_cmd->add_option("--batch", train_synthesis->options.batch_size)->capture_default_str();
-  train_synthesis_cmd->add_option("--learning-rate", train_synthesis->options.learning_rate)
+  train_synthesis_cmd->add_option("--epochs", train_synthesis->options.train.epochs)->capture_default_str();
+  train_synthesis_cmd->add_option("--batch", train_synthesis->options.train.batch_size)->capture_default_str();
+  train_synthesis_cmd->add_option("--learning-rate", train_synthesis->options.train.learning_rate)
       ->capture_default_str();
   train_synthesis_cmd->add_option("--validation", train_synthesis->options.validation_fraction)
       ->capture_default_str();
-  train_synthesis_cmd->add_option("--seed", train_synthesis->options.seed)->capture_default_str();
-  train_synthesis_cmd->add_option("--threads", train_synthesis->options.num_threads)
+  train_synthesis_cmd->add_option("--seed", train_synthesis->options.train.seed)->capture_default_str();
+  train_synthesis_cmd->add_option("--threads", train_synthesis->options.train.num_threads)
       ->capture_default_str();
   train_synthesis_cmd->add_flag("--json", train_synthesis->json, "Print the training summary as JSON");
   train_synthesis_cmd->callback([train_synthesis, selected] {

@@ -123,6 +123,14 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options) {
       train.push_back({expression + "@" + fmt::format("{:g}Hz", hz), std::move(take)});
     }
   }
+  std::vector<SimTake> train_speech;
+  if (options.train_speech) {
+    for (double hz : options.train_hz) {
+      spdlog::info("simulating training take speech at {} Hz", hz);
+      FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, "speech", hz, options, ++seed));
+      train_speech.push_back({"speech@" + fmt::format("{:g}Hz", hz), std::move(take)});
+    }
+  }
   for (const std::string& expression : options.expressions) {
     spdlog::info("simulating test take {} at {} Hz", expression, options.test_hz);
     FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, expression, options.test_hz, options, ++seed));
@@ -135,8 +143,10 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options) {
   }
   const double simulate_s = SecondsSince(simulate_start);
 
-  std::vector<dynamics::TrainingTake> training;
-  for (const SimTake& t : train) training.push_back({&t.take, &rig});
+  std::vector<dynamics::TrainingTake> held_training, all_training;
+  for (const SimTake& t : train) held_training.push_back({&t.take, &rig});
+  all_training = held_training;
+  for (const SimTake& t : train_speech) all_training.push_back({&t.take, &rig});
 
   // --- removal networks ---
   struct Trained {
@@ -145,27 +155,29 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options) {
     dynamics::MlpTrainSummary summary;
   };
   std::vector<Trained> models;
-  auto train_removal = [&](const std::string& name,
-                           dynamics::RemovalTargets targets) -> Status {
+  auto train_removal = [&](const std::string& name, dynamics::RemovalTargets targets,
+                           const std::vector<dynamics::TrainingTake>& training) -> Status {
     dynamics::RemovalTrainOptions train_options;
-    train_options.epochs = options.removal_epochs;
-    train_options.batch_size = options.removal_batch;
+    train_options.train.epochs = options.removal_epochs;
+    train_options.train.batch_size = options.removal_batch;
     train_options.targets = targets;
-    train_options.seed = options.seed;
-    train_options.num_threads = options.threads;
-    train_options.show_progress = options.show_progress;
+    train_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
+    train_options.train.seed = options.seed;
+    train_options.train.num_threads = options.threads;
+    train_options.train.show_progress = options.show_progress;
     spdlog::info("training removal network {} ({} takes, {} epochs)", name, training.size(),
-                 train_options.epochs);
+                 train_options.train.epochs);
     dynamics::MlpTrainSummary summary;
     FACEDYN_ASSIGN_OR_RETURN(dynamics::RemovalModel model,
                              dynamics::TrainRemoval(training, train_options, &summary));
     models.push_back({name, std::move(model), std::move(summary)});
     return Status::Ok();
   };
-  FACEDYN_RETURN_IF_ERROR(train_removal("F_exact_targets", dynamics::RemovalTargets::kExact));
+  FACEDYN_RETURN_IF_ERROR(
+      train_removal("F_exact_targets", dynamics::RemovalTargets::kExact, all_training));
   if (options.moving_average_targets) {
-    FACEDYN_RETURN_IF_ERROR(
-        train_removal("F_moving_average_targets", dynamics::RemovalTargets::kMovingAverage));
+    FACEDYN_RETURN_IF_ERROR(train_removal("F_moving_average_targets",
+                                          dynamics::RemovalTargets::kMovingAverage, held_training));
   }
 
   // --- removal evaluation against the exact quasistatic ---
@@ -235,6 +247,8 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options) {
                      {"speech_hz", options.speech_hz},
                      {"expressions", options.expressions},
                      {"training_takes", train.size()},
+                     {"training_speech_takes", train_speech.size()},
+                     {"final_learning_rate_fraction", options.final_learning_rate_fraction},
                      {"removal_epochs", options.removal_epochs},
                      {"removal_batch", options.removal_batch},
                      {"simulate_s", Round4(simulate_s)},
@@ -263,22 +277,23 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options) {
   //     then remove-and-resynthesise the unseen test takes with their own head motion. ---
   if (options.synthesis) {
     std::vector<Take> decomposed;
-    decomposed.reserve(train.size());
-    for (const SimTake& t : train) {
+    decomposed.reserve(all_training.size());
+    for (const dynamics::TrainingTake& t : all_training) {
       FACEDYN_ASSIGN_OR_RETURN(
-          Take take, dynamics::RemoveDynamics(models.front().model, t.take, rig, &propagation));
+          Take take, dynamics::RemoveDynamics(models.front().model, *t.take, rig, &propagation));
       decomposed.push_back(std::move(take));
     }
     std::vector<dynamics::TrainingTake> synthesis_training;
     for (const Take& take : decomposed) synthesis_training.push_back({&take, &rig});
     dynamics::SynthesisTrainOptions synthesis_options;
-    synthesis_options.epochs = options.synthesis_epochs;
-    synthesis_options.batch_size = options.synthesis_batch;
-    synthesis_options.seed = options.seed;
-    synthesis_options.num_threads = options.threads;
-    synthesis_options.show_progress = options.show_progress;
+    synthesis_options.train.epochs = options.synthesis_epochs;
+    synthesis_options.train.batch_size = options.synthesis_batch;
+    synthesis_options.train.seed = options.seed;
+    synthesis_options.train.num_threads = options.threads;
+    synthesis_options.train.show_progress = options.show_progress;
+    synthesis_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
     spdlog::info("training synthesis network ({} takes, {} epochs)", decomposed.size(),
-                 synthesis_options.epochs);
+                 synthesis_options.train.epochs);
     dynamics::MlpTrainSummary synthesis_summary;
     FACEDYN_ASSIGN_OR_RETURN(
         const dynamics::SynthesisModel synthesis,

@@ -29,6 +29,12 @@ struct DynamicsStudyOptions {
   double fps = 128.0;
   int vertices = 4000;         // procedural face size
   double speech_hz = 8.0;      // platform frequency of the speech test take; <= 0: no speech test
+  // Also train F (exact targets) and H on speech takes at every training frequency (other seeds
+  // than the test take's). Only the simulator can give exact targets for a changing expression;
+  // the paper's moving-average targets exist for held expressions only, so F_moving_average
+  // never sees these takes.
+  bool train_speech = true;
+  double final_learning_rate_fraction = 0.05;  // learning-rate decay of both networks (mlp.h)
   int removal_epochs = 40;
   int removal_batch = 10000;   // the paper's
   int synthesis_epochs = 30;   // the paper's

@@ -9,7 +9,9 @@
 //     run (the ratio is the figure; machines are shared and noisy), and removal + propagation
 //     frames/s on a 10k-vertex take (median of 3).
 //
-//   dynamics_bench [--quick] [--threads N] [--epochs N] [--seconds S] [--no-moving-average]
+//   dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs N] [--seconds S]
+//                  [--hz 6,7,...] [--expressions a,b] [--speech-hz F] [--no-train-speech]
+//                  [--lr-final F] [--no-moving-average]
 //
 // --no-moving-average skips F trained on the paper's moving-average targets (it halves the run).
 
@@ -38,6 +40,17 @@ namespace {
 using facedyn::Json;
 using Clock = std::chrono::steady_clock;
 double Seconds(Clock::time_point a) { return std::chrono::duration<double>(Clock::now() - a).count(); }
+
+std::vector<std::string> Split(const std::string& list) {
+  std::vector<std::string> items;
+  size_t begin = 0;
+  while (begin <= list.size()) {
+    const size_t end = std::min(list.find(',', begin), list.size());
+    if (end > begin) items.push_back(list.substr(begin, end - begin));
+    begin = end + 1;
+  }
+  return items;
+}
 
 double Median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -107,12 +120,25 @@ int main(int argc, char** argv) {
       threads = std::atoi(next());
     } else if (arg == "--epochs") {
       options.removal_epochs = std::atoi(next());
+    } else if (arg == "--hz") {
+      options.train_hz.clear();
+      for (const std::string& item : Split(next())) options.train_hz.push_back(std::atof(item.c_str()));
+    } else if (arg == "--expressions") {
+      options.expressions = Split(next());
+    } else if (arg == "--speech-hz") {
+      options.speech_hz = std::atof(next());
+    } else if (arg == "--no-train-speech") {
+      options.train_speech = false;
+    } else if (arg == "--lr-final") {
+      options.final_learning_rate_fraction = std::atof(next());
+    } else if (arg == "--synthesis-epochs") {
+      options.synthesis_epochs = std::atoi(next());
     } else if (arg == "--no-moving-average") {
       options.moving_average_targets = false;
     } else if (arg == "--seconds") {
       options.seconds = std::atof(next());
     } else {
-      std::fprintf(stderr, "usage: dynamics_bench [--quick] [--threads N] [--epochs N] [--seconds S] [--no-moving-average]\n");
+      std::fprintf(stderr, "usage: dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs N] [--seconds S] [--hz 6,7,...] [--expressions a,b] [--speech-hz F] [--no-train-speech] [--lr-final F] [--no-moving-average]\n");
       return 2;
     }
   }

@@ -246,6 +246,9 @@ Status MlpTrainOptions::Check() const {
   if (epochs < 1) return InvalidArgumentError("epochs must be >= 1");
   if (batch_size < 1) return InvalidArgumentError("batch_size must be >= 1");
   if (!(learning_rate > 0)) return InvalidArgumentError("learning_rate must be > 0");
+  if (!(final_learning_rate_fraction > 0 && final_learning_rate_fraction <= 1)) {
+    return InvalidArgumentError("final_learning_rate_fraction must be in (0, 1]");
+  }
   if (num_threads < 0) return InvalidArgumentError("num_threads must be >= 0");
   return Status::Ok();
 }
@@ -338,6 +341,13 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
   Eigen::MatrixXf inputs, targets;
   const auto start = std::chrono::steady_clock::now();
   for (int epoch = 0; epoch < options.epochs; ++epoch) {
+    const double lr =
+        options.learning_rate *
+        std::pow(options.final_learning_rate_fraction,
+                 options.epochs > 1 ? static_cast<double>(epoch) / (options.epochs - 1) : 0.0);
+    for (auto& group : optimizer.param_groups()) {
+      static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
+    }
     std::shuffle(order.begin(), order.end(), rng);
     double loss_sum = 0.0;
     for (size_t begin = 0; begin < order.size(); begin += static_cast<size_t>(batch)) {

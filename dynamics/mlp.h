@@ -98,12 +98,16 @@ class MlpDataset {
 struct MlpTrainOptions {
   int epochs = 250;
   int batch_size = 10000;
-  double learning_rate = 1e-3;  // Adam
+  double learning_rate = 1e-3;  // Adam, at the first epoch
+  // Exponential decay of the learning rate to this fraction of it at the last epoch
+  // (lr_e = lr * fraction^(e / (epochs - 1))); 1 keeps it constant, as the paper states.
+  double final_learning_rate_fraction = 1.0;
   uint64_t seed = 1;            // initialisation and shuffling
   int num_threads = 0;          // LibTorch intra-op threads; 0 keeps the current setting
   bool show_progress = true;
   std::string progress_label = "train";
-  // epochs >= 1, batch_size >= 1, learning_rate > 0, num_threads >= 0. Names the field.
+  // epochs >= 1, batch_size >= 1, learning_rate > 0, final_learning_rate_fraction in (0, 1],
+  // num_threads >= 0. Names the field.
   Status Check() const;
 };
 

@@ -147,13 +147,10 @@ StatusOr<RemovalModel> RemovalModel::Load(const std::string& path) {
 }
 
 Status RemovalTrainOptions::Check() const {
-  if (epochs < 1) return InvalidArgumentError("epochs must be >= 1");
-  if (batch_size < 1) return InvalidArgumentError("batch_size must be >= 1");
-  if (!(learning_rate > 0)) return InvalidArgumentError("learning_rate must be > 0");
+  FACEDYN_RETURN_IF_ERROR(train.Check());
   if (!(validation_fraction >= 0 && validation_fraction <= 0.9)) {
     return InvalidArgumentError("validation_fraction must be in [0, 0.9]");
   }
-  if (num_threads < 0) return InvalidArgumentError("num_threads must be >= 0");
   if (hidden_units < 1) return InvalidArgumentError("hidden_units must be >= 1");
   if (!(window_s > 0 && window_s <= 1)) return InvalidArgumentError("window_s must be in (0, 1]");
   return Status::Ok();
@@ -171,7 +168,7 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
   RemovalConfig config = RemovalConfig::ForRig(*takes[0].rig, takes[0].take->info.fps);
   config.features.window_s = options.window_s;
   config.hidden_units = options.hidden_units;
-  FACEDYN_ASSIGN_OR_RETURN(RemovalModel model, RemovalModel::Create(config, options.seed));
+  FACEDYN_ASSIGN_OR_RETURN(RemovalModel model, RemovalModel::Create(config, options.train.seed));
 
   int max_frames = 0;
   for (const TrainingTake& training : takes) {
@@ -219,7 +216,7 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
   }
 
   // Validation split by whole frames, seeded.
-  std::mt19937_64 rng(options.seed);
+  std::mt19937_64 rng(options.train.seed);
   std::shuffle(frames.begin(), frames.end(), rng);
   const size_t validation_frames = static_cast<size_t>(
       std::floor(options.validation_fraction * static_cast<double>(frames.size())));
@@ -230,16 +227,8 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
       rows.push_back(data.RowOf(frames[f].first, frames[f].second, i));
     }
   }
-  MlpTrainOptions train;
-  train.epochs = options.epochs;
-  train.batch_size = options.batch_size;
-  train.learning_rate = options.learning_rate;
-  train.seed = options.seed;
-  train.num_threads = options.num_threads;
-  train.show_progress = options.show_progress;
-  train.progress_label = "train-removal";
   FACEDYN_RETURN_IF_ERROR(
-      TrainMlp(data, train_rows, validation_rows, train, model.mutable_mlp(), summary));
+      TrainMlp(data, train_rows, validation_rows, options.train, model.mutable_mlp(), summary));
   return model;
 }
 

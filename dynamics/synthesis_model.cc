@@ -140,13 +140,10 @@ StatusOr<SynthesisModel> SynthesisModel::Load(const std::string& path) {
 }
 
 Status SynthesisTrainOptions::Check() const {
-  if (epochs < 1) return InvalidArgumentError("epochs must be >= 1");
-  if (batch_size < 1) return InvalidArgumentError("batch_size must be >= 1");
-  if (!(learning_rate > 0)) return InvalidArgumentError("learning_rate must be > 0");
+  FACEDYN_RETURN_IF_ERROR(train.Check());
   if (!(validation_fraction >= 0 && validation_fraction <= 0.9)) {
     return InvalidArgumentError("validation_fraction must be in [0, 0.9]");
   }
-  if (num_threads < 0) return InvalidArgumentError("num_threads must be >= 0");
   if (hidden_units < 1) return InvalidArgumentError("hidden_units must be >= 1");
   if (!(window_s > 0 && window_s <= 1)) return InvalidArgumentError("window_s must be in (0, 1]");
   if (!(stretch_step_mm > 0 && stretch_step_mm <= 50)) {
@@ -187,7 +184,7 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   config.features.window_s = options.window_s;
   config.features.stretch_step_mm = options.stretch_step_mm;
   config.hidden_units = options.hidden_units;
-  FACEDYN_ASSIGN_OR_RETURN(SynthesisModel model, SynthesisModel::Create(config, options.seed));
+  FACEDYN_ASSIGN_OR_RETURN(SynthesisModel model, SynthesisModel::Create(config, options.train.seed));
   FACEDYN_ASSIGN_OR_RETURN(
       const StretchStencil stencil,
       BuildStretchStencil(*decomposed[0].rig, decomposed[0].rig->skin_samples,
@@ -235,22 +232,14 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   if (rows.empty()) {
     return FailedPreconditionError("train-synthesis: every take is shorter than two feature windows");
   }
-  std::mt19937_64 rng(options.seed);
+  std::mt19937_64 rng(options.train.seed);
   std::shuffle(rows.begin(), rows.end(), rng);
   const size_t validation_count = static_cast<size_t>(
       std::floor(options.validation_fraction * static_cast<double>(rows.size())));
   const std::vector<long> validation_rows(rows.begin(), rows.begin() + validation_count);
   const std::vector<long> train_rows(rows.begin() + validation_count, rows.end());
-  MlpTrainOptions train;
-  train.epochs = options.epochs;
-  train.batch_size = options.batch_size;
-  train.learning_rate = options.learning_rate;
-  train.seed = options.seed;
-  train.num_threads = options.num_threads;
-  train.show_progress = options.show_progress;
-  train.progress_label = "train-synthesis";
   FACEDYN_RETURN_IF_ERROR(
-      TrainMlp(data, train_rows, validation_rows, train, model.mutable_mlp(), summary));
+      TrainMlp(data, train_rows, validation_rows, options.train, model.mutable_mlp(), summary));
   return model;
 }
 

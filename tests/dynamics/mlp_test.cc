@@ -79,6 +79,35 @@ TEST(TrainMlp, FitsALinearMapInRawUnits) {
   EXPECT_LT(rms, 0.1 * spread) << "rms " << rms << " spread " << spread;
 }
 
+TEST(MlpTrainOptions, CheckNamesTheField) {
+  MlpTrainOptions options;
+  EXPECT_TRUE(options.Check().ok());
+  options.final_learning_rate_fraction = 0;
+  EXPECT_THAT(options.Check().message(), HasSubstr("final_learning_rate_fraction"));
+  options = MlpTrainOptions();
+  options.batch_size = 0;
+  EXPECT_THAT(options.Check().message(), HasSubstr("batch_size"));
+}
+
+TEST(TrainMlp, DecayingLearningRateIsDeterministicAndDiffersFromConstant) {
+  const LinearDataset data(500);
+  std::vector<long> rows(500);
+  for (long r = 0; r < 500; ++r) rows[r] = r;
+  MlpTrainOptions options;
+  options.epochs = 5;
+  options.batch_size = 50;
+  options.show_progress = false;
+  auto train = [&](double fraction) {
+    Mlp model = Mlp::Create(SmallShape(), 9).value();
+    options.final_learning_rate_fraction = fraction;
+    EXPECT_TRUE(TrainMlp(data, rows, {}, options, &model, nullptr).ok());
+    return model.FlatParameters();
+  };
+  const std::vector<float> decayed = train(0.01);
+  EXPECT_EQ(train(0.01), decayed);
+  EXPECT_NE(train(1.0), decayed);
+}
+
 TEST(TrainMlp, RefusesMismatchedSizesAndNoRows) {
   const LinearDataset data(10);
   MlpShape shape = SmallShape();

@@ -75,18 +75,18 @@ Take SyntheticTake(const FaceRig& rig, int frames, double fps, double phase) {
 
 RemovalTrainOptions QuickOptions(int epochs) {
   RemovalTrainOptions options;
-  options.epochs = epochs;
-  options.batch_size = 256;
+  options.train.epochs = epochs;
+  options.train.batch_size = 256;
   options.targets = RemovalTargets::kExact;
-  options.show_progress = false;
-  options.seed = 7;
+  options.train.show_progress = false;
+  options.train.seed = 7;
   return options;
 }
 
 TEST(RemovalTrainOptions, CheckNamesTheField) {
   RemovalTrainOptions options;
   EXPECT_TRUE(options.Check().ok());
-  options.batch_size = 0;
+  options.train.batch_size = 0;
   EXPECT_THAT(options.Check().message(), HasSubstr("batch_size"));
   options = RemovalTrainOptions();
   options.validation_fraction = 0.95;
@@ -184,7 +184,7 @@ TEST(TrainRemoval, DeterministicForASeed) {
   const Take removed_b = RemoveDynamics(b, take, rig).value();
   EXPECT_EQ(removed_a.positions.positions, removed_b.positions.positions);
   RemovalTrainOptions other = QuickOptions(3);
-  other.seed = 8;
+  other.train.seed = 8;
   EXPECT_NE(TrainRemoval(takes, other).value().FlatParameters(), a.FlatParameters());
 }
 
@@ -239,9 +239,9 @@ TEST(RemoveDynamics, HeldOutPlatformFrequencyBeatsNoRemoval) {
   const Take take8 = perform(8.0);
 
   RemovalTrainOptions options;
-  options.epochs = 8;
-  options.batch_size = 2000;
-  options.show_progress = false;
+  options.train.epochs = 8;
+  options.train.batch_size = 2000;
+  options.train.show_progress = false;
   MlpTrainSummary summary;
   const auto model = TrainRemoval({{&take7, &rig}, {&take9, &rig}}, options, &summary);
   ASSERT_TRUE(model.ok()) << model.status().message();

@@ -53,8 +53,8 @@ Take DecomposedTake(const FaceRig& rig, int frames, double phase) {
 
 TEST(SynthesisTrainOptions, DefaultsAreThePapersAndCheckNamesTheField) {
   SynthesisTrainOptions options;
-  EXPECT_EQ(options.batch_size, 50);
-  EXPECT_EQ(options.epochs, 30);
+  EXPECT_EQ(options.train.batch_size, 50);
+  EXPECT_EQ(options.train.epochs, 30);
   EXPECT_EQ(options.hidden_units, 256);
   EXPECT_TRUE(options.Check().ok());
   options.stretch_step_mm = 0;
@@ -127,8 +127,8 @@ TEST(TrainSynthesis, LearnsAKnownFunctionOfTheSkullMotion) {
   const Take b = DecomposedTake(rig, 160, 0.9);
   const Take test = DecomposedTake(rig, 160, 2.1);
   SynthesisTrainOptions options;
-  options.epochs = 60;
-  options.show_progress = false;
+  options.train.epochs = 60;
+  options.train.show_progress = false;
   MlpTrainSummary summary;
   const auto model = TrainSynthesis({{&a, &rig}, {&b, &rig}}, options, &summary);
   ASSERT_TRUE(model.ok()) << model.status().message();

@@ -117,6 +117,7 @@ Status RunDemo(const DemoOptions& options) {
     study.expressions = {"neutral"};
     study.seconds = 1.5;
     study.speech_hz = 0;
+    study.train_speech = false;
     study.removal_epochs = 8;
     study.synthesis_epochs = 5;
   } else {

@@ -29,11 +29,24 @@ struct CameraRingOptions {
 // at it, named cam0..camN-1.
 std::vector<Camera> MakeCameraRing(const CameraRingOptions& options);
 
-// The view through `camera` of a planar texture (8-bit gray, `pixels_per_mm`, its pixel
+// The viewing ray (camera frame, z = 1) of every sub-pixel of a camera's image, supersampled
+// `supersample`^2 times per pixel: computed once per camera (Camera::Undistort per sample) and
+// reused for every rendered view.
+struct CameraRays {
+  Camera camera;
+  int supersample = 1;
+  std::vector<Eigen::Vector2f> normalized;  // row-major, (width * s) x (height * s)
+};
+CameraRays MakeCameraRays(const Camera& camera, int supersample = 2);
+
+// The view through a camera of a planar texture (8-bit gray, `pixels_per_mm`, its pixel
 // (0, 0) centred at board point (-margin_mm, -margin_mm) + half a texel) lying in the
-// board's z = 0 plane at `world_from_board`. Every image pixel is traced back through the
-// lens (Camera::Undistort) to the plane and sampled bilinearly; pixels whose ray misses the
-// texture are `background`. Supersampled `supersample`^2 times per pixel.
+// board's z = 0 plane at `world_from_board`. Every (sub-)pixel's ray is traced back through
+// the lens to the plane and sampled bilinearly; rays that miss the texture see `background`.
+cv::Mat RenderPlanarView(const cv::Mat& texture, double pixels_per_mm, double margin_mm,
+                         const CameraRays& rays, const Rigid3& world_from_board,
+                         unsigned char background = 128);
+// One-off form (computes the rays).
 cv::Mat RenderPlanarView(const cv::Mat& texture, double pixels_per_mm, double margin_mm,
                          const Camera& camera, const Rigid3& world_from_board,
                          int supersample = 2, unsigned char background = 128);

@@ -20,6 +20,7 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected);
 void AddSimCommands(CLI::App& app, CommandRunner* selected);
 void AddDynamicsCommands(CLI::App& app, CommandRunner* selected);
 void AddRigCommands(CLI::App& app, CommandRunner* selected);
+void AddSweepCommand(CLI::App& app, CommandRunner* selected);
 void AddCalibrateCommand(CLI::App& app, CommandRunner* selected);
 
 }  // namespace facedyn::app

@@ -81,6 +81,64 @@ cv::Mat RenderPlanarView(const cv::Mat& texture, double pixels_per_mm, double ma
                           world_from_board, background);
 }
 
+cv::Mat RenderPolygons(int width_px, int height_px,
+                       const std::vector<std::vector<Eigen::Vector2d>>& polygons,
+                       unsigned char background, unsigned char ink, int supersample) {
+  constexpr int kShift = 4;  // cv::fillPoly sub-pixel bits
+  cv::Mat fine(height_px * supersample, width_px * supersample, CV_8UC1, cv::Scalar(background));
+  std::vector<std::vector<cv::Point>> contours;
+  for (const auto& polygon : polygons) {
+    if (polygon.size() < 3) continue;
+    std::vector<cv::Point> contour;
+    for (const Eigen::Vector2d& p : polygon) {
+      // Coarse pixel centre u maps to fine coordinate s u + (s - 1) / 2.
+      const double fx = supersample * p.x() + 0.5 * (supersample - 1);
+      const double fy = supersample * p.y() + 0.5 * (supersample - 1);
+      contour.emplace_back(static_cast<int>(std::lround(fx * (1 << kShift))),
+                           static_cast<int>(std::lround(fy * (1 << kShift))));
+    }
+    contours.push_back(std::move(contour));
+  }
+  if (!contours.empty()) {
+    cv::fillPoly(fine, contours, cv::Scalar(ink), cv::LINE_8, kShift);
+  }
+  if (supersample == 1) return fine;
+  cv::Mat image;
+  cv::resize(fine, image, cv::Size(width_px, height_px), 0, 0, cv::INTER_AREA);
+  return image;
+}
+
+std::vector<Eigen::Vector2d> CircleOutline(const Eigen::Vector2d& center_px, double radius_px,
+                                           int vertex_count) {
+  std::vector<Eigen::Vector2d> outline;
+  for (int k = 0; k < vertex_count; ++k) {
+    const double angle = 2.0 * M_PI * k / vertex_count;
+    outline.push_back(center_px + radius_px * Eigen::Vector2d(std::cos(angle), std::sin(angle)));
+  }
+  return outline;
+}
+
+std::vector<Eigen::Vector2d> ProjectDiskOutline(const Camera& camera,
+                                                const Eigen::Vector3d& center_in_world,
+                                                const Eigen::Vector3d& normal_in_world,
+                                                double radius_mm, int vertex_count) {
+  if (normal_in_world.dot(camera.CenterInWorld() - center_in_world) <= 0) return {};
+  const Eigen::Vector3d n = normal_in_world.normalized();
+  const Eigen::Vector3d u = n.unitOrthogonal();
+  const Eigen::Vector3d v = n.cross(u);
+  std::vector<Eigen::Vector2d> outline;
+  for (int k = 0; k < vertex_count; ++k) {
+    const double angle = 2.0 * M_PI * k / vertex_count;
+    Eigen::Vector2d pixel;
+    if (!camera.Project(center_in_world + radius_mm * (std::cos(angle) * u + std::sin(angle) * v),
+                        &pixel)) {
+      return {};
+    }
+    outline.push_back(pixel);
+  }
+  return outline;
+}
+
 void AddImageNoise(double sigma, std::mt19937* rng, cv::Mat* image) {
   std::normal_distribution<double> noise(0.0, sigma);
   for (int y = 0; y < image->rows; ++y) {

@@ -51,6 +51,22 @@ cv::Mat RenderPlanarView(const cv::Mat& texture, double pixels_per_mm, double ma
                          const Camera& camera, const Rigid3& world_from_board,
                          int supersample = 2, unsigned char background = 128);
 
+// Filled polygons (pixel coordinates, (0,0) = centre of the top-left pixel) of `ink` on
+// `background`, drawn on a canvas `supersample` times finer and area-averaged down, so edges
+// carry exact partial coverage: painted dots as a camera sees them before lens blur.
+cv::Mat RenderPolygons(int width_px, int height_px,
+                       const std::vector<std::vector<Eigen::Vector2d>>& polygons,
+                       unsigned char background, unsigned char ink, int supersample = 8);
+// `vertex_count` points on a circle.
+std::vector<Eigen::Vector2d> CircleOutline(const Eigen::Vector2d& center_px, double radius_px,
+                                           int vertex_count = 48);
+// The image outline of a flat disk (a painted marker) of `radius_mm` at `center_in_world`
+// with unit normal `normal_in_world`; empty when it faces away from the camera or is behind it.
+std::vector<Eigen::Vector2d> ProjectDiskOutline(const Camera& camera,
+                                                const Eigen::Vector3d& center_in_world,
+                                                const Eigen::Vector3d& normal_in_world,
+                                                double radius_mm, int vertex_count = 32);
+
 // Adds zero-mean Gaussian noise of `sigma` gray levels to an 8-bit image (saturating).
 void AddImageNoise(double sigma, std::mt19937* rng, cv::Mat* image);
 

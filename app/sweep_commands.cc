@@ -49,8 +49,13 @@ void AddSweepCommand(CLI::App& app, CommandRunner* selected) {
         planned.Add(step.hz, step.repeats * (step.settle_s + step.hold_s));
       }
       spdlog::info("sweep {}: {} step(s) on rig {}, at least {:.0f} s of vibration, A(8) >= {:.2f} m/s^2 "
-                   "(unweighted; EU daily limit value 1.15)", script.name, script.InstanceCount(), rig.name,
-                   script.MinimumDurationS(), planned.A8_m_s2());
+                   "(unweighted)", script.name, script.InstanceCount(), rig.name, script.MinimumDurationS(),
+                   planned.A8_m_s2());
+      if (planned.A8_m_s2() > 0.5) {
+        spdlog::warn("sweep {}: the planned exposure A(8) {:.2f} m/s^2 is above the daily exposure action value "
+                     "0.5 m/s^2 of Directive 2002/44/EC{}", script.name, planned.A8_m_s2(),
+                     planned.A8_m_s2() > 1.15 ? " and above its limit value 1.15 m/s^2" : "");
+      }
       if (options->check) {
         if (options->json) {
           Json plan;

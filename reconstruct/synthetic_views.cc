@@ -1,5 +1,6 @@
 #include "reconstruct/synthetic_views.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <opencv2/imgproc.hpp>
@@ -18,6 +19,24 @@ std::vector<Camera> MakeCameraRing(const CameraRingOptions& options) {
                                      options.height_px, options.focal_px,
                                      options.target_in_world + options.radius_mm * direction,
                                      options.target_in_world, Eigen::Vector3d::UnitY()));
+  }
+  return cameras;
+}
+
+std::vector<Camera> MakeFaceCameraRing(int camera_count) {
+  std::vector<Camera> cameras;
+  const Eigen::Vector3d target(0.0, -15.0, 60.0);
+  for (int i = 0; i < camera_count; ++i) {
+    const double t = camera_count == 1 ? 0.5 : i / (camera_count - 1.0);
+    const double azimuth = (t - 0.5) * 120.0 * M_PI / 180.0;
+    const double elevation = (i % 2 == 0 ? 12.0 : -8.0) * M_PI / 180.0;
+    const Eigen::Vector3d direction(std::sin(azimuth) * std::cos(elevation), std::sin(elevation),
+                                    std::cos(azimuth) * std::cos(elevation));
+    Camera camera = Camera::LookAt("cam" + std::to_string(i), 1280, 1024, 2200.0,
+                                   target + 600.0 * direction, target, Eigen::Vector3d::UnitY());
+    camera.intrinsics[4] = -0.06;
+    camera.intrinsics[5] = 0.02;
+    cameras.push_back(camera);
   }
   return cameras;
 }
@@ -137,6 +156,69 @@ std::vector<Eigen::Vector2d> ProjectDiskOutline(const Camera& camera,
     outline.push_back(pixel);
   }
   return outline;
+}
+
+Eigen::Matrix3Xd MeshVertexNormals(const Mesh& mesh, const Eigen::Matrix3Xd& positions_mm) {
+  Eigen::Matrix3Xd normals = Eigen::Matrix3Xd::Zero(3, positions_mm.cols());
+  const Eigen::Matrix3Xi triangles = mesh.Triangles();
+  for (int f = 0; f < triangles.cols(); ++f) {
+    const Eigen::Vector3d a = positions_mm.col(triangles(0, f));
+    const Eigen::Vector3d n = (positions_mm.col(triangles(1, f)) - a)
+                                  .cross(positions_mm.col(triangles(2, f)) - a);  // 2 area
+    for (int k = 0; k < 3; ++k) normals.col(triangles(k, f)) += n;
+  }
+  for (int v = 0; v < normals.cols(); ++v) {
+    const double norm = normals.col(v).norm();
+    normals.col(v) = norm > 0 ? Eigen::Vector3d(normals.col(v) / norm) : Eigen::Vector3d::UnitZ();
+  }
+  return normals;
+}
+
+Eigen::Matrix3Xd MarkerPositions(const FaceRig& rig, const Eigen::Matrix3Xd& skin_in_world) {
+  Eigen::Matrix3Xd markers(3, rig.markers.size());
+  for (size_t m = 0; m < rig.markers.size(); ++m) {
+    markers.col(m) = rig.markers[m].point.Evaluate(skin_in_world);
+  }
+  return markers;
+}
+
+Eigen::Matrix3Xd MarkerNormals(const FaceRig& rig, const Eigen::Matrix3Xd& skin_in_world) {
+  const Eigen::Matrix3Xd vertex_normals = MeshVertexNormals(rig.neutral, skin_in_world);
+  Eigen::Matrix3Xd normals(3, rig.markers.size());
+  for (size_t m = 0; m < rig.markers.size(); ++m) {
+    normals.col(m) = rig.markers[m].point.Evaluate(vertex_normals).normalized();
+  }
+  return normals;
+}
+
+MarkerViews ProjectMarkers(const std::vector<Camera>& cameras, const Eigen::Matrix3Xd& markers,
+                           const Eigen::Matrix3Xd& normals, double sigma_px, std::mt19937* rng,
+                           double min_cos) {
+  std::normal_distribution<double> noise(0.0, sigma_px);
+  MarkerViews views;
+  for (size_t c = 0; c < cameras.size(); ++c) {
+    std::vector<std::pair<ImageObservation, int>> seen;
+    const Eigen::Vector3d center = cameras[c].CenterInWorld();
+    for (int m = 0; m < markers.cols(); ++m) {
+      const Eigen::Vector3d to_camera = (center - markers.col(m)).normalized();
+      if (normals.col(m).dot(to_camera) < min_cos) continue;
+      Eigen::Vector2d pixel;
+      if (!cameras[c].Project(markers.col(m), &pixel) || !cameras[c].InImage(pixel, 4)) continue;
+      ImageObservation o;
+      o.camera = static_cast<int>(c);
+      o.pixel = pixel + Eigen::Vector2d(noise(*rng), noise(*rng));
+      seen.emplace_back(o, m);
+    }
+    std::shuffle(seen.begin(), seen.end(), *rng);
+    views.detections.emplace_back();
+    views.truth.emplace_back();
+    for (size_t i = 0; i < seen.size(); ++i) {
+      seen[i].first.detection = static_cast<int>(i);
+      views.detections.back().push_back(seen[i].first);
+      views.truth.back().push_back(seen[i].second);
+    }
+  }
+  return views;
 }
 
 void AddImageNoise(double sigma, std::mt19937* rng, cv::Mat* image) {

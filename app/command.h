@@ -21,6 +21,8 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected);
 void AddSimCommands(CLI::App& app, CommandRunner* selected);
 void AddDynamicsCommands(CLI::App& app, CommandRunner* selected);
 void AddRigCommands(CLI::App& app, CommandRunner* selected);
+void AddSweepCommand(CLI::App& app, CommandRunner* selected);
+void AddCalibrateCommand(CLI::App& app, CommandRunner* selected);
 // train-removal, remove, train-synthesis, synthesize, retarget under `facedyn dynamics`.
 void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected);
 

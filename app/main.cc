@@ -33,6 +33,8 @@ int main(int argc, char** argv) {
   app::AddSimCommands(cli, &selected);
   app::AddDynamicsCommands(cli, &selected);
   app::AddRigCommands(cli, &selected);
+  app::AddSweepCommand(cli, &selected);
+  app::AddCalibrateCommand(cli, &selected);
   app::AddDemoCommand(cli, &selected);
 
   try {

@@ -131,27 +131,6 @@ void RequireConnection(const RigOptions& options) {
   }
 }
 
-Status LoadServeOptionsFromRig(const std::string& path, rig::DriveProfile* profile, sim::DriveSimOptions* options) {
-  FACEDYN_ASSIGN_OR_RETURN(const rig::RigConfig config, rig::LoadRigConfig(path));
-  *profile = config.profile;
-  if (config.transport.kind == rig::TransportOptions::Kind::kTcp) {
-    options->host = config.transport.host;
-    options->port = config.transport.port;
-  } else {
-    options->rtu_device = config.transport.device;
-    options->baud = config.transport.baud;
-    options->parity = config.transport.parity;
-    options->data_bits = config.transport.data_bits;
-    options->stop_bits = config.transport.stop_bits;
-  }
-  FACEDYN_ASSIGN_OR_RETURN(const ConfigNode root, ConfigNode::ReadFile(path));
-  if (root.Has("sim")) {
-    FACEDYN_ASSIGN_OR_RETURN(const ConfigNode section, root.Child("sim"));
-    FACEDYN_RETURN_IF_ERROR(sim::ParseDriveModelOptions(section, &options->model));
-  }
-  return Status::Ok();
-}
-
 }  // namespace
 
 void AddRigCommands(CLI::App& app, CommandRunner* selected) {
@@ -192,7 +171,7 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
       rig::DriveProfile profile;
       sim::DriveSimOptions options = serve->sim;
       if (!serve->config.empty()) {
-        FACEDYN_RETURN_IF_ERROR(LoadServeOptionsFromRig(serve->config, &profile, &options));
+        FACEDYN_RETURN_IF_ERROR(sim::LoadDriveSimFromRig(serve->config, &profile, &options));
       } else {
         FACEDYN_ASSIGN_OR_RETURN(profile, rig::LoadDriveProfile(serve->profile));
         if (serve->tcp.empty() && serve->rtu.empty()) serve->tcp = "127.0.0.1:5020";

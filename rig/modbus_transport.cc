@@ -160,6 +160,9 @@ class ModbusTransport::Owner {
         continue;
       }
       WaitRtuGap();
+      // RTU frames carry no transaction id: a reply that arrived after an earlier attempt
+      // timed out would be taken for this request's answer. Drop anything already received.
+      if (options_.kind == TransportOptions::Kind::kRtu) modbus_flush(ctx_);
       const int rc = call(ctx_);
       const int error = errno;
       last_end_ = Clock::now();

@@ -7,7 +7,9 @@
 // a timeout or a corrupt reply (bad CRC/data) flushes the link and retries; a dead socket
 // (EBADF, ECONNRESET, EPIPE, ECONNREFUSED, ...) closes and reconnects before the next attempt;
 // a Modbus exception reply is the drive's answer and is returned at once. On RTU the thread
-// keeps a minimum gap between requests, since many drives need silence after a reply.
+// keeps a minimum gap between requests, since many drives need silence after a reply, and
+// discards received bytes before each request, since RTU has no transaction id to tell a late
+// reply to an earlier attempt from the answer to this one.
 //
 // The link is "healthy" only after `healthy_after` consecutive good transactions, so one lucky
 // reply after a cable fault does not mark it good; any failure resets the count.

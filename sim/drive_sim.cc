@@ -16,6 +16,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "rig/rig_config.h"
+
 namespace facedyn::sim {
 
 using Clock = std::chrono::steady_clock;
@@ -92,6 +94,28 @@ Status ParseDriveModelOptions(const ConfigNode& node, DriveModelOptions* options
   }
   const Status valid = options->Check();
   if (!valid.ok()) return node.Error(valid.message());
+  return Status::Ok();
+}
+
+Status LoadDriveSimFromRig(const std::string& rig_path, rig::DriveProfile* profile, DriveSimOptions* options) {
+  FACEDYN_ASSIGN_OR_RETURN(const rig::RigConfig config, rig::LoadRigConfig(rig_path));
+  *profile = config.profile;
+  if (config.transport.kind == rig::TransportOptions::Kind::kTcp) {
+    options->rtu_device.clear();
+    options->host = config.transport.host;
+    options->port = config.transport.port;
+  } else {
+    options->rtu_device = config.transport.device;
+    options->baud = config.transport.baud;
+    options->parity = config.transport.parity;
+    options->data_bits = config.transport.data_bits;
+    options->stop_bits = config.transport.stop_bits;
+  }
+  FACEDYN_ASSIGN_OR_RETURN(const ConfigNode root, ConfigNode::ReadFile(rig_path));
+  if (root.Has("sim")) {
+    FACEDYN_ASSIGN_OR_RETURN(const ConfigNode section, root.Child("sim"));
+    FACEDYN_RETURN_IF_ERROR(ParseDriveModelOptions(section, &options->model));
+  }
   return Status::Ok();
 }
 

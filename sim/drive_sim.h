@@ -70,6 +70,12 @@ struct DriveModelOptions {
 // naming the field.
 Status ParseDriveModelOptions(const ConfigNode& node, DriveModelOptions* options);
 
+struct DriveSimOptions;
+
+// The simulated drive a RIG.yaml describes: its drive profile, its endpoint (TCP host:port, or
+// the RTU device and line settings) and its `sim:` physics.
+Status LoadDriveSimFromRig(const std::string& rig_path, rig::DriveProfile* profile, DriveSimOptions* options);
+
 struct DriveModelState {
   bool run_commanded = false;
   double setpoint_hz = 0.0;

@@ -1,11 +1,12 @@
 #!/usr/bin/python3
-"""Independent Modbus TCP peer for facedyn's simulated drive: a pymodbus client.
+"""Independent Modbus peer for facedyn's simulated drive: a pymodbus client (TCP, or RTU with
+--rtu DEVICE at 19200 8N1).
 
 It follows the register map given on the command line (the test passes sim.yaml's values):
 writes the setpoint and the run word, then samples the output-frequency register for
 --seconds and prints one JSON object: {"samples_hz": [...], "status": N}.
 
-usage: pymodbus_client.py --port P --setpoint-register R --counts-per-hz C --hz F
+usage: pymodbus_client.py [--rtu DEVICE] --port P --setpoint-register R --counts-per-hz C --hz F
                           --command-register R --run-value V --output-register R
                           --status-register R [--seconds S]
 """
@@ -14,7 +15,7 @@ import json
 import sys
 import time
 
-from pymodbus.client import ModbusTcpClient  # noqa: E402  (after the stubs)
+from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 
 
 def main():
@@ -26,9 +27,14 @@ def main():
     parser.add_argument("--hz", type=float, required=True)
     parser.add_argument("--seconds", type=float, default=1.0)
     parser.add_argument("--unit", type=int, default=1)
+    parser.add_argument("--rtu", default="")
     args = parser.parse_args()
 
-    client = ModbusTcpClient("127.0.0.1", port=args.port, timeout=2)
+    if args.rtu:
+        client = ModbusSerialClient(port=args.rtu, baudrate=19200, bytesize=8, parity="N",
+                                    stopbits=1, timeout=1)
+    else:
+        client = ModbusTcpClient("127.0.0.1", port=args.port, timeout=2)
     if not client.connect():
         print("cannot connect", file=sys.stderr)
         return 1

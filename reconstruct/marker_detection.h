@@ -1,0 +1,87 @@
+// Painted-marker detection: sub-pixel centres of round dots in a grayscale image, each with a
+// quality score.
+//
+// Two stages. (1) Candidates: a difference-of-Gaussians band-pass tuned to the expected dot
+// size (for a disk of radius R the Laplacian-of-Gaussian response peaks at sigma = R/sqrt 2)
+// and local extrema of the response above a contrast threshold. (2) Each candidate is refined
+// by fitting a blurred-disk model to the pixels of a window around it:
+//   I(x, y) = b + a * Phi((R - r) / w),   r = |(x, y) - (x0, y0)|,
+// Phi the standard normal CDF (a disk of radius R seen through a Gaussian blur of width w, to
+// first order in w/R), by Levenberg-Marquardt with iteratively reweighted residuals (Tukey's
+// biweight at 4.685 robust sigmas). A symmetric model fits a blurred dot without bias, and the
+// robust weights make pixels that do not belong to the dot (an occluding eyelash or edge, a
+// neighbouring dot at the window border) stop pulling the centre. The window follows the
+// centre as it moves.
+//
+// A dot clearly smaller than its neighbours is taken to be partly hidden and refitted with
+// their radius held (see the .cc).
+//
+// Quality in [0, 1]: (weighted fraction of window pixels the model explains) *
+// |a| / (|a| + 3 sigma_residual), i.e. near 1 for a clean, contrasty, fully visible dot, lower
+// when part of it is hidden or the image is noisy. Detections below min_quality, with a radius
+// outside [min_diameter_px, max_diameter_px] / 2, with contrast below min_contrast, or whose
+// fit did not converge are dropped (the summary counts why).
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "core/status.h"
+
+namespace facedyn::reconstruct {
+
+enum class MarkerPolarity { kDark, kBright };
+
+struct MarkerDetectionOptions {
+  MarkerPolarity polarity = MarkerPolarity::kDark;
+  double min_diameter_px = 3.0;
+  double max_diameter_px = 24.0;
+  double expected_diameter_px = 8.0;  // tunes the band-pass; within [min, max]
+  double min_contrast = 12.0;         // |a|, gray levels
+  double min_quality = 0.4;
+  int max_iterations = 20;
+  Status Check() const;
+};
+
+struct MarkerDetection {
+  Eigen::Vector2d center_px = Eigen::Vector2d::Zero();
+  double radius_px = 0.0;
+  double edge_width_px = 0.0;  // w
+  double contrast = 0.0;       // |a|
+  double quality = 0.0;
+  double residual_rms = 0.0;   // robust sigma of the fit residuals, gray levels
+  bool refit_for_occlusion = false;  // radius held at the neighbours' (see above)
+  std::array<double, 6> fit{};  // (x0, y0, R, w, a, b)
+};
+
+struct MarkerDetectionSummary {
+  int candidates = 0;
+  int accepted = 0;
+  int rejected_fit = 0;       // did not converge, or left its window
+  int rejected_size = 0;
+  int rejected_contrast = 0;
+  int rejected_quality = 0;
+  int duplicates = 0;
+};
+
+// Detects markers in an 8-bit grayscale image. InvalidArgument for an empty or non-8-bit image
+// or bad options.
+StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
+                                                     const MarkerDetectionOptions& options,
+                                                     MarkerDetectionSummary* summary = nullptr);
+
+// The blurred-disk model and its gradient with respect to
+// p = (x0, y0, R, w, a, b), at pixel (x, y). Exposed for the gradient test.
+using DiskParameters = std::array<double, 6>;
+double BlurredDiskIntensity(const DiskParameters& p, double x, double y,
+                            std::array<double, 6>* gradient = nullptr);
+
+// The robust fit of one dot from `initial` (exposed for tests); `fix_shape` holds R and w.
+DiskParameters FitBlurredDisk(const cv::Mat& gray, const DiskParameters& initial, bool fix_shape,
+                              int max_iterations = 20, double* inlier_fraction = nullptr,
+                              bool robust_from_start = false);
+
+}  // namespace facedyn::reconstruct

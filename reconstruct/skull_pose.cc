@@ -1,0 +1,131 @@
+#include "reconstruct/skull_pose.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "reconstruct/rigid_fit.h"
+
+namespace facedyn::reconstruct {
+
+Status SkullPoseOptions::Check() const {
+  if (!(huber_mm > 0)) return InvalidArgumentError("huber_mm must be > 0");
+  if (iterations < 1) return InvalidArgumentError("iterations must be >= 1");
+  if (min_markers < 3) return InvalidArgumentError("min_markers must be >= 3");
+  return Status::Ok();
+}
+
+SkullPoseEstimator::SkullPoseEstimator(const FaceRig& rig, const SkullPoseOptions& options)
+    : options_(options) {
+  status_ = options.Check().WithContext("skull pose options");
+  if (!status_.ok()) return;
+  std::set<int> stable_vertices;
+  for (const std::string& name : rig.stable_regions) {
+    const auto region = rig.regions.find(name);
+    if (region == rig.regions.end()) continue;
+    stable_vertices.insert(region->second.begin(), region->second.end());
+  }
+  for (int m = 0; m < static_cast<int>(rig.markers.size()); ++m) {
+    const SurfacePoint& p = rig.markers[m].point;
+    bool stable = true;
+    for (int k = 0; k < 3; ++k) {
+      stable = stable && (p.weights[k] == 0.0 || stable_vertices.count(p.vertices[k]) > 0);
+    }
+    if (stable) stable_markers_.push_back(m);
+  }
+  if (static_cast<int>(stable_markers_.size()) < options.min_markers) {
+    status_ = FailedPreconditionError(
+        "the face rig has " + std::to_string(stable_markers_.size()) +
+        " markers on its stable regions; the skull pose needs at least " +
+        std::to_string(options.min_markers));
+    return;
+  }
+  const int n = static_cast<int>(stable_markers_.size());
+  rest_in_skull_.resize(3, n);
+  thickness_mm_.resize(n);
+  // Tissue thickness: distance from the skin point to the skull beneath it. When the skull
+  // shares the skin's topology (as FaceRigs from sim/face_anatomy.h do) that is the same
+  // surface point on the skull; otherwise the nearest skull vertex.
+  const bool paired = rig.skull.vertex_count() == rig.neutral.vertex_count();
+  for (int k = 0; k < n; ++k) {
+    const SurfacePoint& p = rig.markers[stable_markers_[k]].point;
+    const Eigen::Vector3d skin = p.Evaluate(rig.neutral.positions_mm);
+    rest_in_skull_.col(k) = skin;
+    double thickness = 5.0;
+    if (paired) {
+      thickness = (skin - p.Evaluate(rig.skull.positions_mm)).norm();
+    } else if (rig.skull.vertex_count() > 0) {
+      thickness = std::sqrt((rig.skull.positions_mm.colwise() - skin).colwise().squaredNorm().minCoeff());
+    }
+    thickness_mm_[k] = std::max(0.5, thickness);
+  }
+  const double thinnest = thickness_mm_.minCoeff();
+  prior_weights_ = options.thickness_prior
+                       ? Eigen::VectorXd((thinnest / thickness_mm_.array()).square())
+                       : Eigen::VectorXd::Ones(n);
+}
+
+SkullPoseResult SkullPoseEstimator::Estimate(const Eigen::Matrix3Xd& markers_in_world,
+                                             const std::vector<MarkerState>& states,
+                                             const std::vector<double>& confidence,
+                                             const Rigid3& initial) const {
+  SkullPoseResult result;
+  result.world_from_skull = initial;
+  if (!status_.ok()) return result;
+  std::vector<int> used;
+  for (int k = 0; k < static_cast<int>(stable_markers_.size()); ++k) {
+    const int m = stable_markers_[k];
+    if (states[m] != MarkerState::kMissing && confidence[m] > 0) used.push_back(k);
+  }
+  if (static_cast<int>(used.size()) < options_.min_markers) return result;
+  const int n = static_cast<int>(used.size());
+  Eigen::Matrix3Xd src(3, n), dst(3, n);
+  Eigen::VectorXd base(n);
+  for (int i = 0; i < n; ++i) {
+    src.col(i) = rest_in_skull_.col(used[i]);
+    dst.col(i) = markers_in_world.col(stable_markers_[used[i]]);
+    base[i] = prior_weights_[used[i]] * confidence[stable_markers_[used[i]]];
+  }
+  // Squared thickness per used marker, normalised: the inertial deflection model's shape.
+  Eigen::VectorXd shape(n);
+  for (int i = 0; i < n; ++i) shape[i] = std::pow(thickness_mm_[used[i]] / 5.0, 2);
+  Eigen::Vector3d deflection = Eigen::Vector3d::Zero();  // d, skull frame, mm at 5 mm tissue
+  Rigid3 pose = FitRigid(src, dst, base);
+  Eigen::VectorXd weights = base;
+  Eigen::Matrix3Xd deflected = src;
+  for (int iteration = 0; iteration < options_.iterations; ++iteration) {
+    for (int i = 0; i < n; ++i) {
+      const double e = (pose * Eigen::Vector3d(deflected.col(i)) - dst.col(i)).norm();
+      weights[i] = base[i] * (e > options_.huber_mm ? options_.huber_mm / e : 1.0);
+    }
+    if (options_.deflection_model) {
+      // d given T: weighted least squares of shape_i d = skull_from_world dst_i - rest_i.
+      const Rigid3 skull_from_world = pose.Inverse();
+      Eigen::Vector3d numerator = Eigen::Vector3d::Zero();
+      double denominator = 0.0;
+      for (int i = 0; i < n; ++i) {
+        numerator += weights[i] * shape[i] *
+                     (skull_from_world * Eigen::Vector3d(dst.col(i)) - src.col(i));
+        denominator += weights[i] * shape[i] * shape[i];
+      }
+      deflection = numerator / denominator;
+      for (int i = 0; i < n; ++i) deflected.col(i) = src.col(i) + shape[i] * deflection;
+    }
+    const Rigid3 next = FitRigid(deflected, dst, weights);
+    const bool settled = next.IsApprox(pose, 1e-10);
+    pose = next;
+    if (settled && iteration > 2) break;
+  }
+  double sq = 0.0;
+  for (int i = 0; i < n; ++i) {
+    sq += weights[i] * (pose * Eigen::Vector3d(deflected.col(i)) - dst.col(i)).squaredNorm();
+  }
+  result.deflection_mm = deflection;
+  result.world_from_skull = pose;
+  result.markers_used = n;
+  result.rms_mm = std::sqrt(sq / weights.sum());
+  result.ok = true;
+  return result;
+}
+
+}  // namespace facedyn::reconstruct

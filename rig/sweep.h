@@ -1,0 +1,121 @@
+// Frequency sweeps: a YAML script of steps (platform frequency, settle, hold, the prompt for the
+// actor — typically the expression to hold — and repeats), validated in full against the rig's
+// limits before the platform moves, then run step by step through a RigSupervisor with every
+// event in the session's JSON Lines log.
+//
+// The log is also the sweep's state: each completed step instance writes one "step_done"
+// record, so `--resume` after a crash (even kill -9) re-reads the log, checks the script is the
+// one the session started with (FNV-1a hash of its text), skips every completed instance and
+// continues with the first one that has no "step_done" — an interrupted step is redone from its
+// start, and no completed step is ever repeated.
+//
+// Script format (config/sweeps/*.yaml):
+//
+//   name: paper-protocol
+//   rig: ../rigs/sim-tcp.yaml        # optional; `facedyn sweep --rig` overrides
+//   defaults: {settle_timeout_s: 30, settle_s: 2, hold_s: 10, repeats: 1}
+//   steps:                           # explicit steps, run in order ...
+//     - {hz: 6, prompt: "neutral", hold_s: 8}
+//   grid:                            # ... and/or a frequencies x prompts grid appended after them
+//     frequencies_hz: [6, 7, 8, 9, 10, 11]
+//     prompts: [neutral, smile]
+//     order: prompt_major           # or frequency_major
+//
+// Per step: hz (required), settle_timeout_s (fail if the platform has not settled by then),
+// settle_s (extra dwell after settling, before the hold), hold_s (> 0), prompt, repeats (>= 1).
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/config_node.h"
+#include "core/json_io.h"
+#include "core/status.h"
+#include "rig/rig_config.h"
+#include "rig/supervisor.h"
+
+namespace facedyn::rig {
+
+struct SweepStep {
+  double hz = 0.0;
+  double settle_timeout_s = 30.0;
+  double settle_s = 0.0;
+  double hold_s = 10.0;
+  std::string prompt;
+  int repeats = 1;
+  int line = 0;  // source line, for messages
+};
+
+struct SweepScript {
+  std::string name;
+  std::string description;
+  std::string source_path;
+  std::string rig_path;  // resolved against the script's folder; "" when not given
+  std::vector<SweepStep> steps;  // grid already expanded, in run order
+  uint64_t text_hash = 0;        // FNV-1a of the file's bytes
+
+  // Number of step instances (steps times their repeats).
+  int InstanceCount() const;
+  // Checks every step against the rig's limits; names the step and field.
+  Status CheckAgainst(const RigConfig& rig) const;
+  // Sum of settle dwells and holds, a lower bound on the running time.
+  double MinimumDurationS() const;
+};
+
+StatusOr<SweepScript> LoadSweepScript(const std::string& path);
+StatusOr<SweepScript> ParseSweepScript(const ConfigNode& root, const std::string& base_dir, uint64_t text_hash);
+
+// One step instance as the runner and its hooks see it.
+struct SweepStepInfo {
+  int instance = 0;  // 0-based position in the expanded sweep
+  int instance_count = 0;
+  int step = 0;      // index into SweepScript::steps
+  int repeat = 0;    // 0-based
+  SweepStep spec;
+};
+
+// Per-step hooks, e.g. for the capture module to record one take per step. on_hold_start runs
+// once the platform has settled (and dwelt settle_s), right before the hold; on_hold_end right
+// after it, with how well the frequency was held. A failed hook ramps the platform to a stop
+// and ends the sweep with that error; the step is then not marked done, so --resume redoes it.
+struct SweepHooks {
+  std::function<Status(const SweepStepInfo&)> on_hold_start;
+  std::function<Status(const SweepStepInfo&, const HoldSummary&)> on_hold_end;
+};
+
+struct SweepOptions {
+  std::string session_dir;
+  bool resume = false;
+  SweepHooks hooks;
+  const std::atomic<bool>* stop_requested = nullptr;  // SIGINT/SIGTERM flag
+  bool print_prompts = true;  // "[3/12] 8.00 Hz  hold: smile" on stdout
+
+  Status Check() const;
+};
+
+struct SweepStepResult {
+  int instance = 0;
+  double target_hz = 0.0;
+  std::string prompt;
+  HoldSummary hold;
+  bool this_run = false;  // false: completed before a --resume
+};
+
+struct SweepResult {
+  std::string log_path;
+  std::string summary_path;
+  int skipped = 0;  // instances already done before --resume
+  std::vector<SweepStepResult> steps;  // every completed instance, in order
+  Json exposure;
+
+  Json ToJson() const;
+};
+
+// Runs (or resumes) the sweep in options.session_dir: rig_log.jsonl is the journal,
+// sweep_summary.json the result. The script is validated against the rig before anything
+// moves. Ends with the platform stopped, whatever happens.
+StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig, const SweepOptions& options);
+
+}  // namespace facedyn::rig

@@ -1,0 +1,206 @@
+// Sweep scripts (parsing, validation against the rig) and the runner against the in-process
+// simulated drive, including resume after a failure mid-sweep.
+#include "rig/sweep.h"
+
+#include <map>
+#include <string>
+
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "rig/session_log.h"
+#include "sim/drive_sim.h"
+#include "tests/rig/rig_test_util.h"
+
+namespace facedyn::rig {
+namespace {
+
+using ::testing::HasSubstr;
+
+StatusOr<SweepScript> ParseText(const std::string& text) {
+  FACEDYN_ASSIGN_OR_RETURN(const ConfigNode root, ConfigNode::Parse(text, "sweep.yaml"));
+  return ParseSweepScript(root, "/base", 42);
+}
+
+RigConfig SimRig() {
+  auto rig = LoadRigConfig(testing::RigConfigPath("sim-tcp"));
+  EXPECT_TRUE(rig.ok()) << rig.status().ToString();
+  return rig.ok() ? *rig : RigConfig();
+}
+
+TEST(LoadSweepScript, ShippedSweepsLoadAndFitTheSimRig) {
+  const RigConfig rig = SimRig();
+  auto paper = LoadSweepScript(testing::SweepConfigPath("paper-protocol"));
+  ASSERT_TRUE(paper.ok()) << paper.status().ToString();
+  EXPECT_EQ(paper->InstanceCount(), 66);  // 11 expressions x 6 frequencies
+  std::map<double, int> per_hz;
+  for (const SweepStep& s : paper->steps) ++per_hz[s.hz];
+  EXPECT_EQ(per_hz, (std::map<double, int>{{6, 11}, {7, 11}, {8, 11}, {9, 11}, {10, 11}, {11, 11}}));
+  EXPECT_EQ(paper->steps[0].prompt, "neutral");
+  EXPECT_EQ(paper->steps[6].prompt, "smile");  // prompt_major: all frequencies per expression
+  EXPECT_TRUE(paper->CheckAgainst(rig).ok());
+  EXPECT_THAT(paper->rig_path, ::testing::EndsWith("config/sweeps/../rigs/sim-tcp.yaml"));
+  auto demo = LoadSweepScript(testing::SweepConfigPath("demo"));
+  ASSERT_TRUE(demo.ok()) << demo.status().ToString();
+  EXPECT_TRUE(demo->CheckAgainst(rig).ok());
+}
+
+TEST(ParseSweepScript, DefaultsRepeatsAndGridOrder) {
+  auto script = ParseText(
+      "name: t\ndefaults: {hold_s: 3, settle_s: 1}\n"
+      "steps:\n  - {hz: 7, prompt: a, repeats: 2}\n  - {hz: 8, hold_s: 5}\n"
+      "grid: {frequencies_hz: [9, 10], prompts: [x, y], order: frequency_major}\n");
+  ASSERT_TRUE(script.ok()) << script.status().ToString();
+  ASSERT_EQ(script->steps.size(), 6u);
+  EXPECT_EQ(script->InstanceCount(), 7);
+  EXPECT_EQ(script->steps[0].hold_s, 3.0);
+  EXPECT_EQ(script->steps[1].hold_s, 5.0);
+  EXPECT_EQ(script->steps[1].settle_s, 1.0);
+  EXPECT_EQ(script->steps[2].hz, 9.0);
+  EXPECT_EQ(script->steps[2].prompt, "x");
+  EXPECT_EQ(script->steps[3].prompt, "y");
+  EXPECT_EQ(script->steps[4].hz, 10.0);
+  EXPECT_NEAR(script->MinimumDurationS(), 2 * 4 + 6 + 4 * 4, 1e-12);
+}
+
+TEST(ParseSweepScript, MalformedScriptsAreRefusedNamingTheField) {
+  struct Case {
+    const char* text;
+    const char* expected;
+  };
+  const Case cases[] = {
+      {"name: t\nsteps:\n  - {hz: fast}\n", "steps[0].hz"},
+      {"name: t\nsteps:\n  - {prompt: smile}\n", "steps[0].hz': required field is missing"},
+      {"name: t\nsteps:\n  - {hz: 8, hold_s: 0}\n", "steps[0].hold_s"},
+      {"name: t\nsteps:\n  - {hz: 8, repeats: 0}\n", "steps[0].repeats"},
+      {"name: t\nsteps:\n  - {hz: 8, hold: 3}\n", "steps[0].hold': unknown field"},
+      {"name: t\nsteps: []\n", "non-empty list"},
+      {"name: t\n", "needs 'steps'"},
+      {"steps:\n  - {hz: 8}\n", "'name': required field is missing"},
+      {"name: t\ngrid: {frequencies_hz: [6, x]}\n", "grid.frequencies_hz"},
+      {"name: t\ngrid: {frequencies_hz: [6], order: random}\n", "grid.order"},
+      {"name: t\nsteps:\n  - {hz: -3}\n", "steps[0].hz"},
+      {"name: t\nspeed: 3\nsteps:\n  - {hz: 8}\n", "'speed': unknown field"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.text);
+    auto script = ParseText(c.text);
+    ASSERT_FALSE(script.ok());
+    EXPECT_THAT(script.status().message(), HasSubstr(c.expected));
+    EXPECT_THAT(script.status().message(), HasSubstr("sweep.yaml:"));
+  }
+}
+
+TEST(SweepScript, OutOfRangeFrequencyIsRefusedBeforeAnythingMoves) {
+  auto script = ParseText("name: t\nsteps:\n  - {hz: 8}\n  - {hz: 11.5}\n");
+  ASSERT_TRUE(script.ok());
+  const Status check = script->CheckAgainst(SimRig());
+  ASSERT_FALSE(check.ok());
+  EXPECT_THAT(check.message(), HasSubstr("sweep.yaml:4: field 'steps[1].hz': 11.5 Hz is outside"));
+  // RunSweep refuses it too, without connecting (no drive is listening on this port).
+  RigConfig rig = SimRig();
+  rig.transport.port = 1;
+  testing::TempDir dir;
+  SweepOptions options;
+  options.session_dir = dir.Join("session");
+  auto result = RunSweep(*script, rig, options);
+  ASSERT_FALSE(result.ok());
+  EXPECT_THAT(result.status().message(), HasSubstr("steps[1].hz"));
+}
+
+struct SimRigBench {
+  RigConfig rig;
+  std::unique_ptr<sim::DriveSim> sim;
+};
+
+SimRigBench StartSim() {
+  SimRigBench bench;
+  bench.rig = SimRig();
+  auto sim = sim::DriveSim::Start(bench.rig.profile, sim::DriveSimOptions());
+  EXPECT_TRUE(sim.ok()) << sim.status().ToString();
+  if (sim.ok()) {
+    bench.sim = std::move(sim).value();
+    bench.rig.transport.port = bench.sim->port();
+  }
+  return bench;
+}
+
+std::map<int, int> StepDoneCounts(const std::string& log_path) {
+  std::map<int, int> counts;
+  auto records = ReadSessionLog(log_path);
+  EXPECT_TRUE(records.ok()) << records.status().ToString();
+  if (!records.ok()) return counts;
+  for (const Json& r : *records) {
+    if (r["event"] == "step_done") ++counts[r["instance"].get<int>()];
+  }
+  return counts;
+}
+
+TEST(RunSweep, RunsEveryStepCallsHooksAndResumesAfterAFailure) {
+  SimRigBench bench = StartSim();
+  ASSERT_NE(bench.sim, nullptr);
+  auto script = ParseText(
+      "name: t\ndefaults: {hold_s: 0.4, settle_timeout_s: 15}\n"
+      "steps:\n  - {hz: 7, prompt: neutral}\n  - {hz: 7.5, prompt: smile, repeats: 2}\n  - {hz: 8, prompt: pucker}\n");
+  ASSERT_TRUE(script.ok());
+  testing::TempDir dir;
+  SweepOptions options;
+  options.session_dir = dir.Join("session");
+  std::vector<int> started;
+  options.hooks.on_hold_start = [&](const SweepStepInfo& info) {
+    started.push_back(info.instance);
+    EXPECT_EQ(info.instance_count, 4);
+    // The hook runs with the platform settled at the step's frequency (ground truth).
+    EXPECT_NEAR(bench.sim->state().platform_hz, info.spec.hz, 0.06);
+    if (info.instance == 2) return UnavailableError("camera 3 did not answer");
+    return Status::Ok();
+  };
+  auto first = RunSweep(*script, bench.rig, options);
+  ASSERT_FALSE(first.ok());
+  EXPECT_THAT(first.status().message(), HasSubstr("camera 3 did not answer"));
+  EXPECT_EQ(started, (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(bench.sim->state().output_hz, 0.0);  // a failed hook ramps the platform to a stop
+  EXPECT_EQ(StepDoneCounts(dir.Join("session/rig_log.jsonl")), (std::map<int, int>{{0, 1}, {1, 1}}));
+
+  // Starting again without --resume would overwrite the journal: refused.
+  auto again = RunSweep(*script, bench.rig, options);
+  ASSERT_FALSE(again.ok());
+  EXPECT_THAT(again.status().message(), HasSubstr("--resume"));
+
+  options.resume = true;
+  started.clear();
+  options.hooks.on_hold_start = [&](const SweepStepInfo& info) {
+    started.push_back(info.instance);
+    return Status::Ok();
+  };
+  auto resumed = RunSweep(*script, bench.rig, options);
+  ASSERT_TRUE(resumed.ok()) << resumed.status().ToString();
+  EXPECT_EQ(started, (std::vector<int>{2, 3}));
+  EXPECT_EQ(resumed->skipped, 2);
+  ASSERT_EQ(resumed->steps.size(), 4u);
+  for (const SweepStepResult& step : resumed->steps) {
+    EXPECT_NEAR(step.hold.mean_measured_hz, step.target_hz, 0.05) << "instance " << step.instance;
+  }
+  EXPECT_EQ(StepDoneCounts(dir.Join("session/rig_log.jsonl")),
+            (std::map<int, int>{{0, 1}, {1, 1}, {2, 1}, {3, 1}}));
+  EXPECT_TRUE(resumed->exposure["vibrating_s"].get<double>() > 4 * 0.4);
+
+  // A finished session resumes to nothing.
+  started.clear();
+  auto done = RunSweep(*script, bench.rig, options);
+  ASSERT_TRUE(done.ok()) << done.status().ToString();
+  EXPECT_TRUE(started.empty());
+  EXPECT_EQ(done->skipped, 4);
+
+  // A different script cannot resume this session.
+  auto other = ParseText("name: t\nsteps:\n  - {hz: 9}\n");
+  ASSERT_TRUE(other.ok());
+  other->text_hash = 43;
+  auto mismatch = RunSweep(*other, bench.rig, options);
+  ASSERT_FALSE(mismatch.ok());
+  EXPECT_THAT(mismatch.status().message(), HasSubstr("different sweep script"));
+}
+
+}  // namespace
+}  // namespace facedyn::rig

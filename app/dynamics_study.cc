@@ -161,6 +161,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options) {
     train_options.train.epochs = options.removal_epochs;
     train_options.train.batch_size = options.removal_batch;
     train_options.targets = targets;
+    train_options.window_s = options.window_s;
     train_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
     train_options.train.seed = options.seed;
     train_options.train.num_threads = options.threads;
@@ -241,6 +242,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options) {
   result["setup"] = {{"vertices", rig.vertex_count()},
                      {"samples", rig.skin_samples.size()},
                      {"fps", options.fps},
+                     {"window_s", options.window_s},
                      {"seconds_per_take", options.seconds},
                      {"train_hz", options.train_hz},
                      {"test_hz", options.test_hz},
@@ -291,6 +293,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options) {
     synthesis_options.train.seed = options.seed;
     synthesis_options.train.num_threads = options.threads;
     synthesis_options.train.show_progress = options.show_progress;
+    synthesis_options.window_s = options.window_s;
     synthesis_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
     spdlog::info("training synthesis network ({} takes, {} epochs)", decomposed.size(),
                  synthesis_options.train.epochs);

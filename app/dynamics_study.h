@@ -27,6 +27,7 @@ struct DynamicsStudyOptions {
   std::vector<std::string> expressions = {"neutral", "smile", "jaw_open"};
   double seconds = 2.0;        // per simulated take
   double fps = 128.0;
+  double window_s = 0.08;      // feature half-window of both networks (the paper's 10 frames)
   int vertices = 4000;         // procedural face size
   double speech_hz = 8.0;      // platform frequency of the speech test take; <= 0: no speech test
   // Also train F (exact targets) and H on speech takes at every training frequency (other seeds

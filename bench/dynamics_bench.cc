@@ -11,7 +11,7 @@
 //
 //   dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs N] [--seconds S]
 //                  [--hz 6,7,...] [--expressions a,b] [--speech-hz F] [--no-train-speech]
-//                  [--lr-final F] [--no-moving-average]
+//                  [--lr-final F] [--window-ms MS] [--no-moving-average]
 //
 // --no-moving-average skips F trained on the paper's moving-average targets (it halves the run).
 
@@ -129,6 +129,8 @@ int main(int argc, char** argv) {
       options.speech_hz = std::atof(next());
     } else if (arg == "--no-train-speech") {
       options.train_speech = false;
+    } else if (arg == "--window-ms") {
+      options.window_s = std::atof(next()) * 1e-3;
     } else if (arg == "--lr-final") {
       options.final_learning_rate_fraction = std::atof(next());
     } else if (arg == "--synthesis-epochs") {
@@ -138,7 +140,7 @@ int main(int argc, char** argv) {
     } else if (arg == "--seconds") {
       options.seconds = std::atof(next());
     } else {
-      std::fprintf(stderr, "usage: dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs N] [--seconds S] [--hz 6,7,...] [--expressions a,b] [--speech-hz F] [--no-train-speech] [--lr-final F] [--no-moving-average]\n");
+      std::fprintf(stderr, "usage: dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs N] [--seconds S] [--hz 6,7,...] [--expressions a,b] [--speech-hz F] [--no-train-speech] [--lr-final F] [--window-ms MS] [--no-moving-average]\n");
       return 2;
     }
   }

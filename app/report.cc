@@ -75,6 +75,23 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
       "<h1>facedyn demo report</h1><p>Everything below ran on the simulated stage; errors are "
       "measured against the simulator's exact quasistatic skin. Figures are also in "
       "metrics.json beside this file.</p>";
+  if (metrics.contains("rig")) {
+    const Json& rig = metrics["rig"];
+    html += "<h2>Platform: simulated drive over Modbus TCP, scripted sweep</h2><table><tr>"
+            "<th>step</th><th>target Hz</th><th>measured Hz</th><th>true platform Hz</th>"
+            "<th>max |error| Hz</th><th>hold s</th><th>prompt</th></tr>";
+    int index = 0;
+    for (const Json& step : rig["steps"]) {
+      html += fmt::format("<tr><td>{}</td><td>{:.2f}</td><td>{:.3f}</td><td>{:.3f}</td>"
+                          "<td>{:.3f}</td><td>{:.1f}</td><td>{}</td></tr>",
+                          ++index, step["target_hz"].get<double>(),
+                          step["measured_mean_hz"].get<double>(),
+                          step["true_platform_hz"].is_number() ? step["true_platform_hz"].get<double>() : 0.0,
+                          step["max_abs_error_hz"].get<double>(), step["hold_s"].get<double>(),
+                          Escape(step["prompt"].get<std::string>()));
+    }
+    html += "</table>";
+  }
   if (metrics.contains("dynamics")) {
     const Json& dynamics = metrics["dynamics"];
     const Json& setup = dynamics["setup"];
@@ -105,8 +122,8 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
   }
   if (metrics.contains("stages_s")) {
     std::vector<std::pair<std::string, double>> bars;
-    for (const auto& [stage, seconds] : metrics["stages_s"].items()) {
-      bars.emplace_back(stage, seconds.get<double>());
+    for (const Json& stage : metrics["stages_s"]) {
+      bars.emplace_back(stage["stage"].get<std::string>(), stage["seconds"].get<double>());
     }
     html += "<h2>Time per stage</h2>" + SvgBarChart("wall time", bars, "s");
   }

@@ -18,6 +18,7 @@
 
 #include "app/command.h"
 #include "app/dynamics_study.h"
+#include "app/face_render.h"
 #include "app/report.h"
 #include "app/rig_demo.h"
 #include "core/json_io.h"
@@ -63,6 +64,67 @@ Take MakeRigidPlatformTake(double platform_hz, double fps, int frame_count) {
   }
   take.SetUniformTimes();
   return take;
+}
+
+// Positions of frame t in the skull frame (3 x V): T(t)^-1 x(t).
+Eigen::Matrix3Xf InSkull(const Take& take, const PointCache& cache, int t) {
+  return take.world_from_skull[t].Inverse().Apply(cache.Frame(t).cast<double>()).cast<float>();
+}
+
+// Renders of the first held-out test take at two extremal frames of its oscillation (the
+// frame of largest mean true offset in the second half, and half a platform period later):
+// coloured by signed offset from the exact quasistatic before and after removal, and the
+// synthesised dynamics on the removed take. PNGs under <out>/renders; returns their metadata.
+StatusOr<Json> RenderDynamics(const DynamicsStudyArtifacts& artifacts, const std::string& out_dir) {
+  const Take& take = artifacts.test_take;
+  const PointCache& truth = take.channels.at("quasistatic");
+  const PointCache& true_offsets = take.channels.at("dynamic_offset");
+  const int frames = take.frame_count();
+  const int skip = static_cast<int>(std::lround(0.08 * take.info.fps));
+  int peak = frames / 2;
+  double best = -1;
+  for (int t = frames / 2; t < frames - skip; ++t) {
+    const double mean = true_offsets.Frame(t).colwise().norm().mean();
+    if (mean > best) best = mean, peak = t;
+  }
+  const double hz = take.info.platform_hz.value_or(11.0);
+  const int half_period = std::max(1, static_cast<int>(std::lround(take.info.fps / (2 * hz))));
+  std::vector<int> chosen = {peak, std::min(frames - 1, peak + half_period)};
+  const std::string dir = JoinPath(out_dir, "renders");
+  FACEDYN_RETURN_IF_ERROR(MakeDirectories(dir));
+  Json renders = Json::array();
+  for (int t : chosen) {
+    const Eigen::Matrix3Xf truth_in_skull = InSkull(take, truth, t);
+    const Eigen::Matrix3Xf dynamic_in_skull = InSkull(take, take.positions, t);
+    const Eigen::Matrix3Xf removed_in_skull = InSkull(artifacts.removed, artifacts.removed.positions, t);
+    struct View {
+      std::string name;
+      Eigen::Matrix3Xf positions, offsets;
+    };
+    std::vector<View> views = {
+        {"captured (dynamic) - exact quasistatic", dynamic_in_skull, dynamic_in_skull - truth_in_skull},
+        {"after removal - exact quasistatic", removed_in_skull, removed_in_skull - truth_in_skull}};
+    if (artifacts.resynthesised.frame_count() == frames) {
+      const Eigen::Matrix3Xf synth_in_skull =
+          InSkull(artifacts.resynthesised, artifacts.resynthesised.positions, t);
+      views.push_back({"resynthesised - removed", synth_in_skull, synth_in_skull - removed_in_skull});
+    }
+    for (size_t k = 0; k < views.size(); ++k) {
+      const std::vector<unsigned char> png =
+          RenderSignedOffsetPng(take.topology, views[k].positions, views[k].offsets);
+      const std::string path = JoinPath(dir, fmt::format("frame{:04d}_{}.png", t, k));
+      FILE* file = std::fopen(path.c_str(), "wb");
+      if (file == nullptr) return UnavailableError(path + ": cannot open for writing");
+      const size_t written = std::fwrite(png.data(), 1, png.size(), file);
+      const bool closed = std::fclose(file) == 0;
+      if (written != png.size() || !closed) return UnavailableError(path + ": write failed");
+      renders.push_back({{"frame", t}, {"view", views[k].name}, {"path", path},
+                         {"max_abs_offset_mm", views[k].offsets.colwise().norm().maxCoeff()}});
+    }
+  }
+  return Json{{"take", take.info.expression + "@" + fmt::format("{:g}Hz", hz)},
+              {"range_mm", 5.0},
+              {"images", renders}};
 }
 
 // Wall time of each stage, in the order they ran (metrics.json "stages_s").
@@ -165,7 +227,8 @@ Status RunDemo(const DemoOptions& options) {
   }
   study.moving_average_targets = !options.quick;
   study.test_hz = 11;
-  FACEDYN_ASSIGN_OR_RETURN(const Json dynamics_metrics, RunDynamicsStudy(study));
+  DynamicsStudyArtifacts artifacts;
+  FACEDYN_ASSIGN_OR_RETURN(const Json dynamics_metrics, RunDynamicsStudy(study, &artifacts));
   std::printf("\nSecondary dynamics removal, trained at");
   for (double hz : study.train_hz) std::printf(" %g", hz);
   std::printf(" Hz, tested on takes never seen (error vs the exact quasistatic, jiggling vertices):\n");
@@ -186,6 +249,8 @@ Status RunDemo(const DemoOptions& options) {
   }
   metrics["dynamics"] = dynamics_metrics;
   clock.Lap("dynamics: simulate, train, remove, resynthesise");
+  FACEDYN_ASSIGN_OR_RETURN(metrics["renders"], RenderDynamics(artifacts, options.out_dir));
+  clock.Lap("renders");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   metrics["stages_s"] = clock.ToJson();
   metrics["total_s"] = seconds;

@@ -103,7 +103,8 @@ Status DynamicsStudyOptions::Check() const {
   return Status::Ok();
 }
 
-StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options) {
+StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
+                                DynamicsStudyArtifacts* artifacts) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   const auto study_start = Clock::now();
   sim::ProceduralFaceOptions face_options;
@@ -316,6 +317,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options) {
       // Without synthesis, the residual of the removed take is the dynamics themselves.
       const double removed_only_mm =
           MaskedMeanDistance(removed_by_best[k].positions, original.positions, mask, skip);
+      if (artifacts != nullptr && k == 0) artifacts->resynthesised = resynthesised;
       synthesis_json.push_back({{"take", test[k].name},
                                 {"mean_dynamic_offset_mm", Round4(offset_mm)},
                                 {"resynthesis_residual_mm", Round4(residual_mm)},
@@ -332,6 +334,11 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options) {
                            {"final_validation_loss", synthesis_summary.validation_loss.empty()
                                                          ? 0.0
                                                          : synthesis_summary.validation_loss.back()}};
+  }
+  if (artifacts != nullptr) {
+    artifacts->rig = rig;
+    artifacts->test_take = test.front().take;
+    artifacts->removed = removed_by_best.front();
   }
   result["total_s"] = Round4(SecondsSince(study_start));
   return result;

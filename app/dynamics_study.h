@@ -16,8 +16,10 @@
 #include <string>
 #include <vector>
 
+#include "core/face_rig.h"
 #include "core/json_io.h"
 #include "core/status.h"
+#include "core/take.h"
 
 namespace facedyn::app {
 
@@ -53,6 +55,17 @@ struct DynamicsStudyOptions {
 // Runs the study; the JSON has "setup", "removal" (per test take: each method's mean, p95, max
 // error over the face and the mean error over the jiggling vertices relative to the mean true
 // dynamic offset there), "synthesis" and "training" sections. Progress on the terminal.
-StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options);
+// What the study made, for renders: the rig, the first test take (dynamic, with the exact
+// quasistatic and dynamic_offset channels), its removal by F (exact targets) and, when synthesis
+// ran, its resynthesis by H under its own head motion.
+struct DynamicsStudyArtifacts {
+  FaceRig rig;
+  Take test_take;
+  Take removed;
+  Take resynthesised;
+};
+
+StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
+                                DynamicsStudyArtifacts* artifacts = nullptr);
 
 }  // namespace facedyn::app

@@ -3,10 +3,13 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <utility>
 #include <vector>
 
 #include <fmt/format.h>
+
+#include "app/face_render.h"
 
 namespace facedyn::app {
 namespace {
@@ -119,6 +122,27 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
       }
       html += "</table>";
     }
+  }
+  if (metrics.contains("renders")) {
+    const Json& renders = metrics["renders"];
+    html += "<h2>Signed dynamic offset, " + Escape(renders["take"].get<std::string>()) +
+            "</h2><p>Red: out of the skin, green: into it, saturating at &plusmn;" +
+            fmt::format("{:g}", renders["range_mm"].get<double>()) +
+            " mm (as in Zoss et al. 2020). Rendered by facedyn.</p><div>";
+    for (const Json& image : renders["images"]) {
+      std::ifstream in(image["path"].get<std::string>(), std::ios::binary);
+      const std::vector<unsigned char> png((std::istreambuf_iterator<char>(in)),
+                                           std::istreambuf_iterator<char>());
+      if (png.empty()) {
+        return DataLossError(image["path"].get<std::string>() + ": render missing or empty");
+      }
+      html += fmt::format(
+          "<figure style=\"display:inline-block;margin:4px\"><img alt=\"{}\" "
+          "src=\"data:image/png;base64,{}\"><figcaption>frame {}: {}</figcaption></figure>",
+          Escape(image["view"].get<std::string>()), Base64(png), image["frame"].dump(),
+          Escape(image["view"].get<std::string>()));
+    }
+    html += "</div>";
   }
   if (metrics.contains("stages_s")) {
     std::vector<std::pair<std::string, double>> bars;

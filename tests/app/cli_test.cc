@@ -83,6 +83,41 @@ TEST(Cli, DemoWritesTakeAndExports) {
   EXPECT_TRUE(std::filesystem::exists(DemoDir().Join("demo/face/face_rig.json")));
 }
 
+// The demo's metrics.json has every stage's section, its figures are consistent with what the
+// stages measure, and the report embeds its renders and plots (no network needed).
+TEST(Cli, DemoMetricsAndReport) {
+  const std::string metrics_path = DemoDir().Join("demo/metrics.json");
+  ASSERT_TRUE(std::filesystem::exists(metrics_path));
+  const auto metrics = nlohmann::json::parse(ReadBytes(metrics_path));
+  for (const char* section : {"rig", "simulation", "dynamics", "renders", "stages_s", "total_s"}) {
+    EXPECT_TRUE(metrics.contains(section)) << section;
+  }
+  ASSERT_FALSE(metrics["rig"]["steps"].empty());
+  for (const auto& step : metrics["rig"]["steps"]) {
+    EXPECT_NEAR(step["measured_mean_hz"].get<double>(), step["target_hz"].get<double>(), 0.05);
+  }
+  const auto& removal = metrics["dynamics"]["removal"];
+  ASSERT_FALSE(removal.empty());
+  for (const auto& entry : removal) {
+    const auto& methods = entry["methods"];
+    for (const char* method : {"F_exact_targets", "no_removal", "lowpass", "moving_average"}) {
+      ASSERT_TRUE(methods.contains(method)) << method;
+    }
+    // The held-out take's removal must at least remove most of the dynamics.
+    EXPECT_LT(methods["F_exact_targets"]["jiggle_mean_mm"].get<double>(),
+              0.5 * methods["no_removal"]["jiggle_mean_mm"].get<double>());
+  }
+  ASSERT_TRUE(metrics["dynamics"].contains("synthesis"));
+  EXPECT_EQ(metrics["renders"]["images"].size(), 6u);
+  const std::string report = ReadBytes(DemoDir().Join("demo/report.html"));
+  EXPECT_THAT(report, HasSubstr("<svg"));
+  EXPECT_THAT(report, HasSubstr("data:image/png;base64,"));
+  // Self-contained: nothing is loaded from elsewhere (the SVG namespace URI is not a fetch).
+  for (const char* remote : {"src=\"http", "href=\"http", "url(http", "@import"}) {
+    EXPECT_EQ(report.find(remote), std::string::npos) << "the report loads " << remote;
+  }
+}
+
 TEST(Cli, TakeInfoJsonReportsCountsAndSkullRange) {
   TempDir dir;
   const std::string take = MakeDemoTake(dir);

@@ -45,7 +45,7 @@ std::vector<std::pair<std::string, double>> RemovalBars(const Json& entry) {
 std::string SvgBarChart(const std::string& title,
                         const std::vector<std::pair<std::string, double>>& bars,
                         const std::string& unit) {
-  const int label_w = 220, bar_w = 360, row_h = 22, top = 28;
+  const int label_w = 330, bar_w = 360, row_h = 22, top = 28;
   const int height = top + row_h * static_cast<int>(bars.size()) + 8;
   double max_value = 0;
   for (const auto& bar : bars) max_value = std::max(max_value, bar.second);
@@ -128,7 +128,9 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
     html += "<h2>Signed dynamic offset, " + Escape(renders["take"].get<std::string>()) +
             "</h2><p>Red: out of the skin, green: into it, saturating at &plusmn;" +
             fmt::format("{:g}", renders["range_mm"].get<double>()) +
-            " mm (as in Zoss et al. 2020). Rendered by facedyn.</p><div>";
+            " mm (as in Zoss et al. 2020). Rendered by facedyn.</p><table>";
+    // One row per frame, one column per view, in the order the demo rendered them.
+    int last_frame = -1;
     for (const Json& image : renders["images"]) {
       std::ifstream in(image["path"].get<std::string>(), std::ios::binary);
       const std::vector<unsigned char> png((std::istreambuf_iterator<char>(in)),
@@ -136,13 +138,18 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
       if (png.empty()) {
         return DataLossError(image["path"].get<std::string>() + ": render missing or empty");
       }
+      const int frame = image["frame"].get<int>();
+      if (frame != last_frame) {
+        html += (last_frame >= 0 ? "</tr>" : "") + fmt::format("<tr><td>frame {}</td>", frame);
+        last_frame = frame;
+      }
       html += fmt::format(
-          "<figure style=\"display:inline-block;margin:4px\"><img alt=\"{}\" "
-          "src=\"data:image/png;base64,{}\"><figcaption>frame {}: {}</figcaption></figure>",
-          Escape(image["view"].get<std::string>()), Base64(png), image["frame"].dump(),
-          Escape(image["view"].get<std::string>()));
+          "<td><figure style=\"margin:2px\"><img alt=\"{0}\" src=\"data:image/png;base64,{1}\">"
+          "<figcaption>{0}</figcaption></figure></td>",
+          Escape(image["view"].get<std::string>()), Base64(png));
     }
-    html += "</div>";
+    if (last_frame >= 0) html += "</tr>";
+    html += "</table>";
   }
   if (metrics.contains("stages_s")) {
     std::vector<std::pair<std::string, double>> bars;

@@ -1,0 +1,153 @@
+// The demo report (app/report.h) and its renders (app/face_render.h): written from metrics
+// alone, self-contained, and — opened in headless Chromium, Debian's `chromium` — drawn with its
+// images and plots (a screenshot that is not blank and holds the renders' colours).
+
+#include "app/report.h"
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "app/face_render.h"
+#include "sim/procedural_face.h"
+#include "tests/support/test_support.h"
+
+namespace facedyn::app {
+namespace {
+
+using ::testing::HasSubstr;
+
+TEST(Base64, KnownVectors) {
+  auto encode = [](const std::string& text) {
+    return Base64(std::vector<unsigned char>(text.begin(), text.end()));
+  };
+  // RFC 4648, section 10.
+  EXPECT_EQ(encode(""), "");
+  EXPECT_EQ(encode("f"), "Zg==");
+  EXPECT_EQ(encode("fo"), "Zm8=");
+  EXPECT_EQ(encode("foo"), "Zm9v");
+  EXPECT_EQ(encode("foobar"), "Zm9vYmFy");
+}
+
+// A render of the procedural face with its cheeks pushed out by 5 mm: red where they move out.
+std::vector<unsigned char> CheekRender(const FaceRig& rig) {
+  const Eigen::Matrix3Xf positions = rig.neutral.positions_mm.cast<float>();
+  Eigen::Matrix3Xf offsets = Eigen::Matrix3Xf::Zero(3, rig.vertex_count());
+  for (int v : rig.regions.at("cheeks")) offsets(2, v) = 5.0f;  // +Z: out of the face
+  return RenderSignedOffsetPng(rig.neutral, positions, offsets);
+}
+
+TEST(RenderSignedOffsetPng, OutwardOffsetsAreRedAndTheRestGrey) {
+  const FaceRig rig = sim::MakeProceduralFace(sim::ProceduralFaceOptions()).value();
+  const std::vector<unsigned char> png = CheekRender(rig);
+  const cv::Mat image = cv::imdecode(png, cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty());
+  EXPECT_EQ(image.cols, OffsetRenderOptions().width_px);
+  int red = 0, grey = 0, white = 0;
+  for (int y = 0; y < image.rows; ++y) {
+    for (int x = 0; x < image.cols; ++x) {
+      const cv::Vec3b bgr = image.at<cv::Vec3b>(y, x);
+      if (bgr[0] == 255 && bgr[1] == 255 && bgr[2] == 255) {
+        ++white;
+      } else if (bgr[2] > 2 * bgr[1] + 20 && bgr[2] > 2 * bgr[0] + 20) {
+        ++red;
+      } else if (std::abs(bgr[2] - bgr[1]) < 12 && std::abs(bgr[1] - bgr[0]) < 12) {
+        ++grey;
+      }
+    }
+  }
+  const int total = image.rows * image.cols;
+  EXPECT_GT(red, total / 100) << "the cheeks";
+  EXPECT_GT(grey, total / 5) << "the rest of the face";
+  EXPECT_GT(white, total / 20) << "the background";
+}
+
+std::string WriteReport(const testing::TempDir& dir) {
+  const FaceRig rig = sim::MakeProceduralFace(sim::ProceduralFaceOptions()).value();
+  const std::vector<unsigned char> png = CheekRender(rig);
+  const std::string png_path = dir.Join("cheeks.png");
+  std::ofstream(png_path, std::ios::binary).write(reinterpret_cast<const char*>(png.data()), png.size());
+  Json metrics;
+  metrics["rig"]["steps"] = Json::array({{{"target_hz", 8.0},
+                                          {"measured_mean_hz", 8.001},
+                                          {"true_platform_hz", 8.0},
+                                          {"max_abs_error_hz", 0.01},
+                                          {"hold_s", 2.0},
+                                          {"prompt", "smile <& hold>"}}});
+  metrics["dynamics"]["setup"] = {{"train_hz", {6, 7}}, {"training_takes", 2}, {"removal_epochs", 3}};
+  metrics["dynamics"]["removal"] = Json::array(
+      {{{"take", "neutral@11Hz"},
+        {"mean_dynamic_offset_mm", 1.4},
+        {"methods",
+         {{"F_exact_targets", {{"jiggle_mean_mm", 0.06}}}, {"lowpass", {{"jiggle_mean_mm", 0.03}}},
+          {"no_removal", {{"jiggle_mean_mm", 1.4}}}}}}});
+  metrics["renders"] = {{"take", "neutral@11Hz"},
+                        {"range_mm", 5.0},
+                        {"images", Json::array({{{"frame", 3}, {"view", "cheeks"}, {"path", png_path}}})}};
+  metrics["stages_s"] = Json::array({{{"stage", "rig"}, {"seconds", 1.5}}});
+  const std::string report = dir.Join("report.html");
+  EXPECT_TRUE(WriteDemoReport(metrics, report).ok());
+  return report;
+}
+
+TEST(WriteDemoReport, EmbedsEverythingAndEscapesText) {
+  testing::TempDir dir;
+  const std::string html = testing::ReadBytes(WriteReport(dir));
+  EXPECT_THAT(html, HasSubstr("data:image/png;base64,iVBORw0KGgo"));  // PNG signature
+  EXPECT_THAT(html, HasSubstr("<svg"));
+  EXPECT_THAT(html, HasSubstr("smile &lt;&amp; hold&gt;"));
+  EXPECT_THAT(html, HasSubstr("F_exact_targets"));
+}
+
+TEST(WriteDemoReport, MissingRenderIsAnError) {
+  testing::TempDir dir;
+  Json metrics;
+  metrics["renders"] = {{"take", "t"}, {"range_mm", 5.0},
+                        {"images", Json::array({{{"frame", 0}, {"view", "v"}, {"path", dir.Join("gone.png")}}})}};
+  const Status status = WriteDemoReport(metrics, dir.Join("report.html"));
+  EXPECT_EQ(status.code(), StatusCode::kDataLoss);
+  EXPECT_THAT(status.message(), HasSubstr("gone.png"));
+}
+
+TEST(WriteDemoReport, HeadlessChromiumDrawsItsImagesAndPlots) {
+  const char* candidates[] = {"/usr/bin/chromium", "/usr/bin/chromium-browser"};
+  std::string chromium;
+  for (const char* c : candidates) {
+    if (std::filesystem::exists(c)) chromium = c;
+  }
+  if (chromium.empty()) {
+    if (testing::InCi()) FAIL() << "chromium is missing and CI=true (scripts/install-deps.sh installs it)";
+    GTEST_SKIP() << "chromium not installed";
+  }
+  testing::TempDir dir;
+  const std::string report = WriteReport(dir);
+  const std::string shot = dir.Join("shot.png");
+  std::string out;
+  const int rc = testing::RunCommand(
+      chromium + " --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
+                 "--disable-background-networking --disable-component-update --disable-sync "
+                 "--user-data-dir=" + dir.Join("profile") + " --window-size=900,1400 --screenshot=" +
+          shot + " file://" + report,
+      &out);
+  ASSERT_EQ(rc, 0) << out;
+  const cv::Mat image = cv::imread(shot, cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty()) << out;
+  int red = 0, non_white = 0;
+  for (int y = 0; y < image.rows; ++y) {
+    for (int x = 0; x < image.cols; ++x) {
+      const cv::Vec3b bgr = image.at<cv::Vec3b>(y, x);
+      if (bgr[0] < 250 || bgr[1] < 250 || bgr[2] < 250) ++non_white;
+      if (bgr[2] > 2 * bgr[1] + 20 && bgr[2] > 2 * bgr[0] + 20) ++red;
+    }
+  }
+  EXPECT_GT(non_white, image.rows * image.cols / 50) << "the screenshot is blank";
+  EXPECT_GT(red, 500) << "neither the red bars nor the red cheeks were drawn";
+}
+
+}  // namespace
+}  // namespace facedyn::app

@@ -226,6 +226,8 @@ Status RunDemo(const DemoOptions& options) {
     study.synthesis_epochs = 15;
   }
   study.moving_average_targets = !options.quick;
+  study.frequency_subsets = true;
+  study.subset_epochs = options.quick ? 4 : 10;
   study.test_hz = 11;
   DynamicsStudyArtifacts artifacts;
   FACEDYN_ASSIGN_OR_RETURN(const Json dynamics_metrics, RunDynamicsStudy(study, &artifacts));

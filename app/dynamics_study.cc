@@ -260,6 +260,54 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                       "the feature window at the ends; jiggle_mean_mm over vertices whose mean "
                       "true offset is >= 20% of the largest"}};
   result["removal"] = removal;
+
+  // Paper Fig. 5: removal error on the first test take against the number of training
+  // frequencies (held expressions of the slowest k frequencies).
+  if (options.frequency_subsets && options.train_hz.size() > 1) {
+    const SimTake& probe = test.front();
+    const PointCache& truth = probe.take.channels.at("quasistatic");
+    const std::vector<int> mask = JiggleMask(probe.take.channels.at("dynamic_offset"), skip);
+    const double offset_mm = MaskedMeanDistance(probe.take.positions, truth, mask, skip);
+    Json subsets = Json::array();
+    const size_t per_frequency = options.expressions.size();
+    for (size_t k = 1; k <= options.train_hz.size(); ++k) {
+      double error_mm = 0;
+      if (k == options.train_hz.size()) {
+        error_mm = removal.front()["methods"]["F_exact_targets"]["jiggle_mean_mm"].get<double>();
+      } else {
+        const std::vector<dynamics::TrainingTake> subset(held_training.begin(),
+                                                         held_training.begin() + k * per_frequency);
+        dynamics::RemovalTrainOptions subset_options;
+        subset_options.train.epochs =
+            options.subset_epochs > 0 ? options.subset_epochs : options.removal_epochs;
+        subset_options.train.batch_size = options.removal_batch;
+        subset_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
+        subset_options.train.seed = options.seed;
+        subset_options.train.num_threads = options.threads;
+        subset_options.train.show_progress = options.show_progress;
+        subset_options.targets = dynamics::RemovalTargets::kExact;
+        subset_options.window_s = options.window_s;
+        spdlog::info("training removal network on {} frequencies (paper Fig. 5)", k);
+        FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel model,
+                                 dynamics::TrainRemoval(subset, subset_options));
+        FACEDYN_ASSIGN_OR_RETURN(const Take removed,
+                                 dynamics::RemoveDynamics(model, probe.take, rig, &propagation));
+        error_mm = MaskedMeanDistance(removed.positions, truth, mask, skip);
+      }
+      subsets.push_back({{"train_hz", std::vector<double>(options.train_hz.begin(),
+                                                          options.train_hz.begin() + k)},
+                         {"jiggle_mean_mm", Round4(error_mm)},
+                         {"relative_to_offset", Round4(offset_mm > 0 ? error_mm / offset_mm : 0)}});
+    }
+    result["removal_by_training_frequencies"] = {
+        {"take", probe.name},
+        {"mean_dynamic_offset_mm", Round4(offset_mm)},
+        {"subsets", subsets},
+        {"baselines",
+         {{"lowpass", removal.front()["methods"]["lowpass"]["jiggle_mean_mm"]},
+          {"moving_average", removal.front()["methods"]["moving_average"]["jiggle_mean_mm"]},
+          {"no_removal", removal.front()["methods"]["no_removal"]["jiggle_mean_mm"]}}}};
+  }
   Json training_json = Json::object();
   for (const Trained& trained : models) {
     training_json[trained.name] = {

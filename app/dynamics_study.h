@@ -44,6 +44,10 @@ struct DynamicsStudyOptions {
   int synthesis_batch = 50;    // the paper's
   bool moving_average_targets = true;  // also train F on the paper's moving-average targets
   bool synthesis = true;
+  // Paper Fig. 5: also train F (exact targets) on the first 1, 2, ... n-1 training frequencies
+  // and test each on the first test take; the full set is the main model.
+  bool frequency_subsets = false;
+  int subset_epochs = 0;  // epochs of the subset models; 0: removal_epochs
   int threads = 0;             // LibTorch threads; 0: leave
   uint64_t seed = 1;
   bool show_progress = true;

@@ -110,6 +110,20 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
                           RemovalBars(entry), "mm");
       html += "<br>";
     }
+    if (dynamics.contains("removal_by_training_frequencies")) {
+      const Json& fig5 = dynamics["removal_by_training_frequencies"];
+      std::vector<std::pair<std::string, double>> bars;
+      for (const Json& subset : fig5["subsets"]) {
+        std::string label = "F on";
+        for (const Json& hz : subset["train_hz"]) label += fmt::format(" {:g}", hz.get<double>());
+        bars.emplace_back(label + " Hz", subset["jiggle_mean_mm"].get<double>());
+      }
+      for (const auto& [name, value] : fig5["baselines"].items()) {
+        bars.emplace_back(name, value.get<double>());
+      }
+      html += "<h3>Error against the number of training frequencies (paper Fig. 5)</h3>" +
+              SvgBarChart(fig5["take"].get<std::string>() + ", never trained on", bars, "mm");
+    }
     if (dynamics.contains("synthesis")) {
       html += "<h2>Remove, then resynthesise (paper Fig. 7)</h2><table><tr><th>take</th>"
               "<th>mean dynamic offset mm</th><th>resynthesis residual mm</th><th>relative</th></tr>";

@@ -154,6 +154,8 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
     std::string tcp;
     std::string rtu;
     double seconds = 0.0;
+    double trip_after_s = 0.0;
+    int trip_code = 1;
     sim::DriveSimOptions sim;
   };
   auto serve = std::make_shared<ServeOptions>();
@@ -176,6 +178,10 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
   serve_command->add_option("--watchdog-fault-code", serve->sim.model.watchdog_fault_code,
                             "Fault code latched when the comm watchdog fires (0: stop without a trip)")
       ->capture_default_str();
+  serve_command->add_option("--trip-after-s", serve->trip_after_s,
+                            "Fault injection: trip once the motor has run this long (0: never)")
+      ->capture_default_str();
+  serve_command->add_option("--trip-code", serve->trip_code, "Fault code of the injected trip")->capture_default_str();
   serve_command->callback([serve, selected] {
     if (serve->config.empty() && serve->profile.empty()) throw CLI::RequiredError("--config or --profile");
     *selected = [serve]() -> Status {
@@ -196,6 +202,7 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
       }
       if (!serve->rtu.empty()) options.rtu_device = serve->rtu;
       FACEDYN_ASSIGN_OR_RETURN(auto server, sim::DriveSim::Start(profile, options));
+      if (serve->trip_after_s > 0.0) server->ScheduleTrip(serve->trip_after_s, serve->trip_code);
       // The address goes to stdout so scripts can start us with port 0 and read where we are.
       if (options.is_rtu()) {
         std::printf("listening rtu %s profile %s\n", options.rtu_device.c_str(), profile.name.c_str());

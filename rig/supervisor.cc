@@ -138,6 +138,8 @@ Status RigSupervisor::WriteWatchdog(double seconds) {
 Status RigSupervisor::Arm() {
   PlatformReading reading;
   FACEDYN_RETURN_IF_ERROR(ReadPlatform(&reading));
+  last_ = reading;  // a platform still turning (e.g. after `rig set --detach`) ramps from here
+  if (log_) log_->Write("reply", reading.ToJson());
   if (reading.faulted) {
     SetState(RigState::kFaulted, reading.fault_text);
     return FailedPreconditionError(fmt::format(

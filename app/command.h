@@ -22,5 +22,6 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected);
 void AddRigCommands(CLI::App& app, CommandRunner* selected);
 void AddSweepCommand(CLI::App& app, CommandRunner* selected);
 void AddCalibrateCommand(CLI::App& app, CommandRunner* selected);
+void AddReconstructCommand(CLI::App& app, CommandRunner* selected);
 
 }  // namespace facedyn::app

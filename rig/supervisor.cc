@@ -196,6 +196,7 @@ StatusOr<PlatformReading> RigSupervisor::ReadOnce() {
   }
   if (!read.ok()) return read.WithContext(fmt::format("rig {}", config_.name));
   last_ = reading;
+  if (reading.faulted) SetState(RigState::kFaulted, reading.fault_text);
   return reading;
 }
 

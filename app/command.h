@@ -23,5 +23,6 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected);
 void AddSweepCommand(CLI::App& app, CommandRunner* selected);
 void AddCalibrateCommand(CLI::App& app, CommandRunner* selected);
 void AddReconstructCommand(CLI::App& app, CommandRunner* selected);
+void AddCaptureCommands(CLI::App& app, CommandRunner* selected);  // capture, session check
 
 }  // namespace facedyn::app

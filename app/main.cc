@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
   app::AddSweepCommand(cli, &selected);
   app::AddCalibrateCommand(cli, &selected);
   app::AddReconstructCommand(cli, &selected);
+  app::AddCaptureCommands(cli, &selected);
   app::AddDemoCommand(cli, &selected);
 
   try {

@@ -23,6 +23,8 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected);
 void AddRigCommands(CLI::App& app, CommandRunner* selected);
 void AddSweepCommand(CLI::App& app, CommandRunner* selected);
 void AddCalibrateCommand(CLI::App& app, CommandRunner* selected);
+void AddReconstructCommand(CLI::App& app, CommandRunner* selected);
+void AddCaptureCommands(CLI::App& app, CommandRunner* selected);  // capture, session check
 // train-removal, remove, train-synthesis, synthesize, retarget under `facedyn dynamics`.
 void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected);
 

@@ -35,6 +35,8 @@ int main(int argc, char** argv) {
   app::AddRigCommands(cli, &selected);
   app::AddSweepCommand(cli, &selected);
   app::AddCalibrateCommand(cli, &selected);
+  app::AddReconstructCommand(cli, &selected);
+  app::AddCaptureCommands(cli, &selected);
   app::AddDemoCommand(cli, &selected);
 
   try {

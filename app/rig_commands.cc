@@ -22,6 +22,7 @@
 #include "rig/session_log.h"
 #include "rig/stop_signal.h"
 #include "rig/supervisor.h"
+#include "rig/usb_controller.h"
 #include "sim/drive_sim.h"
 
 namespace facedyn::app {
@@ -80,6 +81,16 @@ struct Supervised {
   std::unique_ptr<rig::SessionLog> log;
   std::unique_ptr<rig::RigSupervisor> supervisor;
 };
+
+// "1209" or "0x1209" -> 0x1209; `flag` names the option in errors.
+StatusOr<uint16_t> ParseUsbId(const std::string& text, const std::string& flag) {
+  char* end = nullptr;
+  const long value = std::strtol(text.c_str(), &end, 16);
+  if (text.empty() || *end != '\0' || value < 0 || value > 0xFFFF) {
+    return InvalidArgumentError(fmt::format("{}: '{}' is not a 16-bit hex id (e.g. 1209)", flag, text));
+  }
+  return static_cast<uint16_t>(value);
+}
 
 StatusOr<Supervised> ConnectSupervised(const RigOptions& options, const std::atomic<bool>* stop) {
   Supervised s;
@@ -143,6 +154,8 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
     std::string tcp;
     std::string rtu;
     double seconds = 0.0;
+    double trip_after_s = 0.0;
+    int trip_code = 1;
     sim::DriveSimOptions sim;
   };
   auto serve = std::make_shared<ServeOptions>();
@@ -165,6 +178,10 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
   serve_command->add_option("--watchdog-fault-code", serve->sim.model.watchdog_fault_code,
                             "Fault code latched when the comm watchdog fires (0: stop without a trip)")
       ->capture_default_str();
+  serve_command->add_option("--trip-after-s", serve->trip_after_s,
+                            "Fault injection: trip once the motor has run this long (0: never)")
+      ->capture_default_str();
+  serve_command->add_option("--trip-code", serve->trip_code, "Fault code of the injected trip")->capture_default_str();
   serve_command->callback([serve, selected] {
     if (serve->config.empty() && serve->profile.empty()) throw CLI::RequiredError("--config or --profile");
     *selected = [serve]() -> Status {
@@ -185,6 +202,7 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
       }
       if (!serve->rtu.empty()) options.rtu_device = serve->rtu;
       FACEDYN_ASSIGN_OR_RETURN(auto server, sim::DriveSim::Start(profile, options));
+      if (serve->trip_after_s > 0.0) server->ScheduleTrip(serve->trip_after_s, serve->trip_code);
       // The address goes to stdout so scripts can start us with port 0 and read where we are.
       if (options.is_rtu()) {
         std::printf("listening rtu %s profile %s\n", options.rtu_device.c_str(), profile.name.c_str());
@@ -202,6 +220,44 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
       }
       spdlog::info("simulated drive served {} requests", server->requests_served());
+      return Status::Ok();
+    };
+  });
+
+  struct UsbOptions {
+    std::string vid = "1209";
+    std::string pid = "0001";
+    std::string serial;
+    bool json = false;
+  };
+  auto usb = std::make_shared<UsbOptions>();
+  auto* usb_command = rig_command->add_subcommand(
+      "usb-status", "Find the USB platform/sync controller (rig/usb_controller.h) and print its info and status");
+  usb_command->add_option("--vid", usb->vid, "Vendor id, hex")->capture_default_str();
+  usb_command->add_option("--pid", usb->pid, "Product id, hex")->capture_default_str();
+  usb_command->add_option("--serial", usb->serial, "Serial number string (default: the first match)");
+  usb_command->add_flag("--json", usb->json, "Print JSON on stdout");
+  usb_command->callback([usb, selected] {
+    *selected = [usb]() -> Status {
+      rig::UsbControllerOptions options;
+      FACEDYN_ASSIGN_OR_RETURN(options.vendor_id, ParseUsbId(usb->vid, "--vid"));
+      FACEDYN_ASSIGN_OR_RETURN(options.product_id, ParseUsbId(usb->pid, "--pid"));
+      options.serial = usb->serial;
+      FACEDYN_ASSIGN_OR_RETURN(auto controller, rig::UsbPlatformController::Open(options));
+      FACEDYN_ASSIGN_OR_RETURN(const rig::UsbControllerStatus status, controller->ReadStatus());
+      if (usb->json) {
+        Json out;
+        out["device"] = options.Describe();
+        out["info"] = controller->info().ToJson();
+        out["status"] = status.ToJson();
+        std::printf("%s\n", out.dump(2).c_str());
+      } else {
+        std::printf("controller %s, protocol %d, firmware %d\nrunning    %s\nsetpoint   %.2f Hz\n"
+                    "measured   %.2f Hz\nfault      %s\n", options.Describe().c_str(),
+                    controller->info().protocol_version, controller->info().firmware_version,
+                    status.running ? "yes" : "no", status.setpoint_hz, status.measured_hz,
+                    status.faulted ? std::to_string(status.fault_code).c_str() : "none");
+      }
       return Status::Ok();
     };
   });

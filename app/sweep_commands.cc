@@ -82,6 +82,8 @@ void AddSweepCommand(CLI::App& app, CommandRunner* selected) {
                       step.target_hz, step.hold.mean_measured_hz, step.hold.max_abs_error_hz, step.prompt.c_str(),
                       step.this_run ? "" : "  (before resume)");
         }
+        std::printf("exposure %.1f s of vibration, A(8) %.3f m/s^2 (unweighted, cumulative over the session)\n",
+                    result.exposure.value("vibrating_s", 0.0), result.exposure.value("a8_unweighted_m_s2", 0.0));
         std::printf("log %s\n", result.log_path.c_str());
       }
       return Status::Ok();

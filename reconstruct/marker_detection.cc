@@ -18,6 +18,14 @@ double Median(std::vector<double> values) {
   return values[mid];
 }
 
+// Semi-axes of the ellipse |L d| = 1 are 1 / singular values of L.
+double SemiMajorAxis(const DiskParameters& p) {
+  const double a = p[2] * p[2], b = p[2] * p[3], c = p[3] * p[3] + p[4] * p[4];  // L^T L
+  const double mean = 0.5 * (a + c), spread = std::sqrt(0.25 * (a - c) * (a - c) + b * b);
+  return 1.0 / std::sqrt(std::max(1e-12, mean - spread));
+}
+double EquivalentRadius(const DiskParameters& p) { return 1.0 / std::sqrt(std::abs(p[2] * p[4])); }
+
 struct FitResult {
   DiskParameters p{};
   bool converged = false;
@@ -31,12 +39,15 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius,
   FitResult result;
   double lambda = 1e-3;
   std::vector<double> residuals, weights;
-  std::vector<std::array<double, 6>> gradients;
+  std::vector<std::array<double, kDiskParameterCount>> gradients;
   std::vector<Eigen::Vector2i> pixels;
   double sigma = -1.0;
   auto gather = [&](const DiskParameters& q) {
     pixels.clear();
-    const int half = static_cast<int>(std::ceil(q[2] + 3.0 * q[3] + 3.0));
+    // The dot plus three blur widths and a margin, at most 1.5 max radii (a diverging shape
+    // must not grow the window without bound).
+    const int half = static_cast<int>(std::ceil(
+        std::min(SemiMajorAxis(q) * (1.0 + 3.0 * q[5]), 1.5 * max_radius) + 2.0));
     const int cx = static_cast<int>(std::lround(q[0])), cy = static_cast<int>(std::lround(q[1]));
     for (int y = std::max(0, cy - half); y <= std::min(image.rows - 1, cy + half); ++y) {
       for (int x = std::max(0, cx - half); x <= std::min(image.cols - 1, cx + half); ++x) {
@@ -74,36 +85,38 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius,
     // hidden part of a dot) are outliers from the outset; otherwise the first two rounds are
     // plain least squares.
     evaluate(p, false, -1.0);
-    const double floor = 0.5 + 0.04 * std::abs(p[4]);
+    const double floor = 0.5 + 0.04 * std::abs(p[6]);
     if (iteration >= 2 || !robust_from_start) {
       std::vector<double> absolute(residuals.size());
       for (size_t i = 0; i < residuals.size(); ++i) absolute[i] = std::abs(residuals[i]);
       sigma = std::max(floor, 1.4826 * Median(absolute));
     } else {
-      sigma = std::max(floor, 0.25 * std::abs(p[4]) / 4.685);
+      sigma = std::max(floor, 0.25 * std::abs(p[6]) / 4.685);
     }
     const double tukey_c = iteration >= 2 || robust_from_start ? 4.685 * sigma : -1.0;
     const double cost = evaluate(p, true, tukey_c);
-    Eigen::Matrix<double, 6, 6> jtj = Eigen::Matrix<double, 6, 6>::Zero();
-    Eigen::Matrix<double, 6, 1> jtr = Eigen::Matrix<double, 6, 1>::Zero();
+    constexpr int kN = kDiskParameterCount;
+    Eigen::Matrix<double, kN, kN> jtj = Eigen::Matrix<double, kN, kN>::Zero();
+    Eigen::Matrix<double, kN, 1> jtr = Eigen::Matrix<double, kN, 1>::Zero();
     for (size_t i = 0; i < pixels.size(); ++i) {
-      if (fix_shape) gradients[i][2] = gradients[i][3] = 0.0;
-      const Eigen::Map<const Eigen::Matrix<double, 6, 1>> g(gradients[i].data());
+      if (fix_shape) gradients[i][2] = gradients[i][3] = gradients[i][4] = gradients[i][5] = 0.0;
+      const Eigen::Map<const Eigen::Matrix<double, kN, 1>> g(gradients[i].data());
       jtj.noalias() += weights[i] * g * g.transpose();
       jtr.noalias() += weights[i] * g * residuals[i];
     }
-    if (fix_shape) jtj(2, 2) = jtj(3, 3) = 1.0;
+    if (fix_shape) jtj(2, 2) = jtj(3, 3) = jtj(4, 4) = jtj(5, 5) = 1.0;
     bool improved = false;
-    Eigen::Matrix<double, 6, 1> step;
+    Eigen::Matrix<double, kN, 1> step;
     for (int attempt = 0; attempt < 8 && !improved; ++attempt) {
-      Eigen::Matrix<double, 6, 6> a = jtj;
+      Eigen::Matrix<double, kN, kN> a = jtj;
       a.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-9);
       step = a.ldlt().solve(jtr);
-      DiskParameters q = p;
-      for (int k = 0; k < 6; ++k) q[k] += step[k];
-      q[2] = std::clamp(q[2], 0.5, max_radius);
-      q[3] = std::clamp(q[3], 0.3, 0.5 * max_radius + 2.0);
       if (!std::isfinite(step.sum())) break;
+      DiskParameters q = p;
+      for (int k = 0; k < kN; ++k) q[k] += step[k];
+      q[2] = std::max(q[2], 1.0 / max_radius);
+      q[4] = std::max(q[4], 1.0 / max_radius);
+      q[5] = std::clamp(q[5], 0.02, 1.0);
       if (evaluate(q, false, tukey_c) < cost) {
         p = q;
         lambda = std::max(1e-7, lambda * 0.3);
@@ -118,7 +131,7 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius,
     }
     gather(p);  // the window follows the centre
     last_center_step = step.head<2>().norm();
-    if (last_center_step < 1e-4 && iteration >= 3) {
+    if (last_center_step < 2e-3 && iteration >= 3) {
       result.converged = true;
       break;
     }
@@ -130,7 +143,7 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius,
   std::vector<double> absolute(residuals.size());
   for (size_t i = 0; i < residuals.size(); ++i) absolute[i] = std::abs(residuals[i]);
   result.sigma = std::max(0.5, 1.4826 * Median(absolute));
-  evaluate(p, false, 4.685 * std::max(result.sigma, 0.5 + 0.04 * std::abs(p[4])));
+  evaluate(p, false, 4.685 * std::max(result.sigma, 0.5 + 0.04 * std::abs(p[6])));
   double weight_sum = 0.0;
   for (double w : weights) weight_sum += w;
   result.inlier_fraction = pixels.empty() ? 0.0 : weight_sum / pixels.size();
@@ -152,26 +165,38 @@ DiskParameters FitBlurredDisk(const cv::Mat& gray, const DiskParameters& initial
 }
 
 double BlurredDiskIntensity(const DiskParameters& p, double x, double y,
-                            std::array<double, 6>* gradient) {
+                            std::array<double, kDiskParameterCount>* gradient) {
   const double dx = x - p[0], dy = y - p[1];
-  const double r = std::sqrt(dx * dx + dy * dy);
-  const double w = p[3];
-  const double t = (p[2] - r) / w;
+  const double l11 = p[2], l12 = p[3], l22 = p[4], w = p[5];
+  const double u0 = l11 * dx + l12 * dy, u1 = l22 * dy;
+  const double rho = std::sqrt(u0 * u0 + u1 * u1);
+  const double t = (1.0 - rho) / w;
+  // Beyond 8.5 blur widths Phi is 0 or 1 and its density below 1e-15 of its peak in double
+  // precision: skip erfc and exp there (most of a window is far from the edge).
+  if (std::abs(t) > 8.5) {
+    if (gradient) {
+      gradient->fill(0.0);
+      (*gradient)[6] = t > 0 ? 1.0 : 0.0;
+      (*gradient)[7] = 1.0;
+    }
+    return p[7] + (t > 0 ? p[6] : 0.0);
+  }
   const double phi = 0.5 * std::erfc(-t / std::sqrt(2.0));
   if (gradient) {
+    const double a = p[6];
     const double density = kInvSqrt2Pi * std::exp(-0.5 * t * t);
-    const double a = p[4];
-    // d/dr of t is -1/w; dr/dx0 = -dx/r (0 at the centre, where the model is flat).
-    const double drdx0 = r > 1e-12 ? -dx / r : 0.0;
-    const double drdy0 = r > 1e-12 ? -dy / r : 0.0;
-    (*gradient)[0] = a * density * (-1.0 / w) * drdx0;
-    (*gradient)[1] = a * density * (-1.0 / w) * drdy0;
-    (*gradient)[2] = a * density / w;
-    (*gradient)[3] = a * density * (-t / w);
-    (*gradient)[4] = phi;
-    (*gradient)[5] = 1.0;
+    // dI/drho = -a density / w; drho/du = u / rho (0 at the centre, where the model is flat).
+    const double g = rho > 1e-12 ? -a * density / (w * rho) : 0.0;
+    (*gradient)[0] = g * (-l11 * u0);               // du/dx0 = -(l11, 0)
+    (*gradient)[1] = g * (-l12 * u0 - l22 * u1);    // du/dy0 = -(l12, l22)
+    (*gradient)[2] = g * (dx * u0);                 // du/dl11 = (dx, 0)
+    (*gradient)[3] = g * (dy * u0);                 // du/dl12 = (dy, 0)
+    (*gradient)[4] = g * (dy * u1);                 // du/dl22 = (0, dy)
+    (*gradient)[5] = a * density * (-t / w);
+    (*gradient)[6] = phi;
+    (*gradient)[7] = 1.0;
   }
-  return p[5] + p[4] * phi;
+  return p[7] + p[6] * phi;
 }
 
 Status MarkerDetectionOptions::Check() const {
@@ -240,14 +265,17 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
     }
     const double b0 = Median(border);
     const double a0 = small.at<float>(c) - b0;
-    DiskParameters p = {double(c.x), double(c.y), r0, 1.0, a0, b0};
+    const DiskParameters p = {double(c.x), double(c.y), 1.0 / r0, 0.0, 1.0 / r0, 1.0 / r0, a0, b0};
     const FitResult fit = FitDisk(image, p, max_radius, options.max_iterations);
-    const double contrast = options.polarity == MarkerPolarity::kDark ? -fit.p[4] : fit.p[4];
-    if (!fit.converged || (Eigen::Vector2d(fit.p[0] - c.x, fit.p[1] - c.y)).norm() > 2.0 * r0 + 2.0) {
+    const double contrast = options.polarity == MarkerPolarity::kDark ? -fit.p[6] : fit.p[6];
+    if (!fit.converged ||
+        (Eigen::Vector2d(fit.p[0] - c.x, fit.p[1] - c.y)).norm() > 2.0 * r0 + 2.0) {
       ++summary.rejected_fit;
       continue;
     }
-    if (2.0 * fit.p[2] < options.min_diameter_px || 2.0 * fit.p[2] > options.max_diameter_px) {
+    const double fitted_radius = EquivalentRadius(fit.p);
+    if (2.0 * fitted_radius < options.min_diameter_px ||
+        2.0 * fitted_radius > options.max_diameter_px) {
       ++summary.rejected_size;
       continue;
     }
@@ -258,11 +286,12 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
     MarkerDetection detection;
     detection.fit = fit.p;
     detection.center_px = {fit.p[0], fit.p[1]};
-    detection.radius_px = fit.p[2];
-    detection.edge_width_px = fit.p[3];
+    detection.radius_px = fitted_radius;
+    detection.edge_width_px = fit.p[5] * fitted_radius;
     detection.contrast = contrast;
     detection.residual_rms = fit.sigma;
     detection.quality = fit.inlier_fraction * contrast / (contrast + 3.0 * fit.sigma);
+    detection.inlier_fraction = fit.inlier_fraction;
     detections.push_back(detection);
   }
   // Occlusion: a partly hidden dot is fitted best by a smaller disk shifted into its visible
@@ -280,14 +309,33 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
     if (nearest.size() < 3) continue;
     const size_t k = std::min<size_t>(8, nearest.size());
     std::partial_sort(nearest.begin(), nearest.begin() + k, nearest.end());
-    std::vector<double> radii, widths;
+    std::vector<double> radii, l11, l12, l22, widths;
     for (size_t n = 0; n < k; ++n) {
-      radii.push_back(detections[nearest[n].second].radius_px);
-      widths.push_back(detections[nearest[n].second].edge_width_px);
+      const MarkerDetection& other = detections[nearest[n].second];
+      radii.push_back(other.radius_px);
+      l11.push_back(other.fit[2]);
+      l12.push_back(other.fit[3]);
+      l22.push_back(other.fit[4]);
+      widths.push_back(other.fit[5]);
     }
     std::sort(radii.begin(), radii.end());
     const double reference_radius = radii[(3 * radii.size()) / 4];
-    if (detections[i].radius_px >= 0.9 * reference_radius) continue;
+    // Only dots that are smaller than their neighbours AND leave part of their window
+    // unexplained are suspects (a clean foreshortened dot is explained well).
+    if (detections[i].radius_px >= 0.9 * reference_radius ||
+        detections[i].inlier_fraction >= 0.95) {
+      continue;
+    }
+    // The neighbours' shape (they face about the same way), scaled to the reference radius.
+    DiskParameters shape = detections[i].fit;
+    shape[2] = Median(l11);
+    shape[3] = Median(l12);
+    shape[4] = Median(l22);
+    const double scale = EquivalentRadius(shape) / reference_radius;
+    shape[2] *= scale;
+    shape[3] *= scale;
+    shape[4] *= scale;
+    shape[5] = Median(widths);
     // The shrunken fit hugs the visible part, so the true centre lies about
     // (reference - fitted radius) away in an unknown direction: start there in 8 directions
     // (and in place) and keep the fit that explains the most pixels.
@@ -295,29 +343,33 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
     fit.inlier_fraction = -1.0;
     const double offset = reference_radius - detections[i].radius_px;
     for (int direction = -1; direction < 8; ++direction) {
-      DiskParameters p = detections[i].fit;
+      DiskParameters p = shape;
       if (direction >= 0) {
         p[0] += offset * std::cos(M_PI / 4 * direction);
         p[1] += offset * std::sin(M_PI / 4 * direction);
       }
-      p[2] = reference_radius;
-      p[3] = Median(widths);
       const FitResult candidate = FitDisk(image, p, max_radius, options.max_iterations, true, true);
       if (candidate.converged && candidate.inlier_fraction > fit.inlier_fraction) fit = candidate;
     }
-    const double contrast = options.polarity == MarkerPolarity::kDark ? -fit.p[4] : fit.p[4];
+    const double contrast = options.polarity == MarkerPolarity::kDark ? -fit.p[6] : fit.p[6];
+    // Keep the refit when it explains the window about as well as the free fit (within 5% of
+    // its pixels) while agreeing with the neighbours' shape: a free ellipse can take the shape
+    // of a dot's visible part, and the neighbours are the evidence that decides. A dot that is
+    // merely seen at an angle shares its neighbours' shape and is not refitted at all.
     if (!fit.converged || contrast < options.min_contrast ||
+        fit.inlier_fraction < detections[i].inlier_fraction - 0.05 ||
         (Eigen::Vector2d(fit.p[0], fit.p[1]) - detections[i].center_px).norm() > reference_radius) {
       continue;
     }
     MarkerDetection& d = refitted[i];
     d.fit = fit.p;
     d.center_px = {fit.p[0], fit.p[1]};
-    d.radius_px = fit.p[2];
-    d.edge_width_px = fit.p[3];
+    d.radius_px = EquivalentRadius(fit.p);
+    d.edge_width_px = fit.p[5] * d.radius_px;
     d.contrast = contrast;
     d.residual_rms = fit.sigma;
     d.quality = fit.inlier_fraction * contrast / (contrast + 3.0 * fit.sigma);
+    d.inlier_fraction = fit.inlier_fraction;
     d.refit_for_occlusion = true;
   }
   detections.clear();

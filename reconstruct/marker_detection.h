@@ -4,17 +4,20 @@
 // Two stages. (1) Candidates: a difference-of-Gaussians band-pass tuned to the expected dot
 // size (for a disk of radius R the Laplacian-of-Gaussian response peaks at sigma = R/sqrt 2)
 // and local extrema of the response above a contrast threshold. (2) Each candidate is refined
-// by fitting a blurred-disk model to the pixels of a window around it:
-//   I(x, y) = b + a * Phi((R - r) / w),   r = |(x, y) - (x0, y0)|,
-// Phi the standard normal CDF (a disk of radius R seen through a Gaussian blur of width w, to
-// first order in w/R), by Levenberg-Marquardt with iteratively reweighted residuals (Tukey's
+// by fitting a blurred-ellipse model to the pixels of a window around it (a round dot seen at
+// an angle is an ellipse):
+//   I(x, y) = b + a * Phi((1 - rho) / w),   rho = |L ((x, y) - (x0, y0))|,
+// L = [l11 l12; 0 l22] mapping the ellipse to the unit disk, w the edge width in those units,
+// Phi the standard normal CDF (an ellipse seen through a Gaussian blur, to first order in w),
+// by Levenberg-Marquardt with iteratively reweighted residuals (Tukey's
 // biweight at 4.685 robust sigmas). A symmetric model fits a blurred dot without bias, and the
 // robust weights make pixels that do not belong to the dot (an occluding eyelash or edge, a
 // neighbouring dot at the window border) stop pulling the centre. The window follows the
 // centre as it moves.
 //
-// A dot clearly smaller than its neighbours is taken to be partly hidden and refitted with
-// their radius held (see the .cc).
+// A dot clearly smaller than its neighbours that leaves part of its window unexplained may be
+// partly hidden: it is refitted with the neighbours' shape held, and the refit is kept when it
+// explains the window about as well as the free fit. See the .cc.
 //
 // Quality in [0, 1]: (weighted fraction of window pixels the model explains) *
 // |a| / (|a| + 3 sigma_residual), i.e. near 1 for a clean, contrasty, fully visible dot, lower
@@ -48,13 +51,14 @@ struct MarkerDetectionOptions {
 
 struct MarkerDetection {
   Eigen::Vector2d center_px = Eigen::Vector2d::Zero();
-  double radius_px = 0.0;
-  double edge_width_px = 0.0;  // w
+  double radius_px = 0.0;      // of the disk with the ellipse's area
+  double edge_width_px = 0.0;  // blur width at the edge, pixels
   double contrast = 0.0;       // |a|
   double quality = 0.0;
   double residual_rms = 0.0;   // robust sigma of the fit residuals, gray levels
   bool refit_for_occlusion = false;  // radius held at the neighbours' (see above)
-  std::array<double, 6> fit{};  // (x0, y0, R, w, a, b)
+  double inlier_fraction = 0.0;      // mean robust weight of the window's pixels
+  std::array<double, 8> fit{};  // (x0, y0, l11, l12, l22, w, a, b)
 };
 
 struct MarkerDetectionSummary {
@@ -73,13 +77,14 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
                                                      const MarkerDetectionOptions& options,
                                                      MarkerDetectionSummary* summary = nullptr);
 
-// The blurred-disk model and its gradient with respect to
-// p = (x0, y0, R, w, a, b), at pixel (x, y). Exposed for the gradient test.
-using DiskParameters = std::array<double, 6>;
+// The blurred-ellipse model and its gradient with respect to
+// p = (x0, y0, l11, l12, l22, w, a, b), at pixel (x, y). Exposed for the gradient test.
+inline constexpr int kDiskParameterCount = 8;
+using DiskParameters = std::array<double, kDiskParameterCount>;
 double BlurredDiskIntensity(const DiskParameters& p, double x, double y,
-                            std::array<double, 6>* gradient = nullptr);
+                            std::array<double, kDiskParameterCount>* gradient = nullptr);
 
-// The robust fit of one dot from `initial` (exposed for tests); `fix_shape` holds R and w.
+// The robust fit of one dot from `initial` (exposed for tests); `fix_shape` holds L and w.
 DiskParameters FitBlurredDisk(const cv::Mat& gray, const DiskParameters& initial, bool fix_shape,
                               int max_iterations = 20, double* inlier_fraction = nullptr,
                               bool robust_from_start = false);

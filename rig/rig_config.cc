@@ -161,6 +161,12 @@ Status RigConfig::Check() const {
         "platform.feedback: 'sensor' needs registers.oscillation_frequency in drive profile {} ({}); "
         "use drive_output", profile.name, profile_path));
   }
+  if (profile.comm_watchdog && profile.comm_watchdog->max_s > 0.0 &&
+      safety.comm_watchdog_s > profile.comm_watchdog->max_s) {
+    return InvalidArgumentError(fmt::format("safety.comm_watchdog_s: {} s is above the {} s the drive's {} allows",
+                                            safety.comm_watchdog_s, profile.comm_watchdog->max_s,
+                                            profile.comm_watchdog->parameter));
+  }
   const PlatformModel model(platform);
   const double top_motor_hz = model.MotorHzFor(limits.max_hz + trim.max_correction_hz);
   if (top_motor_hz > limits.motor_max_hz) {

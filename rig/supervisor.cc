@@ -138,6 +138,8 @@ Status RigSupervisor::WriteWatchdog(double seconds) {
 Status RigSupervisor::Arm() {
   PlatformReading reading;
   FACEDYN_RETURN_IF_ERROR(ReadPlatform(&reading));
+  last_ = reading;  // a platform still turning (e.g. after `rig set --detach`) ramps from here
+  if (log_) log_->Write("reply", reading.ToJson());
   if (reading.faulted) {
     SetState(RigState::kFaulted, reading.fault_text);
     return FailedPreconditionError(fmt::format(
@@ -194,6 +196,7 @@ StatusOr<PlatformReading> RigSupervisor::ReadOnce() {
   }
   if (!read.ok()) return read.WithContext(fmt::format("rig {}", config_.name));
   last_ = reading;
+  if (reading.faulted) SetState(RigState::kFaulted, reading.fault_text);
   return reading;
 }
 

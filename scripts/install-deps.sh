@@ -24,6 +24,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev  # tests and benchmarks
   # test-only peers: an independent Modbus implementation, pty pairs for RTU, USB replay
   python3-pymodbus python3-serial python3-serial-asyncio socat umockdev
+  # Aravis's fake GigE Vision camera (arv-fake-gv-camera-0.8; aravis-tools-cli has only arv-tool)
+  aravis-tools
   # the demo report is checked by a screenshot in headless Chromium (tests/app/report_test)
   chromium
 )

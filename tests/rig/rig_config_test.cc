@@ -82,6 +82,18 @@ TEST(LoadRigConfig, SensorFeedbackNeedsTheRegister) {
   EXPECT_THAT(config.status().message(), HasSubstr("oscillation_frequency"));
 }
 
+TEST(LoadRigConfig, WatchdogLongerThanTheDriveAllowsIsRefused) {
+  testing::TempDir dir;
+  std::string text = testing::ReadBytes(testing::RigConfigPath("delta-ms300"));
+  text.replace(text.find("../drives/delta_ms300.yaml"), 26, testing::DriveProfilePath("delta_ms300"));
+  text.replace(text.find("comm_watchdog_s: 1.0"), 20, "comm_watchdog_s: 150");
+  testing::WriteBytes(dir.Join("rig.yaml"), text);
+  auto config = LoadRigConfig(dir.Join("rig.yaml"));
+  ASSERT_FALSE(config.ok());
+  EXPECT_THAT(config.status().message(), HasSubstr("safety.comm_watchdog_s: 150 s is above the 100 s"));
+  EXPECT_THAT(config.status().message(), HasSubstr("Pr.09-03"));
+}
+
 TEST(LoadRigConfig, MissingProfileIsNamed) {
   testing::TempDir dir;
   std::string text = testing::ReadBytes(testing::RigConfigPath("sim-tcp"));

@@ -248,5 +248,27 @@ TEST(RigCommand, SetStatusStopWithConfig) {
   EXPECT_THAT(output, HasSubstr("limits.max_ramp_hz_per_s"));
 }
 
+TEST(RigServeSim, ServesTheRigConfigOnAFreePortUntilSigint) {
+  testing::TempDir dir;
+  Child server({testing::FacedynExecutable(), "rig", "serve-sim", "--config", testing::RigConfigPath("sim-tcp"),
+                "--tcp", "127.0.0.1:0", "--seconds", "30"},
+               dir.Join("serve.out"));
+  int port = 0;
+  const auto deadline = Clock::now() + std::chrono::seconds(10);
+  while (port == 0 && Clock::now() < deadline) {
+    const std::string out = testing::ReadBytes(dir.Join("serve.out"));
+    const size_t at = out.find("listening 127.0.0.1:");
+    if (at != std::string::npos) port = std::atoi(out.c_str() + at + 20);
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_GT(port, 0) << testing::ReadBytes(dir.Join("serve.out"));
+  std::string output;
+  ASSERT_EQ(RunFacedyn(fmt::format("rig status --profile {} --tcp 127.0.0.1:{} --json",
+                                   testing::DriveProfilePath("sim"), port), &output), 0) << output;
+  EXPECT_THAT(output, HasSubstr("\"running\": false"));
+  server.Signal(SIGINT);
+  EXPECT_EQ(server.Wait(5.0), 0);
+}
+
 }  // namespace
 }  // namespace facedyn

@@ -1,6 +1,7 @@
 #include "sim/drive_sim.h"
 
 #include <chrono>
+#include <cmath>
 #include <string>
 #include <thread>
 
@@ -116,6 +117,99 @@ TEST(DriveSim, WatchdogStopsMotorWhenClientGoesSilent) {
   EXPECT_FALSE(status->running);
   EXPECT_EQ(status->fault_code, 10);
   EXPECT_EQ(status->output_hz, 0.0);
+}
+
+TEST(DriveModel, PlatformFollowsRatioAndLoadDependentSlip) {
+  DriveModelOptions options;
+  options.accel_hz_per_s = 100.0;
+  options.platform_ratio = 0.5;
+  options.slip_base = 0.01;
+  options.slip_load = 0.04;
+  options.slip_reference_hz = 20.0;
+  options.sensor_noise_hz = 0.0;
+  DriveModel model(options);
+  model.SetSetpointHz(20.0);
+  model.Run();
+  for (int i = 0; i < 200; ++i) model.Advance(0.005);
+  EXPECT_NEAR(model.state().output_hz, 20.0, 1e-12);
+  EXPECT_NEAR(model.SlipAt(20.0), 0.05, 1e-12);
+  EXPECT_NEAR(model.SlipAt(10.0), 0.02, 1e-12);
+  EXPECT_NEAR(model.state().platform_hz, 20.0 * 0.5 * 0.95, 1e-12);
+}
+
+TEST(DriveModel, SensorReportsTheMeanFrequencyOverItsWindow) {
+  DriveModelOptions options;
+  options.accel_hz_per_s = 1000.0;  // steps, so the window average is easy to predict
+  options.slip_base = 0.0;
+  options.slip_load = 0.0;
+  options.sensor_window_s = 0.5;
+  options.sensor_noise_hz = 0.0;
+  DriveModel model(options);
+  model.SetSetpointHz(8.0);
+  model.Run();
+  for (int i = 0; i < 200; ++i) model.Advance(0.005);  // 1 s at 8 Hz
+  EXPECT_NEAR(model.state().sensor_hz, 8.0, 1e-3);
+  model.SetSetpointHz(10.0);
+  for (int i = 0; i < 50; ++i) model.Advance(0.005);  // 0.25 s at 10 Hz: half the window
+  EXPECT_NEAR(model.state().platform_hz, 10.0, 1e-12);
+  EXPECT_NEAR(model.state().sensor_hz, 9.0, 0.03);
+  for (int i = 0; i < 60; ++i) model.Advance(0.005);
+  EXPECT_NEAR(model.state().sensor_hz, 10.0, 1e-3);
+}
+
+TEST(DriveModel, SensorNoiseHasTheConfiguredSpread) {
+  DriveModelOptions options;
+  options.accel_hz_per_s = 1000.0;
+  options.sensor_noise_hz = 0.01;
+  DriveModel model(options);
+  model.SetSetpointHz(9.0);
+  model.Run();
+  for (int i = 0; i < 200; ++i) model.Advance(0.005);
+  double sum = 0.0, sum_sq = 0.0;
+  const int n = 4000;
+  for (int i = 0; i < n; ++i) {
+    model.Advance(0.005);
+    const double e = model.state().sensor_hz - model.state().platform_hz;
+    sum += e;
+    sum_sq += e * e;
+  }
+  const double mean = sum / n;
+  EXPECT_NEAR(mean, 0.0, 0.001);
+  EXPECT_NEAR(std::sqrt(sum_sq / n - mean * mean), 0.01, 0.001);
+}
+
+TEST(DriveModel, ScheduledTripFiresAfterRunningTime) {
+  DriveModelOptions options;
+  DriveModel model(options);
+  model.SetSetpointHz(8.0);
+  model.ScheduleTrip(0.5, 2);
+  model.Advance(1.0);  // not running: the trip clock does not advance
+  EXPECT_EQ(model.state().fault_code, 0);
+  model.Run();
+  model.Advance(0.4);
+  EXPECT_EQ(model.state().fault_code, 0);
+  model.Advance(0.2);
+  EXPECT_EQ(model.state().fault_code, 2);
+  EXPECT_EQ(model.state().output_hz, 0.0);
+}
+
+TEST(ParseDriveModelOptions, ReadsFieldsAndNamesBadOnes) {
+  auto node = ConfigNode::Parse("sim:\n  accel_hz_per_s: 7\n  slip_load: 0.05\n  seed: 3\n", "rig.yaml");
+  ASSERT_TRUE(node.ok());
+  DriveModelOptions options;
+  ASSERT_TRUE(ParseDriveModelOptions(*node->Child("sim"), &options).ok());
+  EXPECT_EQ(options.accel_hz_per_s, 7.0);
+  EXPECT_EQ(options.slip_load, 0.05);
+  EXPECT_EQ(options.seed, 3u);
+  for (const char* bad : {"sim:\n  slip: 0.1\n", "sim:\n  slip_base: 0.9\n", "sim:\n  sensor_window_s: x\n"}) {
+    SCOPED_TRACE(bad);
+    auto parsed = ConfigNode::Parse(bad, "rig.yaml");
+    ASSERT_TRUE(parsed.ok());
+    DriveModelOptions o;
+    const Status status = ParseDriveModelOptions(*parsed->Child("sim"), &o);
+    ASSERT_FALSE(status.ok());
+    EXPECT_THAT(status.message(), ::testing::HasSubstr("rig.yaml:2: field 'sim."));
+  }
 }
 
 TEST(DriveSim, OptionsCheckNamesField) {

@@ -1,0 +1,491 @@
+// `facedyn capture` and `facedyn session check`: multi-view capture sessions.
+//
+//   facedyn capture --config CAPTURE.yaml --session DIR --take NAME [--json]
+//       sets the platform (when the config names a rig; a simulated rig's drive can be served
+//       in-process), waits for it to settle, records one take from every camera on one
+//       trigger, stops the platform.
+//   facedyn capture --config CAPTURE.yaml --session DIR --sweep SWEEP.yaml [--resume] [--json]
+//       the capture step of a frequency sweep: the rig's sweep runner (rig/sweep.h) moves the
+//       platform step by step and one take is recorded per step, once the step has settled.
+//   facedyn session check DIR [--json]
+//       what is complete in a session and what is not (exit 1 when anything is incomplete).
+
+#include "app/capture_demo.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <condition_variable>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "app/command.h"
+#include "capture/aravis_camera.h"
+#include "capture/capture_config.h"
+#include "capture/opencv_camera.h"
+#include "capture/session.h"
+#include "capture/session_runner.h"
+#include "capture/trigger.h"
+#include "core/file_util.h"
+#include "rig/drive_client.h"
+#include "rig/modbus_transport.h"
+#include "rig/rig_config.h"
+#include "rig/session_log.h"
+#include "rig/stop_signal.h"
+#include "rig/supervisor.h"
+#include "rig/sweep.h"
+#include "sim/drive_sim.h"
+#include "sim/expressions.h"
+#include "sim/sim_capture.h"
+
+namespace facedyn::app {
+
+namespace {
+
+std::vector<capture::SessionCameraInfo> CameraInfos(const capture::CaptureConfig& config) {
+  std::vector<capture::SessionCameraInfo> infos;
+  const int count = config.backend == "sim" ? static_cast<int>(config.cameras.size())
+                    : config.backend == "opencv" ? static_cast<int>(config.sources.size())
+                                                 : static_cast<int>(config.devices.size());
+  for (int k = 0; k < count; ++k) {
+    capture::SessionCameraInfo info;
+    info.name = k < static_cast<int>(config.cameras.size()) ? config.cameras[k].name : "cam" + std::to_string(k);
+    info.backend = config.backend;
+    const capture::CameraSettings settings = config.SettingsFor(k);
+    info.width_px = settings.width_px;
+    info.height_px = settings.height_px;
+    info.pixel_format = capture::PixelFormatName(config.pixel_format);
+    infos.push_back(info);
+  }
+  return infos;
+}
+
+// The platform for the duration of a command: an optional in-process simulated drive, the
+// rig's supervisor, and its journal in the session folder.
+struct Platform {
+  std::unique_ptr<sim::DriveSim> drive_sim;
+  rig::RigConfig rig;
+  std::unique_ptr<rig::SessionLog> log;
+  std::unique_ptr<rig::RigSupervisor> supervisor;
+};
+
+Status StartPlatform(const capture::CaptureConfig& config, const std::string& rig_path,
+                     Platform* platform) {
+  FACEDYN_ASSIGN_OR_RETURN(platform->rig, rig::LoadRigConfig(rig_path));
+  if (config.platform.start_simulated_drive) {
+    rig::DriveProfile profile;
+    sim::DriveSimOptions sim_options;
+    FACEDYN_RETURN_IF_ERROR(sim::LoadDriveSimFromRig(rig_path, &profile, &sim_options));
+    if (platform->rig.transport.kind != rig::TransportOptions::Kind::kTcp) {
+      return InvalidArgumentError(rig_path + ": start_simulated_drive needs a Modbus TCP rig (e.g. config/rigs/sim-tcp.yaml)");
+    }
+    sim_options.host = "127.0.0.1";
+    sim_options.port = 0;  // a free loopback port: never collides with a running serve-sim
+    FACEDYN_ASSIGN_OR_RETURN(platform->drive_sim, sim::DriveSim::Start(profile, sim_options));
+    platform->rig.transport.host = "127.0.0.1";
+    platform->rig.transport.port = platform->drive_sim->port();
+    spdlog::info("capture: simulated drive ({}) on {}", profile.name, platform->drive_sim->Describe());
+  }
+  return Status::Ok();
+}
+
+Status ConnectSupervisor(const std::string& session_dir, Platform* platform, const std::atomic<bool>* stop) {
+  FACEDYN_ASSIGN_OR_RETURN(platform->log, rig::SessionLog::Open(JoinPath(session_dir, "rig_log.jsonl")));
+  FACEDYN_ASSIGN_OR_RETURN(platform->supervisor, rig::RigSupervisor::Connect(platform->rig, platform->log.get(), stop));
+  return platform->supervisor->Arm();
+}
+
+// Keeps the drive link alive while the simulation prepares, ground truth is written and the
+// take renders (a virtual-clock take runs slower than real time): the drive-side comm
+// watchdog would otherwise stop the platform. Reads go through `read` under `mutex`, which the
+// take's telemetry sampler shares.
+class Heartbeat {
+ public:
+  Heartbeat(std::function<Status()> read, std::mutex* mutex, double period_s)
+      : read_(std::move(read)), mutex_(mutex), period_s_(period_s) {
+    thread_ = std::thread([this] {
+      std::unique_lock<std::mutex> lock(wait_mutex_);
+      while (!stop_) {
+        wake_.wait_for(lock, std::chrono::duration<double>(period_s_), [this] { return stop_; });
+        if (stop_) break;
+        std::lock_guard<std::mutex> link(*mutex_);
+        Status status = read_();
+        if (!status.ok() && error_.ok()) error_ = status;
+      }
+    });
+  }
+  ~Heartbeat() {
+    {
+      std::lock_guard<std::mutex> lock(wait_mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    thread_.join();
+  }
+  Heartbeat(const Heartbeat&) = delete;
+  Heartbeat& operator=(const Heartbeat&) = delete;
+
+ private:
+  std::function<Status()> read_;
+  std::mutex* mutex_;
+  double period_s_;
+  std::mutex wait_mutex_;
+  std::condition_variable wake_;
+  bool stop_ = false;
+  Status error_;
+  std::thread thread_;
+};
+
+struct TakeInputs {
+  std::string name;
+  double platform_hz = 0.0;           // true platform frequency for the simulated face (0: config's)
+  std::string expression;             // "" = the config's
+  std::function<StatusOr<capture::TelemetrySample>()> telemetry;  // called under link_mutex
+  std::mutex* link_mutex = nullptr;
+  Json extra = Json::object();
+};
+
+struct TakeOutput {
+  capture::TakeReport report;
+  double render_fps = 0.0;
+  double simulate_s = 0.0;
+};
+
+StatusOr<TakeOutput> CaptureTake(const capture::CaptureConfig& config, capture::SessionWriter* session,
+                                 const TakeInputs& inputs, const std::atomic<bool>* stop) {
+  TakeOutput output;
+  std::unique_ptr<Heartbeat> heartbeat;
+  if (inputs.telemetry) {
+    heartbeat = std::make_unique<Heartbeat>([&inputs] { return inputs.telemetry().status(); }, inputs.link_mutex,
+                                            config.platform.telemetry_period_s);
+  }
+  std::vector<std::unique_ptr<capture::Camera>> owned;
+  std::unique_ptr<sim::SimulatedStage> stage;
+  sim::SimCaptureOptions sim_options;
+  const int64_t triggers = config.TriggerCount();
+  if (config.backend == "sim") {
+    FACEDYN_ASSIGN_OR_RETURN(sim_options, sim::ParseSimCaptureOptions(*config.sim, std::filesystem::path(config.source_path).parent_path().string()));
+    if (!inputs.expression.empty()) sim_options.performance.expression = inputs.expression;
+    spdlog::info("capture: simulating {} s of '{}' on the platform at {:.3f} Hz", triggers / config.fps,
+                 sim_options.performance.expression, inputs.platform_hz > 0 ? inputs.platform_hz : sim_options.performance.motion.platform_hz);
+    FACEDYN_ASSIGN_OR_RETURN(sim::SimulatedStage prepared, sim::PrepareSimulatedStage(sim_options, config.cameras, config.fps, triggers, inputs.platform_hz));
+    stage = std::make_unique<sim::SimulatedStage>(std::move(prepared));
+    output.simulate_s = stage->simulate_s;
+  } else if (config.backend == "opencv") {
+    for (size_t k = 0; k < config.sources.size(); ++k) {
+      owned.push_back(std::make_unique<capture::OpenCvCamera>(static_cast<int>(k), CameraInfos(config)[k].name, config.sources[k]));
+    }
+  } else {
+    for (size_t k = 0; k < config.devices.size(); ++k) {
+      owned.push_back(std::make_unique<capture::AravisCamera>(static_cast<int>(k), CameraInfos(config)[k].name, config.devices[k]));
+    }
+  }
+  std::vector<capture::Camera*> cameras;
+  if (stage) {
+    for (auto& camera : stage->cameras) cameras.push_back(camera.get());
+  } else {
+    for (auto& camera : owned) cameras.push_back(camera.get());
+  }
+  for (size_t k = 0; k < cameras.size(); ++k) {
+    capture::CameraSettings settings = config.SettingsFor(static_cast<int>(k));
+    if (settings.width_px == 0) return InvalidArgumentError(config.source_path + ": camera " + std::to_string(k) + " has no size (give cameras.calibration)");
+    FACEDYN_RETURN_IF_ERROR(cameras[k]->Configure(settings));
+  }
+  capture::TakeOptions options;
+  options.name = inputs.name;
+  options.triggers = triggers;
+  options.recorder = config.recorder;
+  options.timestamp_tolerance_ns = config.timestamp_tolerance_ns;
+  if (inputs.telemetry) {
+    options.telemetry = [&inputs]() {
+      std::lock_guard<std::mutex> lock(*inputs.link_mutex);
+      return inputs.telemetry();
+    };
+  }
+  options.telemetry_period_s = config.platform.telemetry_period_s;
+  options.stop_requested = stop;
+  options.extra = inputs.extra;
+  options.extra["config"] = config.source_path;
+  options.extra["backend"] = config.backend;
+  options.extra["exposure_us"] = config.exposure_us;
+  options.extra["backpressure"] = capture::BackpressurePolicyName(config.recorder.policy);
+  if (stage) {
+    options.extra["ground_truth"] = "ground_truth";
+    options.extra["platform_hz_true"] = stage->platform_hz;
+    options.before_first_trigger = [&](const std::string& take_dir) {
+      return sim::WriteGroundTruth(*stage, sim_options, config.cameras, take_dir);
+    };
+  }
+  capture::VirtualTrigger trigger({config.fps, config.trigger_pace});
+  FACEDYN_ASSIGN_OR_RETURN(output.report, capture::RecordTake(session, cameras, &trigger, options));
+  if (stage) {
+    double render_s = 0.0;
+    for (auto& camera : stage->cameras) render_s += camera->render_s();
+    int64_t frames = 0;
+    for (const auto& camera : output.report.result.cameras) frames += camera.record.frames_written;
+    output.render_fps = render_s > 0 ? frames / render_s : 0.0;  // per rendering thread
+  }
+  return output;
+}
+
+Json TakeJson(const TakeOutput& output) {
+  Json json = capture::TakeResultToJson("", output.report.result);
+  json.erase("name");
+  json["take_dir"] = output.report.take_dir;
+  json["wall_s"] = output.report.wall_s;
+  json["megabytes_written"] = output.report.bytes_written / 1e6;
+  json["megabytes_per_s"] = output.report.MegabytesPerSecond();
+  if (output.render_fps > 0) json["render_frames_per_s_per_thread"] = output.render_fps;
+  if (output.simulate_s > 0) json["simulate_s"] = output.simulate_s;
+  return json;
+}
+
+void PrintTake(const std::string& name, const TakeOutput& output) {
+  const capture::TakeResult& r = output.report.result;
+  std::printf("take %s: %s, %lld of %lld triggers at %.0f fps, %.1f MB in %.1f s (%.1f MB/s)\n", name.c_str(),
+              r.status.c_str(), static_cast<long long>(r.triggers_emitted), static_cast<long long>(r.triggers_requested), r.fps,
+              output.report.bytes_written / 1e6, output.report.wall_s, output.report.MegabytesPerSecond());
+  for (const capture::TakeCameraResult& camera : r.cameras) {
+    std::printf("  %-6s %5lld frames  missing %lld  duplicated %lld  out-of-order %lld  ts-mismatch %lld (max %.1f us)  dropped %lld\n",
+                camera.name.c_str(), static_cast<long long>(camera.record.frames_written), static_cast<long long>(camera.sync.missing),
+                static_cast<long long>(camera.sync.duplicated), static_cast<long long>(camera.sync.out_of_order),
+                static_cast<long long>(camera.sync.timestamp_mismatch), camera.sync.max_timestamp_error_ns / 1e3,
+                static_cast<long long>(camera.record.dropped_queue_full));
+  }
+  if (!r.reason.empty()) std::printf("  reason: %s\n", r.reason.c_str());
+  if (output.render_fps > 0) std::printf("  renderer: %.1f frames/s per thread\n", output.render_fps);
+}
+
+struct CaptureCommandOptions {
+  std::string config;
+  std::string session;
+  std::string take;
+  std::string sweep;
+  bool resume = false;
+  bool json = false;
+};
+
+StatusOr<std::unique_ptr<capture::SessionWriter>> OpenSession(const capture::CaptureConfig& config, const std::string& dir) {
+  Json rig{{"capture_config", config.source_path}, {"name", config.name}, {"backend", config.backend},
+           {"fps", config.fps}, {"trigger", {{"kind", "virtual"}, {"pace", config.trigger_pace}}}};
+  if (!config.platform.rig_path.empty()) rig["rig"] = config.platform.rig_path;
+  FACEDYN_ASSIGN_OR_RETURN(auto session, capture::SessionWriter::Open(dir, "virtual", CameraInfos(config), rig));
+  if (!config.cameras.empty()) {
+    FACEDYN_RETURN_IF_ERROR(capture::WriteCameraModels(JoinPath(dir, "calibration.yaml"), config.cameras));
+    FACEDYN_RETURN_IF_ERROR(session->SetCalibration("calibration.yaml"));
+  }
+  return session;
+}
+
+Status RunCaptureCommand(const CaptureCommandOptions& options) {
+  FACEDYN_ASSIGN_OR_RETURN(const capture::CaptureConfig config, capture::LoadCaptureConfig(options.config));
+  if (options.take.empty() == options.sweep.empty()) return InvalidArgumentError("give exactly one of --take NAME and --sweep SWEEP.yaml");
+  if (!options.take.empty() && !capture::IsValidTakeName(options.take)) {
+    return InvalidArgumentError("--take '" + options.take + "': use letters, digits, '_', '-', '.' (not first)");
+  }
+  const std::atomic<bool>* stop = rig::InstallStopSignalHandlers();
+  FACEDYN_ASSIGN_OR_RETURN(auto session, OpenSession(config, options.session));
+
+  std::mutex link_mutex;  // serialises the drive link between the heartbeat and telemetry
+  if (!options.take.empty()) {
+    TakeInputs inputs;
+    inputs.name = options.take;
+    Platform platform;
+    if (!config.platform.rig_path.empty()) {
+      FACEDYN_RETURN_IF_ERROR(StartPlatform(config, config.platform.rig_path, &platform));
+      FACEDYN_RETURN_IF_ERROR(ConnectSupervisor(options.session, &platform, stop));
+      FACEDYN_RETURN_IF_ERROR(platform.supervisor->SetTargetHz(config.platform.hz));
+      (void)session->events().Append({{"event", "rig_set"}, {"hz", config.platform.hz}});
+      spdlog::info("capture: platform to {:.2f} Hz, waiting for it to settle", config.platform.hz);
+      FACEDYN_RETURN_IF_ERROR(platform.supervisor->WaitSettled(config.platform.settle_timeout_s));
+      const rig::PlatformReading settled = platform.supervisor->last();
+      (void)session->events().Append({{"event", "rig_settled"}, {"measured_hz", settled.measured_hz}, {"target_hz", config.platform.hz}});
+      inputs.platform_hz = platform.drive_sim ? platform.drive_sim->state().platform_hz : settled.measured_hz;
+      inputs.extra["platform"] = {{"target_hz", config.platform.hz}, {"measured_hz_at_start", settled.measured_hz},
+                                  {"rig", config.platform.rig_path}};
+      inputs.link_mutex = &link_mutex;
+      rig::RigSupervisor* supervisor = platform.supervisor.get();
+      inputs.telemetry = [supervisor]() -> StatusOr<capture::TelemetrySample> {
+        FACEDYN_ASSIGN_OR_RETURN(const rig::PlatformReading reading, supervisor->ReadOnce());
+        capture::TelemetrySample sample;
+        sample.running = reading.running;
+        sample.faulted = reading.faulted;
+        sample.output_hz = reading.output_hz;
+        sample.measured_hz = reading.measured_hz;
+        sample.target_hz = reading.target_hz;
+        sample.state = rig::RigStateName(supervisor->state());
+        return sample;
+      };
+    }
+    auto output = CaptureTake(config, session.get(), inputs, stop);
+    if (platform.supervisor) {
+      Status stopped = platform.supervisor->RampToStop("take " + options.take + " done");
+      (void)session->events().Append({{"event", "rig_stop"}, {"ok", stopped.ok()}});
+      (void)platform.supervisor->Close();
+      if (!stopped.ok() && output.ok()) return stopped;
+    }
+    if (!output.ok()) return output.status();
+    if (options.json) {
+      std::printf("%s\n", TakeJson(*output).dump(2).c_str());
+    } else {
+      PrintTake(options.take, *output);
+    }
+    if (output->report.result.status != "complete") {
+      return AbortedError("take " + options.take + " is incomplete: " + output->report.result.reason);
+    }
+    return Status::Ok();
+  }
+
+  // One take per sweep step.
+  FACEDYN_ASSIGN_OR_RETURN(const rig::SweepScript script, rig::LoadSweepScript(options.sweep));
+  const std::string rig_path = !config.platform.rig_path.empty() ? config.platform.rig_path : script.rig_path;
+  if (rig_path.empty()) return InvalidArgumentError("--sweep: neither the capture config's platform.rig nor the sweep names a rig");
+  Platform platform;
+  FACEDYN_RETURN_IF_ERROR(StartPlatform(config, rig_path, &platform));
+  if (platform.rig.transport.kind != rig::TransportOptions::Kind::kTcp) {
+    // The sweep runner owns the drive link; telemetry during a take needs a second client.
+    return InvalidArgumentError(rig_path + ": capture during a sweep needs a Modbus TCP rig (telemetry uses a second connection)");
+  }
+  FACEDYN_ASSIGN_OR_RETURN(auto transport, rig::ModbusTransport::Open(platform.rig.transport));
+  rig::DriveClient telemetry_client(transport.get(), platform.rig.profile, platform.rig.MotorLimits());
+  Json takes = Json::array();
+  rig::SweepOptions sweep_options;
+  sweep_options.session_dir = options.session;
+  sweep_options.resume = options.resume;
+  sweep_options.stop_requested = stop;
+  sweep_options.print_prompts = !options.json;
+  bool all_complete = true;
+  sweep_options.hooks.on_hold_start = [&](const rig::SweepStepInfo& info) -> Status {
+    std::string prompt;
+    for (char c : info.spec.prompt) prompt += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+    std::string name = fmt::format("step{:02d}_{:.2f}hz{}{}", info.instance + 1, info.spec.hz, prompt.empty() ? "" : "_", prompt);
+    for (int retry = 2; std::filesystem::exists(session->TakeDir(name)); ++retry) {
+      name = fmt::format("step{:02d}_{:.2f}hz{}{}_retry{}", info.instance + 1, info.spec.hz, prompt.empty() ? "" : "_", prompt, retry);
+    }
+    TakeInputs inputs;
+    inputs.name = name;
+    inputs.platform_hz = platform.drive_sim ? platform.drive_sim->state().platform_hz : info.spec.hz;
+    const std::vector<std::string> expressions = sim::ExpressionNames();
+    if (std::find(expressions.begin(), expressions.end(), info.spec.prompt) != expressions.end()) {
+      inputs.expression = info.spec.prompt;  // the prompt names an expression: the face holds it
+    }
+    inputs.extra["sweep"] = {{"script", script.name}, {"instance", info.instance}, {"target_hz", info.spec.hz}, {"prompt", info.spec.prompt}};
+    inputs.link_mutex = &link_mutex;
+    inputs.telemetry = [&telemetry_client]() -> StatusOr<capture::TelemetrySample> {
+      FACEDYN_ASSIGN_OR_RETURN(const rig::DriveStatus status, telemetry_client.ReadStatus());
+      capture::TelemetrySample sample;
+      sample.running = status.running;
+      sample.faulted = status.faulted;
+      sample.output_hz = status.output_hz;
+      sample.measured_hz = std::nan("");
+      sample.state = status.faulted ? "faulted" : status.running ? "running" : "stopped";
+      return sample;
+    };
+    FACEDYN_ASSIGN_OR_RETURN(const TakeOutput output, CaptureTake(config, session.get(), inputs, stop));
+    if (!options.json) PrintTake(name, output);
+    Json entry = TakeJson(output);
+    entry["name"] = name;
+    takes.push_back(entry);
+    if (output.report.result.status != "complete") {
+      all_complete = false;
+      return AbortedError("take " + name + " is incomplete: " + output.report.result.reason);
+    }
+    return Status::Ok();
+  };
+  auto result = rig::RunSweep(script, platform.rig, sweep_options);
+  if (options.json) std::printf("%s\n", Json{{"takes", takes}, {"complete", result.ok() && all_complete}}.dump(2).c_str());
+  if (!result.ok()) return result.status();
+  return Status::Ok();
+}
+
+Status RunSessionCheck(const std::string& dir, bool json) {
+  FACEDYN_ASSIGN_OR_RETURN(const capture::SessionCheck check, capture::CheckSession(dir));
+  if (json) {
+    std::printf("%s\n", check.ToJson().dump(2).c_str());
+  } else {
+    std::printf("%s", check.ToText().c_str());
+  }
+  if (!check.Complete()) {
+    int incomplete = 0;
+    for (const auto& take : check.takes) incomplete += !take.complete;
+    return FailedPreconditionError(fmt::format("session {}: {} of {} take(s) incomplete{}", dir, incomplete, check.takes.size(),
+                                               check.events_problem.empty() ? "" : "; events.jsonl: " + check.events_problem));
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+void AddCaptureCommands(CLI::App& app, CommandRunner* selected) {
+  auto options = std::make_shared<CaptureCommandOptions>();
+  auto* capture = app.add_subcommand("capture", "Record a multi-view take (or one take per sweep step) into a session folder");
+  capture->add_option("--config", options->config, "CAPTURE.yaml (config/capture/)")->required();
+  capture->add_option("--session", options->session, "Session folder (created, or appended to)")->required();
+  capture->add_option("--take", options->take, "Take name (never overwritten)");
+  capture->add_option("--sweep", options->sweep, "SWEEP.yaml: record one take per sweep step instead");
+  capture->add_flag("--resume", options->resume, "With --sweep: continue an interrupted sweep");
+  capture->add_flag("--json", options->json, "Print the take report as JSON");
+  capture->callback([options, selected] { *selected = [options] { return RunCaptureCommand(*options); }; });
+
+  auto* session = app.add_subcommand("session", "Capture session folders");
+  session->require_subcommand(1);
+  auto dir = std::make_shared<std::string>();
+  auto json = std::make_shared<bool>(false);
+  auto* check = session->add_subcommand("check", "Report which takes of a session are complete (exit 1 if any is not)");
+  check->add_option("DIR", *dir, "Session folder")->required();
+  check->add_flag("--json", *json, "JSON output");
+  check->callback([dir, json, selected] { *selected = [dir, json] { return RunSessionCheck(*dir, *json); }; });
+}
+
+// ------------------------------------------------------------------------------- demo stage
+
+Status RunCaptureDemoStage(const std::string& out_dir, bool quick, Json* metrics) {
+  // A small simulated rig in code, so the demo needs no config files: 3 cameras (quick) or 8.
+  capture::CameraRing ring;
+  ring.count = quick ? 3 : 8;
+  ring.width_px = quick ? 640 : 1280;
+  ring.height_px = quick ? 512 : 1024;
+  ring.focal_px = quick ? 1800 : 3600;
+  ring.span_deg = quick ? 90 : 150;
+  ring.k1 = -0.05;
+  capture::CaptureConfig config;
+  config.name = quick ? "demo-sim3" : "demo-sim8";
+  config.source_path = "(demo)";
+  config.fps = 128.0;
+  config.duration_s = quick ? 0.25 : 1.0;
+  config.exposure_us = 2000;
+  config.cameras = ring.Cameras();
+  config.sim = ConfigNode::Parse("{face: procedural, expression: smile, motion: platform, platform_hz: 8, amplitude_mm: 2}", "(demo sim)").value();
+  FACEDYN_RETURN_IF_ERROR(config.Check());
+  const std::string session_dir = JoinPath(out_dir, "capture-session");
+  std::error_code ec;
+  std::filesystem::remove_all(session_dir, ec);  // the demo's own folder, replaced each run
+  FACEDYN_ASSIGN_OR_RETURN(auto session, OpenSession(config, session_dir));
+  TakeInputs inputs;
+  inputs.name = "smile_8hz";
+  FACEDYN_ASSIGN_OR_RETURN(const TakeOutput output, CaptureTake(config, session.get(), inputs, nullptr));
+  FACEDYN_ASSIGN_OR_RETURN(const capture::SessionCheck check, capture::CheckSession(session_dir));
+  std::printf("\nCapture: simulated %d-camera rig (%dx%d at %.0f fps), session %s\n", ring.count, ring.width_px, ring.height_px,
+              config.fps, session_dir.c_str());
+  PrintTake(inputs.name, output);
+  std::printf("  session check: %s\n", check.Complete() ? "complete" : "INCOMPLETE");
+  if (metrics != nullptr) {
+    *metrics = TakeJson(output);
+    (*metrics)["cameras"] = ring.count;
+    (*metrics)["session"] = session_dir;
+    (*metrics)["session_complete"] = check.Complete();
+  }
+  if (output.report.result.status != "complete" || !check.Complete()) {
+    return InternalError("capture demo: the simulated take is incomplete: " + output.report.result.reason);
+  }
+  return Status::Ok();
+}
+
+}  // namespace facedyn::app

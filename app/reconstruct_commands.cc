@@ -1,0 +1,142 @@
+// `facedyn reconstruct`: a recorded take of a capture session -> a Take (meshes in the
+// FaceRig's topology plus world_from_skull per frame) and a per-frame quality report.
+
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "app/command.h"
+#include "core/face_rig.h"
+#include "core/json_io.h"
+#include "core/take.h"
+#include "reconstruct/pipeline.h"
+#include "reconstruct/session_input.h"
+#include "sim/procedural_face.h"
+
+namespace facedyn::app {
+
+void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
+  struct ReconstructOptions {
+    std::string session;
+    std::string take;
+    std::string out;
+    std::string face = "procedural";
+    std::string calibration;
+    double marker_diameter_px = 8.0;
+    bool bright = false;
+    bool json = false;
+  };
+  auto options = std::make_shared<ReconstructOptions>();
+  auto* command = app.add_subcommand(
+      "reconstruct",
+      "Reconstruct a recorded take: marker detection, triangulation, labelling, skull pose and "
+      "dense fit -> a Take, plus TAKE/reconstruction.json (per-frame quality)");
+  command->add_option("--session", options->session, "Capture session folder")->required();
+  command->add_option("--take", options->take, "Take name in the session")->required();
+  command->add_option("--out", options->out, "Output take folder")->required();
+  command->add_option("--face", options->face,
+                      "FaceRig folder of the subject, or \"procedural\" (the built-in face)")
+      ->capture_default_str();
+  command->add_option("--calibration", options->calibration,
+                      "Calibration YAML (default: the session's calibration.yaml)");
+  command->add_option("--marker-diameter-px", options->marker_diameter_px,
+                      "Typical marker diameter in the images (tunes the detector)")
+      ->capture_default_str();
+  command->add_flag("--bright-markers", options->bright, "Markers brighter than the skin");
+  command->add_flag("--json", options->json, "Print the summary as JSON on stdout");
+  command->callback([options, selected] {
+    *selected = [options]() -> Status {
+      FaceRig rig;
+      if (options->face == "procedural") {
+        FACEDYN_ASSIGN_OR_RETURN(rig, sim::MakeProceduralFace(sim::ProceduralFaceOptions()));
+      } else {
+        FACEDYN_ASSIGN_OR_RETURN(rig, LoadFaceRig(options->face));
+      }
+      reconstruct::SessionInputOptions input_options;
+      input_options.calibration_path = options->calibration;
+      auto& detection = input_options.detection;
+      detection.polarity =
+          options->bright ? reconstruct::MarkerPolarity::kBright : reconstruct::MarkerPolarity::kDark;
+      if (!(options->marker_diameter_px >= 2.0 && options->marker_diameter_px <= 100.0)) {
+        return InvalidArgumentError("--marker-diameter-px must be in [2, 100], got " +
+                                    std::to_string(options->marker_diameter_px));
+      }
+      detection.expected_diameter_px = options->marker_diameter_px;
+      detection.min_diameter_px = std::max(1.5, 0.4 * options->marker_diameter_px);
+      detection.max_diameter_px = 2.5 * options->marker_diameter_px;
+      FACEDYN_ASSIGN_OR_RETURN(
+          const reconstruct::SessionDetections input,
+          reconstruct::DetectSessionTake(options->session, options->take, input_options));
+      for (const std::string& problem : input.take_problems) spdlog::warn("{}", problem);
+      FACEDYN_ASSIGN_OR_RETURN(
+          reconstruct::Reconstruction result,
+          reconstruct::ReconstructTake(rig, input.cameras, input.detections, input.fps,
+                                       reconstruct::ReconstructionOptions()));
+      result.take.info.metadata["session"] = options->session;
+      result.take.info.metadata["session_take"] = options->take;
+      FACEDYN_RETURN_IF_ERROR(SaveTake(result.take, options->out));
+
+      Json report;
+      report["session"] = options->session;
+      report["take"] = options->take;
+      report["out"] = options->out;
+      report["cameras"] = Json::array();
+      for (const auto& camera : input.cameras) report["cameras"].push_back(camera.name);
+      report["take_problems"] = input.take_problems;
+      report["frames"] = result.take.frame_count();
+      report["seconds"] = {{"detect", input.detect_s},
+                           {"triangulate", result.timings.triangulate_s},
+                           {"track", result.timings.track_s},
+                           {"skull", result.timings.skull_s},
+                           {"dense", result.timings.dense_s}};
+      int problem_frames = 0;
+      double mean_reprojection = 0.0, mean_labelled = 0.0, mean_fit = 0.0;
+      for (size_t f = 0; f < result.quality.size(); ++f) {
+        const auto& q = result.quality[f];
+        std::string problem = q.problem;
+        for (const std::string& p : input.frame_problems[f]) {
+          problem += (problem.empty() ? "" : "; ") + p;
+        }
+        problem_frames += problem.empty() ? 0 : 1;
+        mean_reprojection += q.reprojection_rms_px / result.quality.size();
+        mean_labelled += static_cast<double>(q.labelled) / result.quality.size();
+        mean_fit += q.fit_marker_rms_mm / result.quality.size();
+        report["per_frame"].push_back({{"frame", q.frame},
+                                       {"detections", q.detections},
+                                       {"points", q.points},
+                                       {"reprojection_rms_px", q.reprojection_rms_px},
+                                       {"labelled", q.labelled},
+                                       {"bridged", q.bridged},
+                                       {"missing", q.missing},
+                                       {"unlabelled_points", q.unlabelled_points},
+                                       {"skull_rms_mm", q.skull_rms_mm},
+                                       {"fit_marker_rms_mm", q.fit_marker_rms_mm},
+                                       {"problem", problem}});
+      }
+      report["summary"] = {{"frames_with_problems", problem_frames},
+                           {"mean_reprojection_rms_px", mean_reprojection},
+                           {"mean_labelled_markers", mean_labelled},
+                           {"markers", rig.markers.size()},
+                           {"mean_fit_marker_rms_mm", mean_fit}};
+      FACEDYN_RETURN_IF_ERROR(WriteJsonFile(options->out + "/reconstruction.json", report));
+      if (options->json) {
+        Json brief = report;
+        brief.erase("per_frame");
+        std::printf("%s\n", brief.dump(2).c_str());
+      } else {
+        std::printf("reconstructed %d frames from %zu cameras -> %s\n"
+                    "  reprojection %.3f px, %.1f of %zu markers labelled per frame, fit %.3f mm; "
+                    "%d frames with problems (see %s/reconstruction.json)\n",
+                    result.take.frame_count(), input.cameras.size(), options->out.c_str(),
+                    mean_reprojection, mean_labelled, rig.markers.size(), mean_fit, problem_frames,
+                    options->out.c_str());
+      }
+      return Status::Ok();
+    };
+  });
+}
+
+}  // namespace facedyn::app

@@ -1,0 +1,374 @@
+// reconstruct_bench: speed and fidelity of reconstruction, as JSON on stdout.
+//
+//  - detection + triangulation, 8 cameras: rendered 1280x1024 marker images of a simulated
+//    face (painted disks projected through the cameras, lens blur, sensor noise), DetectMarkers
+//    on all 8 then TriangulateDetections; frames/s, 2D centre error and 3D marker error;
+//  - the full take pipeline (triangulation, tracking, skull pose, dense fit) on a simulated
+//    11 Hz take through the same cameras at 0.2 px detection noise; dense-fit frames/s, skull
+//    pose error, 344-sample error, dynamic-offset correlation;
+//  - calibration: the 13 OpenCV photographs in ../shared/assets/opencv-calib against
+//    cv::calibrateCamera on the same corners (when present), and a synthetic 4-camera rig.
+//
+//   reconstruct_bench [--shared DIR] [--frames N] [--seconds S]
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/json_io.h"
+#include "core/progress.h"
+#include "reconstruct/board.h"
+#include "reconstruct/calibration.h"
+#include "reconstruct/marker_detection.h"
+#include "reconstruct/pipeline.h"
+#include "reconstruct/synthetic_views.h"
+#include "reconstruct/triangulation.h"
+#include "sim/performance.h"
+#include "sim/procedural_face.h"
+
+namespace {
+
+using facedyn::Json;
+using namespace facedyn::reconstruct;
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point a) { return std::chrono::duration<double>(Clock::now() - a).count(); }
+
+// One camera image of the markers on `skin`: disks of the markers' diameter, dark on skin.
+cv::Mat RenderMarkers(const facedyn::FaceRig& rig, const Camera& camera,
+                      const Eigen::Matrix3Xd& markers, const Eigen::Matrix3Xd& normals,
+                      std::mt19937* rng) {
+  std::vector<std::vector<Eigen::Vector2d>> disks;
+  for (int m = 0; m < markers.cols(); ++m) {
+    const auto outline = ProjectDiskOutline(camera, markers.col(m), normals.col(m),
+                                            0.5 * rig.markers[m].diameter_mm);
+    if (outline.size() >= 3) disks.push_back(outline);
+  }
+  cv::Mat image = RenderPolygons(camera.width_px, camera.height_px, disks, 170, 40, 4);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.8);
+  AddImageNoise(2.0, rng, &image);
+  return image;
+}
+
+Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int frames) {
+  const std::vector<Camera> cameras = MakeFaceCameraRing(8);
+  std::mt19937 rng(1);
+  MarkerDetectionOptions detection;
+  detection.expected_diameter_px = 2.0 * 2200.0 / 600.0 * 1.0;  // 2 mm at 600 mm, f = 2200
+  detection.min_diameter_px = 3.0;
+  detection.max_diameter_px = 16.0;
+  double detect_s = 0.0, triangulate_s = 0.0, sq2d = 0.0, sq3d = 0.0;
+  int n2d = 0, n3d = 0, detections = 0, points = 0, visible = 0;
+  for (int k = 0; k < frames; ++k) {
+    const int f = (k * 7) % take.frame_count();
+    const Eigen::Matrix3Xd skin = take.FramePositions(f);
+    const Eigen::Matrix3Xd markers = MarkerPositions(rig, skin);
+    const Eigen::Matrix3Xd normals = MarkerNormals(rig, skin);
+    std::vector<cv::Mat> images;
+    for (const Camera& camera : cameras) images.push_back(RenderMarkers(rig, camera, markers, normals, &rng));
+    auto start = Clock::now();
+    std::vector<std::vector<ImageObservation>> observed(cameras.size());
+    for (size_t c = 0; c < cameras.size(); ++c) {
+      const auto found = DetectMarkers(images[c], detection);
+      if (!found.ok()) continue;
+      for (const MarkerDetection& d : *found) {
+        ImageObservation o;
+        o.camera = static_cast<int>(c);
+        o.detection = static_cast<int>(observed[c].size());
+        o.pixel = d.center_px;
+        o.weight = d.quality;
+        observed[c].push_back(o);
+      }
+    }
+    detect_s += Seconds(start);
+    start = Clock::now();
+    const auto triangulated = TriangulateDetections(cameras, observed, CorrespondenceOptions());
+    triangulate_s += Seconds(start);
+    // Accuracy against the truth: each detection to the nearest projected marker centre.
+    const MarkerViews truth = ProjectMarkers(cameras, markers, normals, 0.0, &rng);
+    for (size_t c = 0; c < cameras.size(); ++c) {
+      visible += static_cast<int>(truth.detections[c].size());
+      detections += static_cast<int>(observed[c].size());
+      for (const ImageObservation& o : observed[c]) {
+        double best = 1e9;
+        for (const ImageObservation& t : truth.detections[c]) best = std::min(best, (t.pixel - o.pixel).norm());
+        if (best < 2.0) {
+          sq2d += best * best;
+          ++n2d;
+        }
+      }
+    }
+    for (const TriangulatedPoint& p : triangulated) {
+      const double d = (markers.colwise() - p.position_in_world).colwise().norm().minCoeff();
+      if (d < 1.0) {
+        sq3d += d * d;
+        ++n3d;
+      }
+    }
+    points += static_cast<int>(triangulated.size());
+  }
+  Json out;
+  out["cameras"] = 8;
+  out["image_size"] = {1280, 1024};
+  out["frames"] = frames;
+  out["detect_ms_per_frame"] = 1e3 * detect_s / frames;
+  out["triangulate_ms_per_frame"] = 1e3 * triangulate_s / frames;
+  out["detect_triangulate_fps"] = frames / (detect_s + triangulate_s);
+  out["visible_markers_per_frame"] = static_cast<double>(visible) / frames;
+  out["detections_per_frame"] = static_cast<double>(detections) / frames;
+  out["centre_rms_px"] = std::sqrt(sq2d / std::max(1, n2d));
+  out["points_per_frame"] = static_cast<double>(points) / frames;
+  out["marker_rms_mm"] = std::sqrt(sq3d / std::max(1, n3d));
+  return out;
+}
+
+Json BenchPipeline(const facedyn::FaceRig& rig, const facedyn::Take& take) {
+  const std::vector<Camera> cameras = MakeFaceCameraRing(8);
+  std::mt19937 rng(2);
+  std::vector<std::vector<std::vector<ImageObservation>>> detections;
+  for (int f = 0; f < take.frame_count(); ++f) {
+    const Eigen::Matrix3Xd skin = take.FramePositions(f);
+    detections.push_back(
+        ProjectMarkers(cameras, MarkerPositions(rig, skin), MarkerNormals(rig, skin), 0.2, &rng)
+            .detections);
+  }
+  const auto start = Clock::now();
+  const auto result = ReconstructTake(rig, cameras, detections, take.info.fps, ReconstructionOptions());
+  const double total_s = Seconds(start);
+  Json out;
+  if (!result.ok()) {
+    out["error"] = result.status().message();
+    return out;
+  }
+  const auto& quasistatic = take.channels.at("quasistatic");
+  const int skip = static_cast<int>(std::lround(0.5 * take.info.fps));
+  double sq_sample = 0.0, sq_t = 0.0, sq_r = 0.0, max_t = 0.0, max_r = 0.0;
+  int n_sample = 0, n_pose = 0;
+  double sab = 0.0, saa = 0.0, sbb = 0.0, sa = 0.0, sb = 0.0;
+  long n_offset = 0;
+  for (int f = skip; f < take.frame_count(); ++f) {
+    const facedyn::Rigid3 difference = take.world_from_skull[f].Inverse() * result->take.world_from_skull[f];
+    const double t = difference.translation().norm(), r = difference.AngleRad() * 180.0 / M_PI;
+    sq_t += t * t;
+    sq_r += r * r;
+    max_t = std::max(max_t, t);
+    max_r = std::max(max_r, r);
+    ++n_pose;
+    const Eigen::Matrix3Xd fitted = rig.SamplePositions(result->take.FramePositions(f));
+    const Eigen::Matrix3Xd dynamic = rig.SamplePositions(take.FramePositions(f));
+    const Eigen::Matrix3Xd still = rig.SamplePositions(quasistatic.Frame(f).cast<double>());
+    sq_sample += (fitted - dynamic).colwise().squaredNorm().sum();
+    n_sample += static_cast<int>(fitted.cols());
+    const Eigen::Matrix3d rotation = take.world_from_skull[f].Inverse().RotationMatrix();
+    const Eigen::Matrix3Xd a = rotation * (fitted - still), b = rotation * (dynamic - still);
+    for (int i = 0; i < a.size(); ++i) {
+      sa += a.data()[i];
+      sb += b.data()[i];
+      sab += a.data()[i] * b.data()[i];
+      saa += a.data()[i] * a.data()[i];
+      sbb += b.data()[i] * b.data()[i];
+      ++n_offset;
+    }
+  }
+  const double cov = sab / n_offset - (sa / n_offset) * (sb / n_offset);
+  const double va = saa / n_offset - std::pow(sa / n_offset, 2), vb = sbb / n_offset - std::pow(sb / n_offset, 2);
+  const int frames = take.frame_count();
+  out["frames"] = frames;
+  out["cameras"] = 8;
+  out["detection_noise_px"] = 0.2;
+  out["total_s"] = total_s;
+  out["triangulate_fps"] = frames / result->timings.triangulate_s;
+  out["track_fps"] = frames / result->timings.track_s;
+  out["dense_fit_fps"] = frames / result->timings.dense_s;
+  out["skull_origin_rms_mm"] = std::sqrt(sq_t / n_pose);
+  out["skull_origin_max_mm"] = max_t;
+  out["skull_rotation_rms_deg"] = std::sqrt(sq_r / n_pose);
+  out["skull_rotation_max_deg"] = max_r;
+  out["sample_rms_mm"] = std::sqrt(sq_sample / n_sample);
+  out["dynamic_offset_correlation"] = cov / std::sqrt(va * vb);
+  out["dynamic_offset_true_rms_mm"] = std::sqrt(sbb / n_offset);
+  out["evaluated_from_s"] = 0.5;
+  return out;
+}
+
+Json BenchCalibration(const std::string& shared) {
+  Json out;
+  const std::string dir = shared + "/assets/opencv-calib";
+  if (!std::filesystem::is_directory(dir)) {
+    out["opencv_photographs"] = "not present (" + dir + ")";
+  } else {
+    const BoardSpec board = *BoardSpec::Parse("chessboard:9x6:1");
+    CalibrationInput input;
+    input.board = board;
+    input.cameras.push_back({"left", 640, 480});
+    std::vector<std::vector<cv::Point3f>> object_points;
+    std::vector<std::vector<cv::Point2f>> image_points;
+    for (int i = 1; i <= 14; ++i) {
+      char name[32];
+      std::snprintf(name, sizeof(name), "/left%02d.jpg", i);
+      const cv::Mat gray = cv::imread(dir + name, cv::IMREAD_GRAYSCALE);
+      if (gray.empty()) continue;
+      const auto corners = DetectBoard(gray, board);
+      if (!corners.ok()) continue;
+      input.view_names.push_back(name + 1);
+      input.observations.push_back({0, static_cast<int>(input.view_names.size()) - 1, *corners});
+      object_points.emplace_back();
+      image_points.emplace_back();
+      for (int k = 0; k < corners->size(); ++k) {
+        const Eigen::Vector3d p = board.CornerInBoard(corners->corner_ids[k]);
+        object_points.back().emplace_back(p.x(), p.y(), 0.0f);
+        image_points.back().emplace_back(corners->pixels[k].x(), corners->pixels[k].y());
+      }
+    }
+    const auto start = Clock::now();
+    CalibrationSummary summary;
+    const auto result = Calibrate(input, CalibrationOptions(), &summary);
+    const double ours_s = Seconds(start);
+    cv::Mat k, distortion;
+    std::vector<cv::Mat> rvecs, tvecs;
+    const auto cv_start = Clock::now();
+    const double cv_rms = cv::calibrateCamera(object_points, image_points, cv::Size(640, 480), k,
+                                              distortion, rvecs, tvecs);
+    const double cv_s = Seconds(cv_start);
+    Json photos;
+    photos["images"] = input.view_names.size();
+    if (result.ok()) {
+      const Camera& c = result->cameras[0];
+      photos["rms_px"] = result->rms_px;
+      photos["outliers"] = summary.outliers;
+      photos["fx"] = c.fx();
+      photos["fy"] = c.fy();
+      photos["cx"] = c.cx();
+      photos["cy"] = c.cy();
+      photos["seconds"] = ours_s;
+      photos["fx_rel_diff_vs_opencv"] = (c.fx() - k.at<double>(0, 0)) / k.at<double>(0, 0);
+      photos["cx_rel_diff_vs_opencv"] = (c.cx() - k.at<double>(0, 2)) / k.at<double>(0, 2);
+      photos["cy_rel_diff_vs_opencv"] = (c.cy() - k.at<double>(1, 2)) / k.at<double>(1, 2);
+    } else {
+      photos["error"] = result.status().message();
+    }
+    photos["opencv"] = {{"rms_px", cv_rms}, {"fx", k.at<double>(0, 0)}, {"fy", k.at<double>(1, 1)},
+                        {"cx", k.at<double>(0, 2)}, {"cy", k.at<double>(1, 2)}, {"seconds", cv_s}};
+    out["opencv_photographs"] = photos;
+  }
+  // Synthetic 4-camera rig, 40 ChArUco views, 0.3 px noise per axis.
+  CameraRingOptions ring;
+  ring.camera_count = 4;
+  ring.focal_px = 1800.0;
+  ring.radius_mm = 700.0;
+  ring.arc_deg = 90.0;
+  std::vector<Camera> cameras = MakeCameraRing(ring);
+  CalibrationInput input;
+  input.board = *BoardSpec::Parse("charuco:10x7:25:18");
+  for (const Camera& c : cameras) input.cameras.push_back({c.name, c.width_px, c.height_px});
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.3);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  double sq = 0.0;
+  int n = 0;
+  for (int v = 0; v < 40; ++v) {
+    const facedyn::Rigid3 world_from_board =
+        facedyn::Rigid3::FromTranslation(Eigen::Vector3d(80 * uniform(rng), 60 * uniform(rng), 80 * uniform(rng))) *
+        facedyn::Rigid3::FromAxisAngle(Eigen::Vector3d(uniform(rng), uniform(rng), 0.3 * uniform(rng)).normalized(),
+                                       0.6 * std::abs(uniform(rng))) *
+        facedyn::Rigid3::FromAxisAngle(Eigen::Vector3d::UnitX(), M_PI) *
+        facedyn::Rigid3::FromTranslation(-Eigen::Vector3d(137.5, 100, 0));
+    input.view_names.push_back("v" + std::to_string(v));
+    for (int c = 0; c < 4; ++c) {
+      BoardObservation o;
+      for (int id = 0; id < input.board.corner_count(); ++id) {
+        const Eigen::Vector3d p = world_from_board * input.board.CornerInBoard(id);
+        if (world_from_board.RotateVector(-Eigen::Vector3d::UnitZ()).dot(cameras[c].CenterInWorld() - p) <= 0) continue;
+        Eigen::Vector2d pixel;
+        if (!cameras[c].Project(p, &pixel) || !cameras[c].InImage(pixel, 5)) continue;
+        const Eigen::Vector2d e(noise(rng), noise(rng));
+        sq += e.squaredNorm();
+        ++n;
+        o.corner_ids.push_back(id);
+        o.pixels.push_back(pixel + e);
+      }
+      if (o.size() > 0) input.observations.push_back({c, v, o});
+    }
+  }
+  const auto start = Clock::now();
+  const auto result = Calibrate(input, CalibrationOptions());
+  Json rig;
+  rig["cameras"] = 4;
+  rig["views"] = 40;
+  rig["injected_rms_px"] = std::sqrt(sq / n);
+  if (result.ok()) {
+    rig["rms_px"] = result->rms_px;
+    rig["seconds"] = Seconds(start);
+    Eigen::Matrix3Xd a(3, 4), b(3, 4);
+    for (int c = 0; c < 4; ++c) {
+      a.col(c) = result->cameras[c].CenterInWorld();
+      b.col(c) = cameras[c].CenterInWorld();
+    }
+    const Eigen::Matrix4d b_from_a = Eigen::umeyama(a, b, false);
+    double worst = 0.0;
+    for (int c = 0; c < 4; ++c) {
+      worst = std::max(worst, (b_from_a.topLeftCorner<3, 3>() * a.col(c) + b_from_a.topRightCorner<3, 1>() - b.col(c)).norm());
+    }
+    rig["worst_centre_error_mm_after_rigid_alignment"] = worst;
+  } else {
+    rig["error"] = result.status().message();
+  }
+  out["synthetic_rig"] = rig;
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string shared = std::string(FACEDYN_SOURCE_DIR) + "/../shared";
+  int frames = 10;
+  double seconds = 1.5;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--shared" && i + 1 < argc) {
+      shared = argv[++i];
+    } else if (arg == "--frames" && i + 1 < argc) {
+      frames = std::max(1, std::stoi(argv[++i]));
+    } else if (arg == "--seconds" && i + 1 < argc) {
+      seconds = std::max(0.75, std::stod(argv[++i]));
+    } else {
+      std::fprintf(stderr, "usage: reconstruct_bench [--shared DIR] [--frames N] [--seconds S]\n");
+      return 2;
+    }
+  }
+  facedyn::SetDefaultProgressMode(facedyn::ProgressMode::kSilent);
+  const auto rig = facedyn::sim::MakeProceduralFace(facedyn::sim::ProceduralFaceOptions());
+  if (!rig.ok()) {
+    std::fprintf(stderr, "%s\n", rig.status().message().c_str());
+    return 1;
+  }
+  facedyn::sim::PerformanceOptions performance;
+  performance.expression = "smile";
+  performance.motion.kind = facedyn::sim::MotionKind::kPlatform;
+  performance.motion.platform_hz = 11.0;
+  performance.motion.amplitude_mm = 2.0;
+  performance.seconds = seconds;
+  performance.fps = 128.0;
+  const auto take = facedyn::sim::SimulatePerformance(*rig, performance);
+  if (!take.ok()) {
+    std::fprintf(stderr, "%s\n", take.status().message().c_str());
+    return 1;
+  }
+  Json out;
+  out["machine"] = {{"hardware_threads", std::thread::hardware_concurrency()}};
+  out["detection_triangulation"] = BenchDetection(*rig, *take, frames);
+  out["pipeline_11hz_smile"] = BenchPipeline(*rig, *take);
+  out["calibration"] = BenchCalibration(shared);
+  std::printf("%s\n", out.dump(2).c_str());
+  return 0;
+}

@@ -1,0 +1,167 @@
+#include "reconstruct/pipeline.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "core/progress.h"
+
+namespace facedyn::reconstruct {
+namespace {
+
+double Seconds(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+Status ReconstructionOptions::Check() const {
+  FACEDYN_RETURN_IF_ERROR(correspondence.Check().WithContext("correspondence"));
+  FACEDYN_RETURN_IF_ERROR(tracking.Check().WithContext("tracking"));
+  FACEDYN_RETURN_IF_ERROR(skull.Check().WithContext("skull pose"));
+  FACEDYN_RETURN_IF_ERROR(dense.Check().WithContext("dense fit"));
+  return Status::Ok();
+}
+
+StatusOr<Reconstruction> ReconstructTake(
+    const FaceRig& rig, const std::vector<Camera>& cameras,
+    const std::vector<std::vector<std::vector<ImageObservation>>>& detections, double fps,
+    const ReconstructionOptions& options) {
+  FACEDYN_RETURN_IF_ERROR(options.Check().WithContext("reconstruction options"));
+  if (cameras.size() < 2) return InvalidArgumentError("reconstruction needs at least 2 cameras");
+  if (detections.empty()) return InvalidArgumentError("the take has no frames");
+  if (!(fps > 0)) return InvalidArgumentError("fps must be > 0");
+  for (const Camera& camera : cameras) FACEDYN_RETURN_IF_ERROR(camera.Check());
+  const SkullPoseEstimator skull(rig, options.skull);
+  FACEDYN_RETURN_IF_ERROR(skull.status());
+  DenseFitter fitter(rig, options.dense);
+  FACEDYN_RETURN_IF_ERROR(fitter.status());
+  const int frame_count = static_cast<int>(detections.size());
+  Reconstruction out;
+  out.quality.resize(frame_count);
+  MarkerTracker tracker(rig, options.tracking);
+  Progress progress("reconstruct", 2L * frame_count);
+  for (int f = 0; f < frame_count; ++f) {
+    FrameQuality& q = out.quality[f];
+    q.frame = f;
+    std::vector<std::vector<ImageObservation>> frame = detections[f];
+    if (frame.size() != cameras.size()) {
+      // A missing camera's slot: treat as no detections and say so.
+      q.problem = "frame has detections for " + std::to_string(frame.size()) + " of " +
+                  std::to_string(cameras.size()) + " cameras";
+      frame.resize(cameras.size());
+    }
+    for (size_t c = 0; c < frame.size(); ++c) {
+      for (ImageObservation& o : frame[c]) o.camera = static_cast<int>(c);
+      q.detections += static_cast<int>(frame[c].size());
+    }
+    auto start = std::chrono::steady_clock::now();
+    const std::vector<TriangulatedPoint> points =
+        TriangulateDetections(cameras, frame, options.correspondence);
+    out.timings.triangulate_s += Seconds(start);
+    q.points = static_cast<int>(points.size());
+    for (const auto& p : points) q.reprojection_rms_px += p.rms_px / points.size();
+    start = std::chrono::steady_clock::now();
+    const auto tracked = tracker.AddFrame(points);
+    out.timings.track_s += Seconds(start);
+    if (!tracked.ok()) {
+      q.problem = tracked.status().message();
+      // The tracker could not start on this frame; feed it nothing so it waits for the next.
+      (void)tracker.AddFrame({});
+    }
+    if (q.points == 0 && q.problem.empty()) q.problem = "no markers triangulated";
+    progress.Advance();
+  }
+  out.tracked = tracker.Finish();
+  // Skull poses; frames without a pose interpolate between their neighbours.
+  std::vector<Rigid3> poses(frame_count);
+  std::vector<bool> has_pose(frame_count, false);
+  auto start = std::chrono::steady_clock::now();
+  for (int f = 0; f < frame_count; ++f) {
+    const SkullPoseResult result = skull.Estimate(out.tracked[f]);
+    poses[f] = result.world_from_skull;
+    has_pose[f] = result.ok;
+    out.quality[f].skull_rms_mm = result.rms_mm;
+    if (!result.ok && out.quality[f].problem.empty()) {
+      out.quality[f].problem = "too few stable markers for the skull pose";
+    }
+  }
+  std::vector<int> good;
+  for (int f = 0; f < frame_count; ++f) {
+    if (has_pose[f]) good.push_back(f);
+  }
+  if (good.empty()) {
+    return FailedPreconditionError("no frame of the take had enough stable markers for a skull pose");
+  }
+  for (int f = 0; f < frame_count; ++f) {
+    if (has_pose[f]) continue;
+    const auto after = std::lower_bound(good.begin(), good.end(), f);
+    if (after == good.begin()) {
+      poses[f] = poses[*after];
+    } else if (after == good.end()) {
+      poses[f] = poses[good.back()];
+    } else {
+      const int a = *(after - 1), b = *after;
+      poses[f] = Rigid3::Interpolate(poses[a], poses[b], double(f - a) / (b - a));
+    }
+  }
+  out.timings.skull_s = Seconds(start);
+
+  // Dense fit, warm-started frame to frame.
+  const int vertex_count = rig.vertex_count();
+  out.take.topology = rig.neutral;
+  out.take.info.fps = fps;
+  out.take.info.subject = rig.name;
+  out.take.info.source = "reconstruct";
+  out.take.info.motion = "captured";
+  out.take.world_from_skull = poses;
+  std::vector<Eigen::Matrix3Xd> in_skull(frame_count);
+  std::vector<bool> fitted(frame_count, false);
+  start = std::chrono::steady_clock::now();
+  for (int f = 0; f < frame_count; ++f) {
+    FrameQuality& q = out.quality[f];
+    const TrackedFrame& t = out.tracked[f];
+    q.labelled = t.observed();
+    q.unlabelled_points = t.unlabelled_points;
+    for (MarkerState s : t.states) {
+      q.bridged += s == MarkerState::kBridged ? 1 : 0;
+      q.missing += s == MarkerState::kMissing ? 1 : 0;
+    }
+    DenseFitSummary summary;
+    const auto positions = fitter.Fit(t, poses[f], &summary);
+    progress.Advance();
+    if (!positions.ok()) {
+      if (q.problem.empty()) q.problem = positions.status().message();
+      continue;
+    }
+    q.fit_marker_rms_mm = summary.marker_rms_mm;
+    in_skull[f] = poses[f].Inverse().Apply(*positions);
+    fitted[f] = true;
+  }
+  out.timings.dense_s = Seconds(start);
+  progress.Finish();
+  int last_fitted = -1;
+  for (int f = 0; f < frame_count; ++f) {
+    if (fitted[f]) last_fitted = f;
+  }
+  if (last_fitted < 0) return FailedPreconditionError("no frame of the take could be fitted");
+  // Unfitted frames carry the nearest fitted frame's skull-frame shape to their own pose.
+  out.take.positions.vertex_count = vertex_count;
+  out.take.positions.positions.resize(3 * vertex_count, frame_count);
+  for (int f = 0; f < frame_count; ++f) {
+    int source = f;
+    for (int d = 1; !fitted[source]; ++d) {
+      if (f - d >= 0 && fitted[f - d]) {
+        source = f - d;
+      } else if (f + d < frame_count && fitted[f + d]) {
+        source = f + d;
+      }
+    }
+    out.take.positions.Frame(f) = poses[f].Apply(in_skull[source]).cast<float>();
+  }
+  out.take.SetUniformTimes();
+  FACEDYN_RETURN_IF_ERROR(out.take.Validate().WithContext("reconstructed take"));
+  return out;
+}
+
+}  // namespace facedyn::reconstruct

@@ -1,0 +1,42 @@
+// Marker detections of a recorded take, read from a capture session folder
+// (capture/session.h): every camera's frames matched by trigger index, checked for sync,
+// and run through DetectMarkers.
+//
+// Bad input is reported per frame and does not stop the take: a camera with no frame for a
+// trigger (dropped), a frame that cannot be read (corrupt record), a frame whose timestamp is
+// more than half a frame period from the other cameras' median (out of sync) — that camera
+// contributes nothing to that frame. A camera of the take without calibration, or whose frame
+// file cannot be opened, is left out of the whole take (reported once).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/status.h"
+#include "reconstruct/camera.h"
+#include "reconstruct/marker_detection.h"
+#include "reconstruct/triangulation.h"
+
+namespace facedyn::reconstruct {
+
+struct SessionInputOptions {
+  std::string calibration_path;  // "" = the session's calibration.yaml
+  MarkerDetectionOptions detection;
+  Status Check() const;
+};
+
+struct SessionDetections {
+  std::vector<Camera> cameras;  // the cameras used, calibrated
+  double fps = 0.0;
+  // detections[f][c]: frame f (trigger index f), camera c of `cameras`.
+  std::vector<std::vector<std::vector<ImageObservation>>> detections;
+  std::vector<std::vector<std::string>> frame_problems;  // per frame
+  std::vector<std::string> take_problems;                 // cameras left out, ...
+  double detect_s = 0.0;
+};
+
+StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
+                                              const std::string& take_name,
+                                              const SessionInputOptions& options);
+
+}  // namespace facedyn::reconstruct

@@ -1,0 +1,79 @@
+// The simulated capture stage: the sim: section of a CAPTURE.yaml (capture/capture_config.h)
+// turned into a simulated performance, a renderer and one SimCamera per calibrated camera, and
+// the ground truth written beside the recorded frames.
+//
+//   sim:
+//     face: procedural            # or a FaceRig folder (relative to the CAPTURE.yaml)
+//     expression: neutral         # sim/expressions.h name, or speech
+//     motion: platform            # platform | walk | run | jump | none | file:SKULL.csv
+//     platform_hz: 8              # used when no platform: section sets the real frequency
+//     amplitude_mm: 2
+//     lead_in_s: 0.5              # simulated before trigger 0 (the motion fades in from rest)
+//     seed: 1
+//     render: {read_noise_dn: 1.2, shot_noise_gain: 0.25, blur_sigma_px: 0.6,
+//              motion_blur_samples: 1, supersample: 1, skin_albedo: 0.72, marker_albedo: 0.06,
+//              background: 0.04, ambient: 0.22, gain: 1.0}
+//     faults: {cam1: {drop: [3], duplicate: [5], late: [7], timestamp_offset_ns: 0}}
+//
+// Trigger k shows the skin at t = k / fps on the session clock: the performance is simulated
+// from -lead_in_s and trimmed, so the platform is already oscillating in steady state when the
+// take starts, as it is on the real stage after the rig has settled.
+//
+// Ground truth, in <take>/ground_truth/:
+//   take/            a Take (core/take.h): positions = dynamic skin, quasistatic.pc2 (exact),
+//                    dynamic_offset.pc2, skull.csv = world_from_skull, on the trigger times
+//   cameras.yaml     the exact camera models (capture/camera_model.h)
+//   face/            the FaceRig (markers, regions) the images were rendered from
+//   render.json      render options, platform frequency, lead-in, seeds
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "capture/camera_model.h"
+#include "core/config_node.h"
+#include "core/face_rig.h"
+#include "core/status.h"
+#include "core/take.h"
+#include "sim/performance.h"
+#include "sim/virtual_camera.h"
+
+namespace facedyn::sim {
+
+struct SimCaptureOptions {
+  std::string face = "procedural";
+  PerformanceOptions performance;  // expression, motion (platform_hz, amplitude), seed
+  double lead_in_s = 0.5;
+  RenderOptions render;
+  std::map<std::string, SimCameraFaults> faults;  // by camera name
+
+  Status Check() const;
+};
+
+StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node, const std::string& base_dir);
+
+struct SimulatedStage {
+  FaceRig rig;
+  std::shared_ptr<const Take> take;  // trimmed: frame k at t = k / fps
+  std::shared_ptr<const FaceRenderer> renderer;
+  std::vector<std::unique_ptr<SimCamera>> cameras;
+  double platform_hz = 0.0;
+  double simulate_s = 0.0;
+};
+
+// Simulates `triggers` frames at `fps` (plus the lead-in) with the platform at `platform_hz`
+// (<= 0: the options' own), and builds the cameras.
+StatusOr<SimulatedStage> PrepareSimulatedStage(const SimCaptureOptions& options,
+                                               const std::vector<capture::CameraModel>& cameras, double fps,
+                                               int64_t triggers, double platform_hz);
+
+Status WriteGroundTruth(const SimulatedStage& stage, const SimCaptureOptions& options,
+                        const std::vector<capture::CameraModel>& cameras, const std::string& take_dir);
+
+// Drops the first `first_frame` frames of a take (positions, channels, skull, jaw) and
+// re-times it so the new frame 0 is at t = 0.
+Take TrimTake(const Take& take, int first_frame);
+
+}  // namespace facedyn::sim

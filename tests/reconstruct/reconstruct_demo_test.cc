@@ -1,0 +1,43 @@
+// The reconstruction stage of `facedyn demo` on a short simulated take.
+
+#include "app/reconstruct_demo.h"
+
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "sim/performance.h"
+#include "tests/reconstruct/reconstruct_test_util.h"
+#include "tests/support/test_support.h"
+
+namespace facedyn::app {
+namespace {
+
+TEST(RunReconstructDemoStage, ReportsErrorsAgainstTruth) {
+  const FaceRig& face = reconstruct::testing::ProceduralFace();
+  sim::PerformanceOptions performance;
+  performance.motion.kind = sim::MotionKind::kPlatform;
+  performance.motion.platform_hz = 11.0;
+  performance.seconds = 0.9;
+  const auto take = sim::SimulatePerformance(face, performance);
+  ASSERT_TRUE(take.ok()) << take.status().ToString();
+  testing::TempDir dir;
+  Json metrics;
+  const Status status = RunReconstructDemoStage(face, *take, dir.path(), true, &metrics);
+  ASSERT_TRUE(status.ok()) << status.ToString();
+  EXPECT_TRUE(std::filesystem::exists(dir.Join("takes/reconstructed/take.json")));
+  EXPECT_TRUE(std::filesystem::exists(dir.Join("reconstruct/calibration.yaml")));
+  EXPECT_LT(metrics["calibration_worst_centre_error_mm"].get<double>(), 0.5);
+  // Through a calibration (not the true cameras) errors are larger than the figures of the
+  // reconstruction tests, which use the true cameras.
+  EXPECT_LT(metrics["skull_origin_rms_mm"].get<double>(), 0.5);
+  EXPECT_LT(metrics["sample_rms_mm"].get<double>(), 0.5);
+  EXPECT_GT(metrics["dynamic_offset_correlation"].get<double>(), 0.9);
+  // A take that does not belong to the face is refused by name.
+  Take wrong = *take;
+  wrong.topology.positions_mm.resize(3, 10);
+  EXPECT_FALSE(RunReconstructDemoStage(face, wrong, dir.path(), true, nullptr).ok());
+}
+
+}  // namespace
+}  // namespace facedyn::app

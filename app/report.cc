@@ -95,6 +95,35 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
     }
     html += "</table>";
   }
+  // A two-column table of the numeric and string fields of a JSON object, in its order.
+  auto field_table = [](const Json& object, const std::vector<std::string>& keys) {
+    std::string table = "<table>";
+    for (const std::string& key : keys) {
+      if (!object.contains(key)) continue;
+      const Json& value = object[key];
+      table += "<tr><td>" + Escape(key) + "</td><td>" +
+               (value.is_number_float() ? fmt::format("{:.4g}", value.get<double>())
+                : value.is_string()     ? Escape(value.get<std::string>())
+                                        : Escape(value.dump())) +
+               "</td></tr>";
+    }
+    return table + "</table>";
+  };
+  if (metrics.contains("capture")) {
+    html += "<h2>Capture: simulated trigger-synchronised cameras</h2>" +
+            field_table(metrics["capture"],
+                        {"status", "cameras", "fps", "triggers_requested", "triggers_emitted",
+                         "platform_hz_true", "megabytes_written", "megabytes_per_s",
+                         "render_frames_per_s_per_thread", "backpressure", "session_complete"});
+  }
+  if (metrics.contains("reconstruct")) {
+    html += "<h2>Reconstruction of the simulated 11 Hz take against ground truth</h2>" +
+            field_table(metrics["reconstruct"],
+                        {"calibration_rms_px", "calibration_worst_centre_error_mm",
+                         "skull_origin_rms_mm", "skull_origin_max_mm", "skull_rotation_rms_deg",
+                         "skull_rotation_max_deg", "sample_rms_mm", "dynamic_offset_correlation",
+                         "triangulate_fps", "dense_fit_fps"});
+  }
   if (metrics.contains("dynamics")) {
     const Json& dynamics = metrics["dynamics"];
     const Json& setup = dynamics["setup"];

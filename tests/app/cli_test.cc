@@ -89,7 +89,8 @@ TEST(Cli, DemoMetricsAndReport) {
   const std::string metrics_path = DemoDir().Join("demo/metrics.json");
   ASSERT_TRUE(std::filesystem::exists(metrics_path));
   const auto metrics = nlohmann::json::parse(ReadBytes(metrics_path));
-  for (const char* section : {"rig", "simulation", "dynamics", "renders", "stages_s", "total_s"}) {
+  for (const char* section :
+       {"rig", "simulation", "capture", "reconstruct", "dynamics", "renders", "stages_s", "total_s"}) {
     EXPECT_TRUE(metrics.contains(section)) << section;
   }
   ASSERT_FALSE(metrics["rig"]["steps"].empty());
@@ -108,6 +109,9 @@ TEST(Cli, DemoMetricsAndReport) {
               0.5 * methods["no_removal"]["jiggle_mean_mm"].get<double>());
   }
   ASSERT_TRUE(metrics["dynamics"].contains("synthesis"));
+  ASSERT_TRUE(metrics["dynamics"].contains("removal_by_training_frequencies"));
+  EXPECT_TRUE(metrics["capture"]["session_complete"].get<bool>());
+  EXPECT_GT(metrics["reconstruct"]["dynamic_offset_correlation"].get<double>(), 0.9);
   EXPECT_EQ(metrics["renders"]["images"].size(), 6u);
   const std::string report = ReadBytes(DemoDir().Join("demo/report.html"));
   EXPECT_THAT(report, HasSubstr("<svg"));

@@ -387,6 +387,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     artifacts->rig = rig;
     artifacts->test_take = test.front().take;
     artifacts->removed = removed_by_best.front();
+    artifacts->removal_model = std::move(models.front().model);
   }
   result["total_s"] = Round4(SecondsSince(study_start));
   return result;

@@ -20,6 +20,7 @@
 #include "core/json_io.h"
 #include "core/status.h"
 #include "core/take.h"
+#include "dynamics/removal_model.h"
 
 namespace facedyn::app {
 
@@ -67,6 +68,7 @@ struct DynamicsStudyArtifacts {
   Take test_take;
   Take removed;
   Take resynthesised;
+  dynamics::RemovalModel removal_model;  // F trained on exact targets
 };
 
 StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,

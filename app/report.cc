@@ -166,6 +166,16 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
       html += "</table>";
     }
   }
+  if (metrics.contains("end_to_end")) {
+    std::vector<std::pair<std::string, double>> bars;
+    for (const auto& [name, figures] : metrics["end_to_end"]["methods"].items()) {
+      bars.emplace_back(name, figures["mean_mm"].get<double>());
+    }
+    html += "<h2>End to end: cameras, reconstruction, removal</h2><p>The 11 Hz take filmed by the "
+            "simulated cameras and reconstructed, its dynamics removed by F; mean error over the "
+            "face against the exact quasistatic of the simulation that was filmed.</p>" +
+            SvgBarChart("reconstructed neutral@11Hz", bars, "mm");
+  }
   if (metrics.contains("renders")) {
     const Json& renders = metrics["renders"];
     html += "<h2>Signed dynamic offset, " + Escape(renders["take"].get<std::string>()) +

@@ -5,6 +5,9 @@
 // no soft tissue yet), saves it, reloads it, checks the reload is bit-identical, exports it
 // as OBJ frames and PC2, and says which stages will join. Each later stage extends it.
 
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -13,24 +16,21 @@
 #include <utility>
 #include <vector>
 
-#include <fmt/format.h>
-#include <spdlog/spdlog.h>
-
+#include "app/capture_demo.h"
 #include "app/command.h"
 #include "app/dynamics_study.h"
 #include "app/face_render.h"
-#include "app/report.h"
-#include "app/capture_demo.h"
 #include "app/reconstruct_demo.h"
+#include "app/report.h"
 #include "app/rig_demo.h"
-#include "core/json_io.h"
-#include "dynamics/evaluate.h"
-#include "dynamics/removal_model.h"
 #include "core/file_util.h"
+#include "core/json_io.h"
 #include "core/mesh_primitives.h"
 #include "core/take.h"
 #include "core/take_export.h"
 #include "core/take_summary.h"
+#include "dynamics/evaluate.h"
+#include "dynamics/removal_model.h"
 #include "sim/performance.h"
 #include "sim/procedural_face.h"
 
@@ -60,9 +60,9 @@ Take MakeRigidPlatformTake(double platform_hz, double fps, int frame_count) {
   take.positions.positions.resize(3 * v, frame_count);
   for (int f = 0; f < frame_count; ++f) {
     const double phase = 2 * M_PI * platform_hz * f / fps;
-    const Rigid3 world_from_skull = Rigid3::FromAxisAngle(
-        Eigen::Vector3d::UnitX(), kPitchDeg * M_PI / 180 * std::sin(phase),
-        Eigen::Vector3d(0, kAmplitudeMm * std::sin(phase), 0));
+    const Rigid3 world_from_skull =
+        Rigid3::FromAxisAngle(Eigen::Vector3d::UnitX(), kPitchDeg * M_PI / 180 * std::sin(phase),
+                              Eigen::Vector3d(0, kAmplitudeMm * std::sin(phase), 0));
     take.world_from_skull.push_back(world_from_skull);
     take.positions.Frame(f) = world_from_skull.Apply(take.topology.positions_mm).cast<float>();
   }
@@ -100,18 +100,21 @@ StatusOr<Json> RenderDynamics(const DynamicsStudyArtifacts& artifacts, const std
   for (int t : chosen) {
     const Eigen::Matrix3Xf truth_in_skull = InSkull(take, truth, t);
     const Eigen::Matrix3Xf dynamic_in_skull = InSkull(take, take.positions, t);
-    const Eigen::Matrix3Xf removed_in_skull = InSkull(artifacts.removed, artifacts.removed.positions, t);
+    const Eigen::Matrix3Xf removed_in_skull =
+        InSkull(artifacts.removed, artifacts.removed.positions, t);
     struct View {
       std::string name;
       Eigen::Matrix3Xf positions, offsets;
     };
     std::vector<View> views = {
-        {"captured (dynamic) - exact quasistatic", dynamic_in_skull, dynamic_in_skull - truth_in_skull},
+        {"captured (dynamic) - exact quasistatic", dynamic_in_skull,
+         dynamic_in_skull - truth_in_skull},
         {"after removal - exact quasistatic", removed_in_skull, removed_in_skull - truth_in_skull}};
     if (artifacts.resynthesised.frame_count() == frames) {
       const Eigen::Matrix3Xf synth_in_skull =
           InSkull(artifacts.resynthesised, artifacts.resynthesised.positions, t);
-      views.push_back({"resynthesised - removed", synth_in_skull, synth_in_skull - removed_in_skull});
+      views.push_back(
+          {"resynthesised - removed", synth_in_skull, synth_in_skull - removed_in_skull});
     }
     for (size_t k = 0; k < views.size(); ++k) {
       const std::vector<unsigned char> png =
@@ -122,7 +125,9 @@ StatusOr<Json> RenderDynamics(const DynamicsStudyArtifacts& artifacts, const std
       const size_t written = std::fwrite(png.data(), 1, png.size(), file);
       const bool closed = std::fclose(file) == 0;
       if (written != png.size() || !closed) return UnavailableError(path + ": write failed");
-      renders.push_back({{"frame", t}, {"view", views[k].name}, {"path", path},
+      renders.push_back({{"frame", t},
+                         {"view", views[k].name},
+                         {"path", path},
                          {"max_abs_offset_mm", views[k].offsets.colwise().norm().maxCoeff()}});
     }
   }
@@ -141,7 +146,8 @@ class StageClock {
   }
   Json ToJson() const {
     Json json = Json::array();
-    for (const auto& [stage, seconds] : times_) json.push_back({{"stage", stage}, {"seconds", seconds}});
+    for (const auto& [stage, seconds] : times_)
+      json.push_back({{"stage", stage}, {"seconds", seconds}});
     return json;
   }
 
@@ -169,7 +175,8 @@ Status RunDemo(const DemoOptions& options) {
   const Take take = MakeRigidPlatformTake(8.0, fps, frames);
   const std::string take_dir = JoinPath(options.out_dir, "takes/platform_8hz");
   FACEDYN_RETURN_IF_ERROR(SaveTake(take, take_dir));
-  spdlog::info("saved take {} ({} frames, {} vertices)", take_dir, take.frame_count(), take.vertex_count());
+  spdlog::info("saved take {} ({} frames, {} vertices)", take_dir, take.frame_count(),
+               take.vertex_count());
 
   FACEDYN_ASSIGN_OR_RETURN(const Take reloaded, LoadTake(take_dir));
   if (reloaded.positions.positions != take.positions.positions ||
@@ -178,17 +185,20 @@ Status RunDemo(const DemoOptions& options) {
   }
   spdlog::info("reloaded take: positions bit-identical, topology identical");
 
-  FACEDYN_ASSIGN_OR_RETURN(const ExportSummary pc2, ExportTake(reloaded, ExportFormat::kPc2,
-                                                              JoinPath(options.out_dir, "export/pc2")));
-  FACEDYN_ASSIGN_OR_RETURN(const ExportSummary obj, ExportTake(reloaded, ExportFormat::kObj,
-                                                              JoinPath(options.out_dir, "export/obj")));
+  FACEDYN_ASSIGN_OR_RETURN(
+      const ExportSummary pc2,
+      ExportTake(reloaded, ExportFormat::kPc2, JoinPath(options.out_dir, "export/pc2")));
+  FACEDYN_ASSIGN_OR_RETURN(
+      const ExportSummary obj,
+      ExportTake(reloaded, ExportFormat::kObj, JoinPath(options.out_dir, "export/obj")));
   spdlog::info("exported {} PC2 files and {} OBJ frames under {}/export", pc2.files_written,
                obj.files_written, options.out_dir);
 
   std::printf("%s", TakeSummaryToText(reloaded, SummarizeTake(reloaded)).c_str());
 
   // Simulated face on the vibrating platform: dynamic skin and its exact quasistatic twin.
-  FACEDYN_ASSIGN_OR_RETURN(const FaceRig face, sim::MakeProceduralFace(sim::ProceduralFaceOptions()));
+  FACEDYN_ASSIGN_OR_RETURN(const FaceRig face,
+                           sim::MakeProceduralFace(sim::ProceduralFaceOptions()));
   FACEDYN_RETURN_IF_ERROR(SaveFaceRig(face, JoinPath(options.out_dir, "face")));
   sim::PerformanceOptions performance;
   performance.expression = "neutral";
@@ -196,14 +206,17 @@ Status RunDemo(const DemoOptions& options) {
   performance.motion.platform_hz = 11.0;
   performance.seconds = options.quick ? 1.5 : 3.0;
   sim::PerformanceSummary sim_summary;
-  FACEDYN_ASSIGN_OR_RETURN(const Take simulated, sim::SimulatePerformance(face, performance, &sim_summary));
+  FACEDYN_ASSIGN_OR_RETURN(const Take simulated,
+                           sim::SimulatePerformance(face, performance, &sim_summary));
   const std::string sim_dir = JoinPath(options.out_dir, "takes/sim_neutral_11hz");
   FACEDYN_RETURN_IF_ERROR(SaveTake(simulated, sim_dir));
   FACEDYN_ASSIGN_OR_RETURN(const auto peaks, sim::PeakOffsetByRegionMm(face, simulated));
   std::printf("\nSimulated platform take %s (%d frames, %d vertices, %.1f s to simulate)\n",
-              sim_dir.c_str(), simulated.frame_count(), simulated.vertex_count(), sim_summary.simulate_s);
+              sim_dir.c_str(), simulated.frame_count(), simulated.vertex_count(),
+              sim_summary.simulate_s);
   std::printf("peak dynamic offset (dynamic - quasistatic) by region, after the first 0.5 s:\n");
-  for (const auto& [region, peak_mm] : peaks) std::printf("  %-14s %6.2f mm\n", region.c_str(), peak_mm);
+  for (const auto& [region, peak_mm] : peaks)
+    std::printf("  %-14s %6.2f mm\n", region.c_str(), peak_mm);
   metrics["simulation"] = {{"take", sim_dir},
                            {"frames", simulated.frame_count()},
                            {"vertices", simulated.vertex_count()},
@@ -251,7 +264,8 @@ Status RunDemo(const DemoOptions& options) {
   FACEDYN_ASSIGN_OR_RETURN(const Json dynamics_metrics, RunDynamicsStudy(study, &artifacts));
   std::printf("\nSecondary dynamics removal, trained at");
   for (double hz : study.train_hz) std::printf(" %g", hz);
-  std::printf(" Hz, tested on takes never seen (error vs the exact quasistatic, jiggling vertices):\n");
+  std::printf(
+      " Hz, tested on takes never seen (error vs the exact quasistatic, jiggling vertices):\n");
   std::printf("  %-16s %-26s %10s %10s\n", "take", "method", "mean mm", "of offset");
   for (const Json& entry : dynamics_metrics["removal"]) {
     for (const auto& [method, figures] : entry["methods"].items()) {
@@ -278,22 +292,24 @@ Status RunDemo(const DemoOptions& options) {
     FACEDYN_ASSIGN_OR_RETURN(const Take reconstructed,
                              LoadTake(reconstruct_metrics["take"].get<std::string>()));
     FACEDYN_ASSIGN_OR_RETURN(
-        const Take removed,
-        dynamics::RemoveDynamics(artifacts.removal_model, reconstructed, face));
+        const Take removed, dynamics::RemoveDynamics(artifacts.removal_model, reconstructed, face));
     dynamics::EvaluateOptions evaluate;
-    FACEDYN_ASSIGN_OR_RETURN(const dynamics::Evaluation evaluation,
-                             dynamics::Evaluate(removed, simulated, &reconstructed, &face, evaluate));
+    FACEDYN_ASSIGN_OR_RETURN(
+        const dynamics::Evaluation evaluation,
+        dynamics::Evaluate(removed, simulated, &reconstructed, &face, evaluate));
     Json methods = Json::object();
     for (const dynamics::ErrorReport& report : evaluation.reports) {
       const std::string name = report.name == "prediction" ? "F_exact_targets" : report.name;
-      methods[name] = {{"mean_mm", report.face.mean_mm}, {"p95_mm", report.face.p95_mm},
+      methods[name] = {{"mean_mm", report.face.mean_mm},
+                       {"p95_mm", report.face.p95_mm},
                        {"max_mm", report.face.max_mm}};
     }
     metrics["end_to_end"] = {{"take", "reconstructed neutral@11Hz"},
                              {"truth", "exact quasistatic of the filmed simulation"},
                              {"methods", methods}};
-    std::printf("\nEnd to end (simulated cameras -> reconstruction -> removal), mean error over the "
-                "face vs the exact quasistatic:\n");
+    std::printf(
+        "\nEnd to end (simulated cameras -> reconstruction -> removal), mean error over the "
+        "face vs the exact quasistatic:\n");
     for (const auto& [name, figures] : methods.items()) {
       std::printf("  %-18s %8.3f mm (p95 %.3f)\n", name.c_str(), figures["mean_mm"].get<double>(),
                   figures["p95_mm"].get<double>());
@@ -301,14 +317,16 @@ Status RunDemo(const DemoOptions& options) {
   }
   clock.Lap("end to end: removal on the reconstructed take");
   clock.Lap("renders");
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   metrics["stages_s"] = clock.ToJson();
   metrics["total_s"] = seconds;
   FACEDYN_RETURN_IF_ERROR(WriteJsonFile(JoinPath(options.out_dir, "metrics.json"), metrics));
   const std::string report = JoinPath(options.out_dir, "report.html");
   FACEDYN_RETURN_IF_ERROR(WriteDemoReport(metrics, report));
   std::printf(
-      "\nDemo stages: simulated drive and sweep; take I/O and export; simulated face and soft-tissue\n"
+      "\nDemo stages: simulated drive and sweep; take I/O and export; simulated face and "
+      "soft-tissue\n"
       "physics; simulated multi-view capture; calibration and reconstruction; dynamics removal\n"
       "and synthesis (%.1f s).\n"
       "Output: %s (figures in metrics.json)\n"

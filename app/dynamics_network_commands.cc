@@ -1,14 +1,14 @@
 // `facedyn dynamics train-removal | remove | train-synthesis | synthesize | retarget`: the
 // networks of Zoss et al. 2020 on Take folders (dynamics/removal_model.h, synthesis_model.h).
 
+#include <spdlog/spdlog.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <spdlog/spdlog.h>
 
 #include "app/command.h"
 #include "core/face_rig.h"
@@ -65,7 +65,8 @@ StatusOr<std::vector<Rigid3>> LoadMotion(const std::string& spec) {
 // Trims a take to its first `frames` frames (positions, poses, times, channels).
 void TrimTake(int frames, Take* take) {
   take->positions.positions.conservativeResize(Eigen::NoChange, frames);
-  for (auto& [name, cache] : take->channels) cache.positions.conservativeResize(Eigen::NoChange, frames);
+  for (auto& [name, cache] : take->channels)
+    cache.positions.conservativeResize(Eigen::NoChange, frames);
   take->world_from_skull.resize(frames);
   if (!take->skull_from_jaw.empty()) take->skull_from_jaw.resize(frames);
   take->time_s.resize(frames);
@@ -99,16 +100,20 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
                    "moving-average (Eq. 5-6, the paper) or exact (simulated takes' quasistatic)")
       ->check(CLI::IsMember({"moving-average", "exact"}))
       ->capture_default_str();
-  train_removal_cmd->add_option("--epochs", train_removal->options.train.epochs)->capture_default_str();
-  train_removal_cmd->add_option("--batch", train_removal->options.train.batch_size)->capture_default_str();
+  train_removal_cmd->add_option("--epochs", train_removal->options.train.epochs)
+      ->capture_default_str();
+  train_removal_cmd->add_option("--batch", train_removal->options.train.batch_size)
+      ->capture_default_str();
   train_removal_cmd->add_option("--learning-rate", train_removal->options.train.learning_rate)
       ->capture_default_str();
-  train_removal_cmd->add_option("--validation", train_removal->options.validation_fraction,
-                                "Fraction of frames held out for validation")
+  train_removal_cmd
+      ->add_option("--validation", train_removal->options.validation_fraction,
+                   "Fraction of frames held out for validation")
       ->capture_default_str();
   train_removal_cmd->add_option("--seed", train_removal->options.train.seed)->capture_default_str();
-  train_removal_cmd->add_option("--threads", train_removal->options.train.num_threads,
-                                "LibTorch threads (0: default); the same count gives the same model")
+  train_removal_cmd
+      ->add_option("--threads", train_removal->options.train.num_threads,
+                   "LibTorch threads (0: default); the same count gives the same model")
       ->capture_default_str();
   train_removal_cmd->add_flag("--json", train_removal->json, "Print the training summary as JSON");
   train_removal_cmd->callback([train_removal, selected] {
@@ -141,11 +146,14 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
   };
   auto remove = std::make_shared<RemoveCommand>();
   auto* remove_cmd = dynamics->add_subcommand(
-      "remove", "Remove secondary dynamics from a take with a trained F (Eq. 7), propagated to "
-                "every vertex; writes the quasistatic take with channel dynamic_offset");
+      "remove",
+      "Remove secondary dynamics from a take with a trained F (Eq. 7), propagated to "
+      "every vertex; writes the quasistatic take with channel dynamic_offset");
   remove_cmd->add_option("--take", remove->take, "Dynamic take folder")->required();
-  remove_cmd->add_option("--model", remove->model, "Removal model (train-removal --out)")->required();
-  remove_cmd->add_option("--face", remove->face, "FaceRig folder, or 'procedural'")->capture_default_str();
+  remove_cmd->add_option("--model", remove->model, "Removal model (train-removal --out)")
+      ->required();
+  remove_cmd->add_option("--face", remove->face, "FaceRig folder, or 'procedural'")
+      ->capture_default_str();
   remove_cmd->add_option("--out", remove->out, "Output take folder")->required();
   remove_cmd->add_flag("--json", remove->json, "Print timings as JSON");
   remove_cmd->callback([remove, selected] {
@@ -189,7 +197,8 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
   train_synthesis_cmd->add_option("--takes", train_synthesis->takes, "Training take folders")
       ->required()
       ->expected(1, -1);
-  train_synthesis_cmd->add_option("--face", train_synthesis->face, "FaceRig folder, or 'procedural'")
+  train_synthesis_cmd
+      ->add_option("--face", train_synthesis->face, "FaceRig folder, or 'procedural'")
       ->capture_default_str();
   train_synthesis_cmd->add_option("--out", train_synthesis->out, "Model file to write (e.g. H.pt)")
       ->required();
@@ -197,19 +206,24 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       "--removal-model", train_synthesis->removal_model,
       "Decompose dynamic takes with this removal model first (the paper's way)");
   train_synthesis_cmd
-      ->add_flag("--exact", train_synthesis->exact,
-                 "Decompose simulated takes exactly (their quasistatic and dynamic_offset channels)")
+      ->add_flag(
+          "--exact", train_synthesis->exact,
+          "Decompose simulated takes exactly (their quasistatic and dynamic_offset channels)")
       ->excludes(removal_option);
-  train_synthesis_cmd->add_option("--epochs", train_synthesis->options.train.epochs)->capture_default_str();
-  train_synthesis_cmd->add_option("--batch", train_synthesis->options.train.batch_size)->capture_default_str();
+  train_synthesis_cmd->add_option("--epochs", train_synthesis->options.train.epochs)
+      ->capture_default_str();
+  train_synthesis_cmd->add_option("--batch", train_synthesis->options.train.batch_size)
+      ->capture_default_str();
   train_synthesis_cmd->add_option("--learning-rate", train_synthesis->options.train.learning_rate)
       ->capture_default_str();
   train_synthesis_cmd->add_option("--validation", train_synthesis->options.validation_fraction)
       ->capture_default_str();
-  train_synthesis_cmd->add_option("--seed", train_synthesis->options.train.seed)->capture_default_str();
+  train_synthesis_cmd->add_option("--seed", train_synthesis->options.train.seed)
+      ->capture_default_str();
   train_synthesis_cmd->add_option("--threads", train_synthesis->options.train.num_threads)
       ->capture_default_str();
-  train_synthesis_cmd->add_flag("--json", train_synthesis->json, "Print the training summary as JSON");
+  train_synthesis_cmd->add_flag("--json", train_synthesis->json,
+                                "Print the training summary as JSON");
   train_synthesis_cmd->callback([train_synthesis, selected] {
     *selected = [train_synthesis]() -> Status {
       if (Status status = train_synthesis->options.Check(); !status.ok()) {
@@ -248,8 +262,8 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
   // --- synthesize and retarget share the composition ---
   struct SynthesizeCommand {
     std::string take, motion, model, face = "procedural", out;
-    std::string expression;       // retarget: held expression of the target face
-    std::string naive_out;        // retarget: also write the naive per-vertex transfer
+    std::string expression;  // retarget: held expression of the target face
+    std::string naive_out;   // retarget: also write the naive per-vertex transfer
     std::string source_face = "procedural";
   };
   auto synthesize = std::make_shared<SynthesizeCommand>();
@@ -258,10 +272,12 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       "Compose new secondary dynamics for a quasistatic take under a new head motion with a "
       "trained H (Zoss et al. 2020, sec. 6)");
   synthesize_cmd->add_option("--take", synthesize->take, "Quasistatic take folder")->required();
-  synthesize_cmd->add_option("--motion", synthesize->motion,
-                             "New head motion: a take folder or a skull.csv file")
+  synthesize_cmd
+      ->add_option("--motion", synthesize->motion,
+                   "New head motion: a take folder or a skull.csv file")
       ->required();
-  synthesize_cmd->add_option("--model", synthesize->model, "Synthesis model (train-synthesis --out)")
+  synthesize_cmd
+      ->add_option("--model", synthesize->model, "Synthesis model (train-synthesis --out)")
       ->required();
   synthesize_cmd->add_option("--face", synthesize->face, "FaceRig folder, or 'procedural'")
       ->capture_default_str();
@@ -276,13 +292,14 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       const int frames = std::min<int>(quasistatic.frame_count(), static_cast<int>(motion.size()));
       if (frames < 1) return InvalidArgumentError("synthesize: the motion has no poses");
       if (frames != quasistatic.frame_count() || frames != static_cast<int>(motion.size())) {
-        spdlog::warn("synthesize: the take has {} frames and the motion {} poses; using the first {}",
-                     quasistatic.frame_count(), motion.size(), frames);
+        spdlog::warn(
+            "synthesize: the take has {} frames and the motion {} poses; using the first {}",
+            quasistatic.frame_count(), motion.size(), frames);
         TrimTake(frames, &quasistatic);
         motion.resize(frames);
       }
-      StatusOr<Take> result = dynamics::SynthesizeDynamics(model, quasistatic, motion,
-                                                           synthesize->motion, rig);
+      StatusOr<Take> result =
+          dynamics::SynthesizeDynamics(model, quasistatic, motion, synthesize->motion, rig);
       if (!result.ok()) return result.status().WithContext(synthesize->take);
       FACEDYN_RETURN_IF_ERROR(SaveTake(*result, synthesize->out));
       spdlog::info("wrote {} ({} frames)", synthesize->out, result->frame_count());
@@ -296,8 +313,9 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       "Root-motion retargeting (Zoss et al. 2020, Figs. 9-10): the source take's head motion on "
       "the target subject, with dynamics from the target's H; optionally the naive per-vertex "
       "transfer for comparison");
-  retarget_cmd->add_option("--source", retarget->motion,
-                           "Source take (its head motion; with --naive-out also its dynamic_offset)")
+  retarget_cmd
+      ->add_option("--source", retarget->motion,
+                   "Source take (its head motion; with --naive-out also its dynamic_offset)")
       ->required();
   retarget_cmd->add_option("--face", retarget->face, "Target FaceRig folder, or 'procedural'")
       ->capture_default_str();
@@ -305,14 +323,16 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       ->required();
   auto* take_option = retarget_cmd->add_option(
       "--take", retarget->take, "Target quasistatic take (default: the target holds --expression)");
-  retarget_cmd->add_option("--expression", retarget->expression,
-                           "Held expression of the target face (default neutral)")
+  retarget_cmd
+      ->add_option("--expression", retarget->expression,
+                   "Held expression of the target face (default neutral)")
       ->excludes(take_option);
   retarget_cmd->add_option("--out", retarget->out, "Output take folder")->required();
   retarget_cmd->add_option("--naive-out", retarget->naive_out,
                            "Also write the naive per-vertex delta transfer here (Fig. 10b)");
-  retarget_cmd->add_option("--source-face", retarget->source_face,
-                           "Source FaceRig (samples for --naive-out), or 'procedural'")
+  retarget_cmd
+      ->add_option("--source-face", retarget->source_face,
+                   "Source FaceRig (samples for --naive-out), or 'procedural'")
       ->capture_default_str();
   retarget_cmd->callback([retarget, selected] {
     *selected = [retarget]() -> Status {
@@ -324,14 +344,14 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       if (!retarget->take.empty()) {
         FACEDYN_ASSIGN_OR_RETURN(target, LoadTake(retarget->take));
         if (target.frame_count() < source.frame_count()) {
-          return InvalidArgumentError("retarget: the target take has " +
-                                      std::to_string(target.frame_count()) +
-                                      " frames, fewer than the source's " +
-                                      std::to_string(source.frame_count()));
+          return InvalidArgumentError(
+              "retarget: the target take has " + std::to_string(target.frame_count()) +
+              " frames, fewer than the source's " + std::to_string(source.frame_count()));
         }
         TrimTake(source.frame_count(), &target);
       } else {
-        const std::string expression = retarget->expression.empty() ? "neutral" : retarget->expression;
+        const std::string expression =
+            retarget->expression.empty() ? "neutral" : retarget->expression;
         FACEDYN_ASSIGN_OR_RETURN(const Eigen::VectorXd weights,
                                  sim::ExpressionWeights(rig, expression));
         target = dynamics::HeldShapeTake(rig, rig.Evaluate(weights), source.world_from_skull,

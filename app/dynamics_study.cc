@@ -1,13 +1,13 @@
 #include "app/dynamics_study.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <optional>
 #include <utility>
-
-#include <spdlog/spdlog.h>
 
 #include "dynamics/baselines.h"
 #include "dynamics/evaluate.h"
@@ -64,7 +64,8 @@ double MaskedMeanDistance(const PointCache& a, const PointCache& b, const std::v
 }
 
 Json StatsJson(const dynamics::ErrorStats& stats) {
-  return {{"mean_mm", Round4(stats.mean_mm)}, {"p95_mm", Round4(stats.p95_mm)},
+  return {{"mean_mm", Round4(stats.mean_mm)},
+          {"p95_mm", Round4(stats.p95_mm)},
           {"max_mm", Round4(stats.max_mm)}};
 }
 
@@ -92,14 +93,18 @@ Status DynamicsStudyOptions::Check() const {
   auto hz_ok = [](double hz) { return hz >= 0.5 && hz <= 30; };
   if (train_hz.empty()) return InvalidArgumentError("train_hz: at least one frequency");
   for (double hz : train_hz) {
-    if (!hz_ok(hz)) return InvalidArgumentError("train_hz: " + std::to_string(hz) + " not in 0.5..30");
+    if (!hz_ok(hz))
+      return InvalidArgumentError("train_hz: " + std::to_string(hz) + " not in 0.5..30");
   }
   if (!hz_ok(test_hz)) return InvalidArgumentError("test_hz must be in 0.5..30");
   if (expressions.empty()) return InvalidArgumentError("expressions: at least one");
   if (!(seconds >= 0.5)) return InvalidArgumentError("seconds must be >= 0.5");
-  if (vertices < 4000 || vertices > 10000) return InvalidArgumentError("vertices must be in 4000..10000");
-  if (removal_epochs < 1 || synthesis_epochs < 1) return InvalidArgumentError("epochs must be >= 1");
-  if (removal_batch < 1 || synthesis_batch < 1) return InvalidArgumentError("batch sizes must be >= 1");
+  if (vertices < 4000 || vertices > 10000)
+    return InvalidArgumentError("vertices must be in 4000..10000");
+  if (removal_epochs < 1 || synthesis_epochs < 1)
+    return InvalidArgumentError("epochs must be >= 1");
+  if (removal_batch < 1 || synthesis_batch < 1)
+    return InvalidArgumentError("batch sizes must be >= 1");
   return Status::Ok();
 }
 
@@ -134,12 +139,14 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
   }
   for (const std::string& expression : options.expressions) {
     spdlog::info("simulating test take {} at {} Hz", expression, options.test_hz);
-    FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, expression, options.test_hz, options, ++seed));
+    FACEDYN_ASSIGN_OR_RETURN(Take take,
+                             Simulate(rig, expression, options.test_hz, options, ++seed));
     test.push_back({expression + "@" + fmt::format("{:g}Hz", options.test_hz), std::move(take)});
   }
   if (options.speech_hz > 0) {
     spdlog::info("simulating test take speech at {} Hz", options.speech_hz);
-    FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, "speech", options.speech_hz, options, ++seed));
+    FACEDYN_ASSIGN_OR_RETURN(Take take,
+                             Simulate(rig, "speech", options.speech_hz, options, ++seed));
     test.push_back({"speech@" + fmt::format("{:g}Hz", options.speech_hz), std::move(take)});
   }
   const double simulate_s = SecondsSince(simulate_start);
@@ -218,9 +225,9 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
         for (size_t r = 1; r < evaluation.reports.size(); ++r) {
           const std::string& name = evaluation.reports[r].name;
           const dynamics::BaselineKind kind =
-              name == "no_removal"  ? dynamics::BaselineKind::kNoRemoval
-              : name == "lowpass"   ? dynamics::BaselineKind::kLowPass
-                                    : dynamics::BaselineKind::kMovingAverage;
+              name == "no_removal" ? dynamics::BaselineKind::kNoRemoval
+              : name == "lowpass"  ? dynamics::BaselineKind::kLowPass
+                                   : dynamics::BaselineKind::kMovingAverage;
           FACEDYN_ASSIGN_OR_RETURN(
               const PointCache baseline,
               dynamics::ComputeBaseline(t.take, kind, evaluate_options.baselines));
@@ -366,22 +373,24 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
       const double removed_only_mm =
           MaskedMeanDistance(removed_by_best[k].positions, original.positions, mask, skip);
       if (artifacts != nullptr && k == 0) artifacts->resynthesised = resynthesised;
-      synthesis_json.push_back({{"take", test[k].name},
-                                {"mean_dynamic_offset_mm", Round4(offset_mm)},
-                                {"resynthesis_residual_mm", Round4(residual_mm)},
-                                {"relative_to_offset", Round4(offset_mm > 0 ? residual_mm / offset_mm : 0)},
-                                {"removed_without_synthesis_mm", Round4(removed_only_mm)}});
+      synthesis_json.push_back(
+          {{"take", test[k].name},
+           {"mean_dynamic_offset_mm", Round4(offset_mm)},
+           {"resynthesis_residual_mm", Round4(residual_mm)},
+           {"relative_to_offset", Round4(offset_mm > 0 ? residual_mm / offset_mm : 0)},
+           {"removed_without_synthesis_mm", Round4(removed_only_mm)}});
       spdlog::info("{}: resynthesis residual {:.3f} mm of {:.3f} mm offset", test[k].name,
                    residual_mm, offset_mm);
     }
-    result["synthesis"] = {{"takes", synthesis_json},
-                           {"training_rows", synthesis_summary.training_rows},
-                           {"epochs", options.synthesis_epochs},
-                           {"batch", options.synthesis_batch},
-                           {"train_s", Round4(synthesis_summary.train_s)},
-                           {"final_validation_loss", synthesis_summary.validation_loss.empty()
-                                                         ? 0.0
-                                                         : synthesis_summary.validation_loss.back()}};
+    result["synthesis"] = {
+        {"takes", synthesis_json},
+        {"training_rows", synthesis_summary.training_rows},
+        {"epochs", options.synthesis_epochs},
+        {"batch", options.synthesis_batch},
+        {"train_s", Round4(synthesis_summary.train_s)},
+        {"final_validation_loss", synthesis_summary.validation_loss.empty()
+                                      ? 0.0
+                                      : synthesis_summary.validation_loss.back()}};
   }
   if (artifacts != nullptr) {
     artifacts->rig = rig;

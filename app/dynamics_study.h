@@ -28,11 +28,11 @@ struct DynamicsStudyOptions {
   std::vector<double> train_hz = {6, 7, 8, 9, 10};
   double test_hz = 11.0;
   std::vector<std::string> expressions = {"neutral", "smile", "jaw_open"};
-  double seconds = 2.0;        // per simulated take
+  double seconds = 2.0;  // per simulated take
   double fps = 128.0;
-  double window_s = 0.08;      // feature half-window of both networks (the paper's 10 frames)
-  int vertices = 4000;         // procedural face size
-  double speech_hz = 8.0;      // platform frequency of the speech test take; <= 0: no speech test
+  double window_s = 0.08;  // feature half-window of both networks (the paper's 10 frames)
+  int vertices = 4000;     // procedural face size
+  double speech_hz = 8.0;  // platform frequency of the speech test take; <= 0: no speech test
   // Also train F (exact targets) and H on speech takes at every training frequency (other seeds
   // than the test take's). Only the simulator can give exact targets for a changing expression;
   // the paper's moving-average targets exist for held expressions only, so F_moving_average
@@ -40,16 +40,16 @@ struct DynamicsStudyOptions {
   bool train_speech = true;
   double final_learning_rate_fraction = 0.05;  // learning-rate decay of both networks (mlp.h)
   int removal_epochs = 40;
-  int removal_batch = 10000;   // the paper's
-  int synthesis_epochs = 30;   // the paper's
-  int synthesis_batch = 50;    // the paper's
+  int removal_batch = 10000;           // the paper's
+  int synthesis_epochs = 30;           // the paper's
+  int synthesis_batch = 50;            // the paper's
   bool moving_average_targets = true;  // also train F on the paper's moving-average targets
   bool synthesis = true;
   // Paper Fig. 5: also train F (exact targets) on the first 1, 2, ... n-1 training frequencies
   // and test each on the first test take; the full set is the main model.
   bool frequency_subsets = false;
   int subset_epochs = 0;  // epochs of the subset models; 0: removal_epochs
-  int threads = 0;             // LibTorch threads; 0: leave
+  int threads = 0;        // LibTorch threads; 0: leave
   uint64_t seed = 1;
   bool show_progress = true;
   // Frequencies in 0.5..30, at least one expression, seconds >= 0.5, vertices 4000..10000,

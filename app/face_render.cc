@@ -1,11 +1,9 @@
 #include "app/face_render.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-
-#include <Eigen/Geometry>
-
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -18,8 +16,9 @@ std::vector<unsigned char> RenderSignedOffsetPng(const Mesh& topology,
                                                  const Eigen::Matrix3Xf& offsets_in_skull,
                                                  const OffsetRenderOptions& options) {
   const int vertex_count = topology.vertex_count();
-  FACEDYN_CHECK(positions_in_skull.cols() == vertex_count && offsets_in_skull.cols() == vertex_count,
-                "RenderSignedOffsetPng: sizes differ from the topology");
+  FACEDYN_CHECK(
+      positions_in_skull.cols() == vertex_count && offsets_in_skull.cols() == vertex_count,
+      "RenderSignedOffsetPng: sizes differ from the topology");
   const Eigen::Matrix3Xi triangles = topology.Triangles();
   FACEDYN_CHECK(triangles.cols() > 0, "RenderSignedOffsetPng: no faces");
 
@@ -46,8 +45,9 @@ std::vector<unsigned char> RenderSignedOffsetPng(const Mesh& topology,
                                        options.height_px / std::max(hi.y() - lo.y(), 1e-3f));
   const Eigen::Vector2f centre = 0.5f * (lo.head<2>() + hi.head<2>());
   auto to_pixel = [&](const Eigen::Vector3f& p) {
-    return cv::Point(static_cast<int>(std::lround(options.width_px / 2.0 + scale * (p.x() - centre.x()))),
-                     static_cast<int>(std::lround(options.height_px / 2.0 - scale * (p.y() - centre.y()))));
+    return cv::Point(
+        static_cast<int>(std::lround(options.width_px / 2.0 + scale * (p.x() - centre.x()))),
+        static_cast<int>(std::lround(options.height_px / 2.0 - scale * (p.y() - centre.y()))));
   };
 
   std::vector<int> order(triangles.cols());
@@ -82,7 +82,8 @@ std::vector<unsigned char> RenderSignedOffsetPng(const Mesh& topology,
       red = grey * (1 + t);
       blue = grey * (1 + t);
     }
-    const cv::Point corners[3] = {to_pixel(positions_in_skull.col(a)), to_pixel(positions_in_skull.col(b)),
+    const cv::Point corners[3] = {to_pixel(positions_in_skull.col(a)),
+                                  to_pixel(positions_in_skull.col(b)),
                                   to_pixel(positions_in_skull.col(c))};
     cv::fillConvexPoly(image, corners, 3, cv::Scalar(blue * shade, green * shade, red * shade),
                        cv::LINE_AA);

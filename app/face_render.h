@@ -6,10 +6,9 @@
 // Lambert shading so the shape reads under the colour.
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/mesh.h"
 

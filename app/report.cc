@@ -1,13 +1,13 @@
 #include "app/report.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <iterator>
 #include <utility>
 #include <vector>
-
-#include <fmt/format.h>
 
 #include "app/face_render.h"
 
@@ -18,11 +18,20 @@ std::string Escape(const std::string& text) {
   std::string out;
   for (char c : text) {
     switch (c) {
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '&': out += "&amp;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '&':
+        out += "&amp;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -80,18 +89,19 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
       "metrics.json beside this file.</p>";
   if (metrics.contains("rig")) {
     const Json& rig = metrics["rig"];
-    html += "<h2>Platform: simulated drive over Modbus TCP, scripted sweep</h2><table><tr>"
-            "<th>step</th><th>target Hz</th><th>measured Hz</th><th>true platform Hz</th>"
-            "<th>max |error| Hz</th><th>hold s</th><th>prompt</th></tr>";
+    html +=
+        "<h2>Platform: simulated drive over Modbus TCP, scripted sweep</h2><table><tr>"
+        "<th>step</th><th>target Hz</th><th>measured Hz</th><th>true platform Hz</th>"
+        "<th>max |error| Hz</th><th>hold s</th><th>prompt</th></tr>";
     int index = 0;
     for (const Json& step : rig["steps"]) {
-      html += fmt::format("<tr><td>{}</td><td>{:.2f}</td><td>{:.3f}</td><td>{:.3f}</td>"
-                          "<td>{:.3f}</td><td>{:.1f}</td><td>{}</td></tr>",
-                          ++index, step["target_hz"].get<double>(),
-                          step["measured_mean_hz"].get<double>(),
-                          step["true_platform_hz"].is_number() ? step["true_platform_hz"].get<double>() : 0.0,
-                          step["max_abs_error_hz"].get<double>(), step["hold_s"].get<double>(),
-                          Escape(step["prompt"].get<std::string>()));
+      html += fmt::format(
+          "<tr><td>{}</td><td>{:.2f}</td><td>{:.3f}</td><td>{:.3f}</td>"
+          "<td>{:.3f}</td><td>{:.1f}</td><td>{}</td></tr>",
+          ++index, step["target_hz"].get<double>(), step["measured_mean_hz"].get<double>(),
+          step["true_platform_hz"].is_number() ? step["true_platform_hz"].get<double>() : 0.0,
+          step["max_abs_error_hz"].get<double>(), step["hold_s"].get<double>(),
+          Escape(step["prompt"].get<std::string>()));
     }
     html += "</table>";
   }
@@ -128,10 +138,11 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
     const Json& dynamics = metrics["dynamics"];
     const Json& setup = dynamics["setup"];
     html += "<h2>Secondary dynamics removal at a frequency never trained on</h2>";
-    html += fmt::format("<p>Removal network F trained on platform takes at {} Hz ({} takes, {} "
-                        "epochs); mean error over the jiggling vertices (mm).</p>",
-                        Escape(setup["train_hz"].dump()), setup["training_takes"].dump(),
-                        setup["removal_epochs"].dump());
+    html += fmt::format(
+        "<p>Removal network F trained on platform takes at {} Hz ({} takes, {} "
+        "epochs); mean error over the jiggling vertices (mm).</p>",
+        Escape(setup["train_hz"].dump()), setup["training_takes"].dump(),
+        setup["removal_epochs"].dump());
     for (const Json& entry : dynamics["removal"]) {
       html += SvgBarChart(entry["take"].get<std::string>() + " (mean true offset " +
                               fmt::format("{:.3f}", entry["mean_dynamic_offset_mm"].get<double>()) +
@@ -154,8 +165,9 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
               SvgBarChart(fig5["take"].get<std::string>() + ", never trained on", bars, "mm");
     }
     if (dynamics.contains("synthesis")) {
-      html += "<h2>Remove, then resynthesise (paper Fig. 7)</h2><table><tr><th>take</th>"
-              "<th>mean dynamic offset mm</th><th>resynthesis residual mm</th><th>relative</th></tr>";
+      html +=
+          "<h2>Remove, then resynthesise (paper Fig. 7)</h2><table><tr><th>take</th>"
+          "<th>mean dynamic offset mm</th><th>resynthesis residual mm</th><th>relative</th></tr>";
       for (const Json& entry : dynamics["synthesis"]["takes"]) {
         html += fmt::format("<tr><td>{}</td><td>{:.3f}</td><td>{:.3f}</td><td>{:.1f}%</td></tr>",
                             Escape(entry["take"].get<std::string>()),
@@ -171,10 +183,11 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
     for (const auto& [name, figures] : metrics["end_to_end"]["methods"].items()) {
       bars.emplace_back(name, figures["mean_mm"].get<double>());
     }
-    html += "<h2>End to end: cameras, reconstruction, removal</h2><p>The 11 Hz take filmed by the "
-            "simulated cameras and reconstructed, its dynamics removed by F; mean error over the "
-            "face against the exact quasistatic of the simulation that was filmed.</p>" +
-            SvgBarChart("reconstructed neutral@11Hz", bars, "mm");
+    html +=
+        "<h2>End to end: cameras, reconstruction, removal</h2><p>The 11 Hz take filmed by the "
+        "simulated cameras and reconstructed, its dynamics removed by F; mean error over the "
+        "face against the exact quasistatic of the simulation that was filmed.</p>" +
+        SvgBarChart("reconstructed neutral@11Hz", bars, "mm");
   }
   if (metrics.contains("renders")) {
     const Json& renders = metrics["renders"];

@@ -17,7 +17,8 @@ Status WriteDemoReport(const Json& metrics, const std::string& path);
 
 // A horizontal bar chart as an inline SVG element: one bar per (label, value), values >= 0,
 // with the value printed at the bar's end in `unit`. Escapes labels.
-std::string SvgBarChart(const std::string& title, const std::vector<std::pair<std::string, double>>& bars,
+std::string SvgBarChart(const std::string& title,
+                        const std::vector<std::pair<std::string, double>>& bars,
                         const std::string& unit);
 
 }  // namespace facedyn::app

@@ -15,6 +15,8 @@
 //
 // --no-moving-average skips F trained on the paper's moving-average targets (it halves the run).
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -22,8 +24,6 @@
 #include <cstring>
 #include <string>
 #include <vector>
-
-#include <spdlog/spdlog.h>
 
 #include "app/dynamics_study.h"
 #include "core/log.h"
@@ -39,7 +39,9 @@ namespace {
 
 using facedyn::Json;
 using Clock = std::chrono::steady_clock;
-double Seconds(Clock::time_point a) { return std::chrono::duration<double>(Clock::now() - a).count(); }
+double Seconds(Clock::time_point a) {
+  return std::chrono::duration<double>(Clock::now() - a).count();
+}
 
 std::vector<std::string> Split(const std::string& list) {
   std::vector<std::string> items;
@@ -69,8 +71,10 @@ Json RemovalSpeed(double seconds) {
   const auto skull = facedyn::sim::MakeSkullMotion(motion).value();
   const double fps = 128;
   std::vector<facedyn::Rigid3> poses;
-  for (int t = 0; t < static_cast<int>(seconds * fps); ++t) poses.push_back(skull->WorldFromSkull(t / fps));
-  const facedyn::Take take = facedyn::dynamics::HeldShapeTake(rig, rig.neutral.positions_mm, poses, fps);
+  for (int t = 0; t < static_cast<int>(seconds * fps); ++t)
+    poses.push_back(skull->WorldFromSkull(t / fps));
+  const facedyn::Take take =
+      facedyn::dynamics::HeldShapeTake(rig, rig.neutral.positions_mm, poses, fps);
   const auto build_start = Clock::now();
   const auto propagation = facedyn::dynamics::SamplePropagation::Build(rig).value();
   const double build_s = Seconds(build_start);
@@ -80,7 +84,8 @@ Json RemovalSpeed(double seconds) {
   std::vector<double> fps_runs, predict, propagate;
   for (int r = 0; r < 3; ++r) {
     facedyn::dynamics::RemovalSummary summary;
-    const auto removed = facedyn::dynamics::RemoveDynamics(model, take, rig, &propagation, &summary);
+    const auto removed =
+        facedyn::dynamics::RemoveDynamics(model, take, rig, &propagation, &summary);
     if (!removed.ok()) {
       std::fprintf(stderr, "removal failed: %s\n", removed.status().message().c_str());
       std::exit(1);
@@ -89,14 +94,11 @@ Json RemovalSpeed(double seconds) {
     predict.push_back(summary.predict_s);
     propagate.push_back(summary.propagate_s);
   }
-  return {{"vertices", rig.vertex_count()},
-          {"samples", rig.skin_samples.size()},
-          {"frames", take.frame_count()},
-          {"frames_per_s_median", std::round(Median(fps_runs))},
-          {"predict_s_median", Median(predict)},
-          {"propagate_s_median", Median(propagate)},
-          {"propagation_build_s", build_s},
-          {"target_frames_per_s", 200}};
+  return {
+      {"vertices", rig.vertex_count()},      {"samples", rig.skin_samples.size()},
+      {"frames", take.frame_count()},        {"frames_per_s_median", std::round(Median(fps_runs))},
+      {"predict_s_median", Median(predict)}, {"propagate_s_median", Median(propagate)},
+      {"propagation_build_s", build_s},      {"target_frames_per_s", 200}};
 }
 
 }  // namespace
@@ -122,7 +124,8 @@ int main(int argc, char** argv) {
       options.removal_epochs = std::atoi(next());
     } else if (arg == "--hz") {
       options.train_hz.clear();
-      for (const std::string& item : Split(next())) options.train_hz.push_back(std::atof(item.c_str()));
+      for (const std::string& item : Split(next()))
+        options.train_hz.push_back(std::atof(item.c_str()));
     } else if (arg == "--expressions") {
       options.expressions = Split(next());
     } else if (arg == "--speech-hz") {
@@ -140,7 +143,10 @@ int main(int argc, char** argv) {
     } else if (arg == "--seconds") {
       options.seconds = std::atof(next());
     } else {
-      std::fprintf(stderr, "usage: dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs N] [--seconds S] [--hz 6,7,...] [--expressions a,b] [--speech-hz F] [--no-train-speech] [--lr-final F] [--window-ms MS] [--no-moving-average]\n");
+      std::fprintf(stderr,
+                   "usage: dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs "
+                   "N] [--seconds S] [--hz 6,7,...] [--expressions a,b] [--speech-hz F] "
+                   "[--no-train-speech] [--lr-final F] [--window-ms MS] [--no-moving-average]\n");
       return 2;
     }
   }
@@ -164,19 +170,21 @@ int main(int argc, char** argv) {
   // Speed: F's training throughput against the GEMM rate, measured now, side by side.
   const Json& training = (*study)["training"]["F_exact_targets"];
   const double rows_per_s = training["rows_per_s"].get<double>();
-  const double train_macs = rows_per_s * 3.0 * training["forward_multiply_adds_per_row"].get<double>();
-  const double gemm_square = facedyn::dynamics::MeasureGemmMultiplyAddsPerSecond(1024, 1024, 1024, 2.0);
+  const double train_macs =
+      rows_per_s * 3.0 * training["forward_multiply_adds_per_row"].get<double>();
+  const double gemm_square =
+      facedyn::dynamics::MeasureGemmMultiplyAddsPerSecond(1024, 1024, 1024, 2.0);
   const double gemm_layer = facedyn::dynamics::MeasureGemmMultiplyAddsPerSecond(
-      options.removal_batch, training["input_size"].get<int>(), training["hidden_units"].get<int>(), 2.0);
-  out["speed"] = {
-      {"training_rows_per_s", rows_per_s},
-      {"training_multiply_adds_per_s", train_macs},
-      {"gemm_1024_multiply_adds_per_s", gemm_square},
-      {"gemm_first_layer_shape_multiply_adds_per_s", gemm_layer},
-      {"training_over_gemm_1024", train_macs / gemm_square},
-      {"training_over_gemm_first_layer", train_macs / gemm_layer},
-      {"target_ratio", 0.5},
-      {"removal", RemovalSpeed(quick ? 1.0 : 2.0)}};
+      options.removal_batch, training["input_size"].get<int>(), training["hidden_units"].get<int>(),
+      2.0);
+  out["speed"] = {{"training_rows_per_s", rows_per_s},
+                  {"training_multiply_adds_per_s", train_macs},
+                  {"gemm_1024_multiply_adds_per_s", gemm_square},
+                  {"gemm_first_layer_shape_multiply_adds_per_s", gemm_layer},
+                  {"training_over_gemm_1024", train_macs / gemm_square},
+                  {"training_over_gemm_first_layer", train_macs / gemm_layer},
+                  {"target_ratio", 0.5},
+                  {"removal", RemovalSpeed(quick ? 1.0 : 2.0)}};
   std::printf("%s\n", out.dump(2).c_str());
   return 0;
 }

@@ -61,14 +61,14 @@ Status FeatureSpec::Check() const {
 Status FeatureSpec::CheckCompatible(const Take& take, const FaceRig& rig) const {
   const double fps = features.fps;
   if (!(std::abs(take.info.fps - fps) <= 1e-6 * fps)) {
-    return FailedPreconditionError(
-        "fps: the model was trained at " + std::to_string(fps) + " fps, the take is at " +
-        std::to_string(take.info.fps) + " fps (feature windows are counted in frames)");
+    return FailedPreconditionError("fps: the model was trained at " + std::to_string(fps) +
+                                   " fps, the take is at " + std::to_string(take.info.fps) +
+                                   " fps (feature windows are counted in frames)");
   }
   if (rig.vertex_count() != take.vertex_count()) {
     return FailedPreconditionError("vertex_count: the rig has " +
-                                   std::to_string(rig.vertex_count()) +
-                                   " vertices, the take " + std::to_string(take.vertex_count()));
+                                   std::to_string(rig.vertex_count()) + " vertices, the take " +
+                                   std::to_string(take.vertex_count()));
   }
   if (rig.skull_landmarks.size() != landmarks.size()) {
     return FailedPreconditionError("skull_landmarks: the model has " +
@@ -81,8 +81,7 @@ Status FeatureSpec::CheckCompatible(const Take& take, const FaceRig& rig) const 
     if ((a - b).norm() > 1e-6) {
       return FailedPreconditionError("skull_landmarks: landmark " + std::to_string(k) + " ('" +
                                      landmarks[k].name + "') is at " + FormatVector(a) +
-                                     " mm in the model and " + FormatVector(b) +
-                                     " mm in the rig");
+                                     " mm in the model and " + FormatVector(b) + " mm in the rig");
     }
   }
   if (static_cast<int>(rig.skin_samples.size()) != sample_count) {

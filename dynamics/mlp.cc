@@ -1,5 +1,7 @@
 #include "dynamics/mlp.h"
 
+#include <torch/torch.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -7,8 +9,6 @@
 #include <cstring>
 #include <random>
 #include <utility>
-
-#include <torch/torch.h>
 
 #include "core/check.h"
 #include "core/progress.h"
@@ -34,8 +34,7 @@ struct NetImpl : torch::nn::Module {
     int in = shape.input_size;
     for (int k = 0; k <= shape.hidden_layers; ++k) {
       const int out = k < shape.hidden_layers ? shape.hidden_units : shape.output_size;
-      layers.push_back(
-          register_module("fc" + std::to_string(k + 1), torch::nn::Linear(in, out)));
+      layers.push_back(register_module("fc" + std::to_string(k + 1), torch::nn::Linear(in, out)));
       in = out;
     }
   }
@@ -210,8 +209,7 @@ Eigen::MatrixXf Mlp::Predict(const Eigen::MatrixXf& inputs) const {
 }
 
 void Mlp::SetNormalisation(const Eigen::VectorXf& input_mean, const Eigen::VectorXf& input_std,
-                           const Eigen::VectorXf& output_mean,
-                           const Eigen::VectorXf& output_std) {
+                           const Eigen::VectorXf& output_mean, const Eigen::VectorXf& output_std) {
   const MlpShape& shape = this->shape();
   FACEDYN_CHECK(input_mean.size() == shape.input_size && input_std.size() == shape.input_size &&
                     output_mean.size() == shape.output_size &&
@@ -307,8 +305,8 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
   const MlpShape& shape = model->shape();
   if (shape.input_size != data.input_size() || shape.output_size != data.output_size()) {
     return InvalidArgumentError("TrainMlp: the model is " + std::to_string(shape.input_size) +
-                                " -> " + std::to_string(shape.output_size) +
-                                ", the data " + std::to_string(data.input_size()) + " -> " +
+                                " -> " + std::to_string(shape.output_size) + ", the data " +
+                                std::to_string(data.input_size()) + " -> " +
                                 std::to_string(data.output_size()));
   }
   if (options.num_threads > 0) torch::set_num_threads(options.num_threads);
@@ -329,8 +327,7 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
 
   Net& net = MlpTrainer::NetOf(*model);
   net->train();
-  torch::optim::Adam optimizer(net->parameters(),
-                               torch::optim::AdamOptions(options.learning_rate));
+  torch::optim::Adam optimizer(net->parameters(), torch::optim::AdamOptions(options.learning_rate));
   MlpTrainSummary local;
   local.training_rows = static_cast<long>(train_rows.size());
   local.validation_rows = static_cast<long>(validation_rows.size());
@@ -355,9 +352,8 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
       data.Gather(order.data() + begin, n, &inputs, &targets);
       normalise(&inputs, &targets);
       optimizer.zero_grad();
-      const torch::Tensor loss =
-          torch::mse_loss(net->ForwardNormalised(AsRowMajorTensor(inputs)),
-                          AsRowMajorTensor(targets));
+      const torch::Tensor loss = torch::mse_loss(net->ForwardNormalised(AsRowMajorTensor(inputs)),
+                                                 AsRowMajorTensor(targets));
       loss.backward();
       optimizer.step();
       loss_sum += loss.item<double>() * static_cast<double>(n);
@@ -379,8 +375,7 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
                               .item<double>() *
                           static_cast<double>(n);
       }
-      local.validation_loss.push_back(validation_sum /
-                                      static_cast<double>(validation_rows.size()));
+      local.validation_loss.push_back(validation_sum / static_cast<double>(validation_rows.size()));
       std::snprintf(status, sizeof(status), "loss %.4g val %.4g", local.train_loss.back(),
                     local.validation_loss.back());
     } else {

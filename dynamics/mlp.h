@@ -22,12 +22,11 @@
 // same count gives the same summation order). torch::set_num_threads is process-wide.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/json_io.h"
 #include "core/status.h"
@@ -102,8 +101,8 @@ struct MlpTrainOptions {
   // Exponential decay of the learning rate to this fraction of it at the last epoch
   // (lr_e = lr * fraction^(e / (epochs - 1))); 1 keeps it constant, as the paper states.
   double final_learning_rate_fraction = 1.0;
-  uint64_t seed = 1;            // initialisation and shuffling
-  int num_threads = 0;          // LibTorch intra-op threads; 0 keeps the current setting
+  uint64_t seed = 1;    // initialisation and shuffling
+  int num_threads = 0;  // LibTorch intra-op threads; 0 keeps the current setting
   bool show_progress = true;
   std::string progress_label = "train";
   // epochs >= 1, batch_size >= 1, learning_rate > 0, final_learning_rate_fraction in (0, 1],

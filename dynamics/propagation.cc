@@ -1,10 +1,9 @@
 #include "dynamics/propagation.h"
 
-#include <algorithm>
-#include <vector>
-
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+#include <algorithm>
+#include <vector>
 
 #include "core/check.h"
 
@@ -23,7 +22,8 @@ StatusOr<SamplePropagation> SamplePropagation::Build(const FaceRig& rig,
   const int vertex_count = mesh.vertex_count();
   const int sample_count = static_cast<int>(rig.skin_samples.size());
   if (sample_count == 0) return FailedPreconditionError("propagation: the rig has no skin samples");
-  if (mesh.face_count() == 0) return FailedPreconditionError("propagation: the neutral has no faces");
+  if (mesh.face_count() == 0)
+    return FailedPreconditionError("propagation: the neutral has no faces");
 
   // Edge-length-weighted graph Laplacian, rows normalised: (L d)_v = d_v - sum_u w_vu d_u.
   std::vector<Eigen::Triplet<double>> edges;
@@ -82,8 +82,7 @@ StatusOr<SamplePropagation> SamplePropagation::Build(const FaceRig& rig,
   if (solver.info() != Eigen::Success) {
     return InternalError("propagation: the Laplacian system could not be factorised");
   }
-  const Eigen::MatrixXd rhs =
-      options.constraint_weight * Eigen::MatrixXd(constraints.transpose());
+  const Eigen::MatrixXd rhs = options.constraint_weight * Eigen::MatrixXd(constraints.transpose());
   const Eigen::MatrixXd weights = solver.solve(rhs);
   if (solver.info() != Eigen::Success || !weights.allFinite()) {
     return InternalError("propagation: the Laplacian solve failed");

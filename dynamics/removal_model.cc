@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
-#include <optional>
 #include <cmath>
+#include <optional>
 #include <random>
 #include <utility>
 
@@ -128,9 +128,9 @@ StatusOr<RemovalModel> RemovalModel::Load(const std::string& path) {
   RemovalModel model;
   FACEDYN_ASSIGN_OR_RETURN(model.mlp_, Mlp::Load(path, kKind, &json));
   if (json.value("format_version", 0) != kRemovalFormatVersion) {
-    return DataLossError(path + ": removal format_version " + json.value("format_version", Json()).dump() +
-                         " is not supported (expected " + std::to_string(kRemovalFormatVersion) +
-                         ")");
+    return DataLossError(
+        path + ": removal format_version " + json.value("format_version", Json()).dump() +
+        " is not supported (expected " + std::to_string(kRemovalFormatVersion) + ")");
   }
   StatusOr<FeatureSpec> spec = FeatureSpec::FromJson(json);
   if (!spec.ok()) return spec.status().WithContext(path);
@@ -157,8 +157,7 @@ Status RemovalTrainOptions::Check() const {
 }
 
 StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
-                                    const RemovalTrainOptions& options,
-                                    MlpTrainSummary* summary) {
+                                    const RemovalTrainOptions& options, MlpTrainSummary* summary) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (takes.empty()) return InvalidArgumentError("train-removal: no training takes");
   for (const TrainingTake& training : takes) {
@@ -181,8 +180,9 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
   for (size_t k = 0; k < takes.size(); ++k) {
     const Take& take = *takes[k].take;
     const FaceRig& rig = *takes[k].rig;
-    const std::string context = "training take " + std::to_string(k) +
-                                (take.info.expression.empty() ? "" : " (" + take.info.expression + ")");
+    const std::string context =
+        "training take " + std::to_string(k) +
+        (take.info.expression.empty() ? "" : " (" + take.info.expression + ")");
     if (Status status = model.CheckCompatible(take, rig); !status.ok()) {
       return status.WithContext(context);
     }
@@ -211,8 +211,9 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
     }
   }
   if (frames.empty()) {
-    return FailedPreconditionError("train-removal: every take is shorter than two feature windows (" +
-                                   std::to_string(2 * window + 1) + " frames)");
+    return FailedPreconditionError(
+        "train-removal: every take is shorter than two feature windows (" +
+        std::to_string(2 * window + 1) + " frames)");
   }
 
   // Validation split by whole frames, seeded.

@@ -11,11 +11,10 @@
 // landmarks, samples), so applying it to an incompatible take is a clear error.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/face_rig.h"
 #include "core/status.h"

@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
-#include <optional>
 #include <cmath>
+#include <optional>
 #include <random>
 #include <utility>
 
@@ -180,15 +180,16 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
     FACEDYN_CHECK(training.take != nullptr && training.rig != nullptr,
                   "TrainSynthesis: training take without take or rig");
   }
-  SynthesisConfig config = SynthesisConfig::ForRig(*decomposed[0].rig, decomposed[0].take->info.fps);
+  SynthesisConfig config =
+      SynthesisConfig::ForRig(*decomposed[0].rig, decomposed[0].take->info.fps);
   config.features.window_s = options.window_s;
   config.features.stretch_step_mm = options.stretch_step_mm;
   config.hidden_units = options.hidden_units;
-  FACEDYN_ASSIGN_OR_RETURN(SynthesisModel model, SynthesisModel::Create(config, options.train.seed));
-  FACEDYN_ASSIGN_OR_RETURN(
-      const StretchStencil stencil,
-      BuildStretchStencil(*decomposed[0].rig, decomposed[0].rig->skin_samples,
-                          options.stretch_step_mm));
+  FACEDYN_ASSIGN_OR_RETURN(SynthesisModel model,
+                           SynthesisModel::Create(config, options.train.seed));
+  FACEDYN_ASSIGN_OR_RETURN(const StretchStencil stencil,
+                           BuildStretchStencil(*decomposed[0].rig, decomposed[0].rig->skin_samples,
+                                               options.stretch_step_mm));
 
   int max_frames = 0;
   for (const TrainingTake& training : decomposed) {
@@ -200,8 +201,9 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   for (size_t k = 0; k < decomposed.size(); ++k) {
     const Take& take = *decomposed[k].take;
     const FaceRig& rig = *decomposed[k].rig;
-    const std::string context = "training take " + std::to_string(k) +
-                                (take.info.expression.empty() ? "" : " (" + take.info.expression + ")");
+    const std::string context =
+        "training take " + std::to_string(k) +
+        (take.info.expression.empty() ? "" : " (" + take.info.expression + ")");
     if (Status status = model.CheckCompatible(take, rig); !status.ok()) {
       return status.WithContext(context);
     }
@@ -217,9 +219,10 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
         quasistatic != take.channels.end() &&
         (quasistatic->second.positions - take.positions.positions).cwiseAbs().maxCoeff() > 1e-3f) {
       return FailedPreconditionError(
-          context + ": its positions are not quasistatic (they differ from its quasistatic "
-                    "channel: a simulated dynamic take?); decompose it first (DecomposeExact, "
-                    "`train-synthesis --exact`, or `--removal-model F.pt`)");
+          context +
+          ": its positions are not quasistatic (they differ from its quasistatic "
+          "channel: a simulated dynamic take?); decompose it first (DecomposeExact, "
+          "`train-synthesis --exact`, or `--removal-model F.pt`)");
     }
     StatusOr<Eigen::MatrixXf> features =
         SynthesisFeatures(take, take.world_from_skull, rig, config, stencil);
@@ -230,7 +233,8 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
     }
   }
   if (rows.empty()) {
-    return FailedPreconditionError("train-synthesis: every take is shorter than two feature windows");
+    return FailedPreconditionError(
+        "train-synthesis: every take is shorter than two feature windows");
   }
   std::mt19937_64 rng(options.train.seed);
   std::shuffle(rows.begin(), rows.end(), rng);
@@ -246,14 +250,12 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
 StatusOr<Take> SynthesizeDynamics(const SynthesisModel& model, const Take& quasistatic,
                                   const std::vector<Rigid3>& world_from_skull,
                                   const std::string& motion_name, const FaceRig& rig,
-                                  const SamplePropagation* propagation,
-                                  SynthesisSummary* summary) {
+                                  const SamplePropagation* propagation, SynthesisSummary* summary) {
   FACEDYN_RETURN_IF_ERROR(model.CheckCompatible(quasistatic, rig));
   if (static_cast<int>(world_from_skull.size()) != quasistatic.frame_count()) {
-    return InvalidArgumentError("synthesize: the head motion has " +
-                                std::to_string(world_from_skull.size()) +
-                                " poses, the quasistatic take " +
-                                std::to_string(quasistatic.frame_count()) + " frames");
+    return InvalidArgumentError(
+        "synthesize: the head motion has " + std::to_string(world_from_skull.size()) +
+        " poses, the quasistatic take " + std::to_string(quasistatic.frame_count()) + " frames");
   }
   const auto start = std::chrono::steady_clock::now();
   const SynthesisConfig& config = model.config();
@@ -324,10 +326,9 @@ StatusOr<Take> NaiveDeltaTransfer(const Take& source, const FaceRig& source_rig,
     return FailedPreconditionError("naive transfer: the source take has no dynamic_offset channel");
   }
   if (source_rig.skin_samples.size() != target_rig.skin_samples.size()) {
-    return FailedPreconditionError("naive transfer: the source rig has " +
-                                   std::to_string(source_rig.skin_samples.size()) +
-                                   " samples, the target " +
-                                   std::to_string(target_rig.skin_samples.size()));
+    return FailedPreconditionError(
+        "naive transfer: the source rig has " + std::to_string(source_rig.skin_samples.size()) +
+        " samples, the target " + std::to_string(target_rig.skin_samples.size()));
   }
   if (source.frame_count() != target_quasistatic.frame_count()) {
     return FailedPreconditionError("naive transfer: the source has " +

@@ -18,11 +18,10 @@
 // Fig. 10(b), copying the source's per-sample offsets onto the target.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/face_rig.h"
 #include "core/rigid3.h"

@@ -1,12 +1,12 @@
 // `facedyn dynamics train-removal | remove | train-synthesis | synthesize | retarget | eval`
 // end to end on small simulated takes: exit codes, files, JSON, and bad input.
 
-#include <filesystem>
-#include <string>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <filesystem>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "tests/support/test_support.h"
 
@@ -41,11 +41,12 @@ TEST(DynamicsCli, TrainRemoveSynthesizeRetargetEvaluate) {
   const TempDir& takes = Takes();
   TempDir dir;
   std::string out;
-  ASSERT_EQ(RunCommand(Facedyn("dynamics train-removal --takes " + takes.Join("p7") + " " +
-                               takes.Join("p9") + " --targets exact --epochs 3 --batch 4000 --out " +
-                               dir.Join("F.pt") + " --json"),
-                       &out),
-            0)
+  ASSERT_EQ(
+      RunCommand(
+          Facedyn("dynamics train-removal --takes " + takes.Join("p7") + " " + takes.Join("p9") +
+                  " --targets exact --epochs 3 --batch 4000 --out " + dir.Join("F.pt") + " --json"),
+          &out),
+      0)
       << out;
   const auto summary = nlohmann::json::parse(out.substr(out.find('{')));
   EXPECT_EQ(summary["epochs"], 3);
@@ -109,8 +110,8 @@ TEST(DynamicsCli, BadArgumentsNameTheField) {
                                " --targets magic --out " + dir.Join("F.pt")),
                        &out),
             2);
-  EXPECT_EQ(RunCommand(Facedyn("dynamics train-removal --takes " + dir.Join("missing") +
-                               " --out " + dir.Join("F.pt")),
+  EXPECT_EQ(RunCommand(Facedyn("dynamics train-removal --takes " + dir.Join("missing") + " --out " +
+                               dir.Join("F.pt")),
                        &out),
             1);
   EXPECT_THAT(out, HasSubstr("missing"));

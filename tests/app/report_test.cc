@@ -4,13 +4,13 @@
 
 #include "app/report.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
 #include "app/face_render.h"
@@ -71,7 +71,8 @@ std::string WriteReport(const testing::TempDir& dir) {
   const FaceRig rig = sim::MakeProceduralFace(sim::ProceduralFaceOptions()).value();
   const std::vector<unsigned char> png = CheekRender(rig);
   const std::string png_path = dir.Join("cheeks.png");
-  std::ofstream(png_path, std::ios::binary).write(reinterpret_cast<const char*>(png.data()), png.size());
+  std::ofstream(png_path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(png.data()), png.size());
   Json metrics;
   metrics["rig"]["steps"] = Json::array({{{"target_hz", 8.0},
                                           {"measured_mean_hz", 8.001},
@@ -79,16 +80,18 @@ std::string WriteReport(const testing::TempDir& dir) {
                                           {"max_abs_error_hz", 0.01},
                                           {"hold_s", 2.0},
                                           {"prompt", "smile <& hold>"}}});
-  metrics["dynamics"]["setup"] = {{"train_hz", {6, 7}}, {"training_takes", 2}, {"removal_epochs", 3}};
-  metrics["dynamics"]["removal"] = Json::array(
-      {{{"take", "neutral@11Hz"},
-        {"mean_dynamic_offset_mm", 1.4},
-        {"methods",
-         {{"F_exact_targets", {{"jiggle_mean_mm", 0.06}}}, {"lowpass", {{"jiggle_mean_mm", 0.03}}},
-          {"no_removal", {{"jiggle_mean_mm", 1.4}}}}}}});
-  metrics["renders"] = {{"take", "neutral@11Hz"},
-                        {"range_mm", 5.0},
-                        {"images", Json::array({{{"frame", 3}, {"view", "cheeks"}, {"path", png_path}}})}};
+  metrics["dynamics"]["setup"] = {
+      {"train_hz", {6, 7}}, {"training_takes", 2}, {"removal_epochs", 3}};
+  metrics["dynamics"]["removal"] = Json::array({{{"take", "neutral@11Hz"},
+                                                 {"mean_dynamic_offset_mm", 1.4},
+                                                 {"methods",
+                                                  {{"F_exact_targets", {{"jiggle_mean_mm", 0.06}}},
+                                                   {"lowpass", {{"jiggle_mean_mm", 0.03}}},
+                                                   {"no_removal", {{"jiggle_mean_mm", 1.4}}}}}}});
+  metrics["renders"] = {
+      {"take", "neutral@11Hz"},
+      {"range_mm", 5.0},
+      {"images", Json::array({{{"frame", 3}, {"view", "cheeks"}, {"path", png_path}}})}};
   metrics["stages_s"] = Json::array({{{"stage", "rig"}, {"seconds", 1.5}}});
   const std::string report = dir.Join("report.html");
   EXPECT_TRUE(WriteDemoReport(metrics, report).ok());
@@ -107,8 +110,10 @@ TEST(WriteDemoReport, EmbedsEverythingAndEscapesText) {
 TEST(WriteDemoReport, MissingRenderIsAnError) {
   testing::TempDir dir;
   Json metrics;
-  metrics["renders"] = {{"take", "t"}, {"range_mm", 5.0},
-                        {"images", Json::array({{{"frame", 0}, {"view", "v"}, {"path", dir.Join("gone.png")}}})}};
+  metrics["renders"] = {
+      {"take", "t"},
+      {"range_mm", 5.0},
+      {"images", Json::array({{{"frame", 0}, {"view", "v"}, {"path", dir.Join("gone.png")}}})}};
   const Status status = WriteDemoReport(metrics, dir.Join("report.html"));
   EXPECT_EQ(status.code(), StatusCode::kDataLoss);
   EXPECT_THAT(status.message(), HasSubstr("gone.png"));
@@ -121,7 +126,8 @@ TEST(WriteDemoReport, HeadlessChromiumDrawsItsImagesAndPlots) {
     if (std::filesystem::exists(c)) chromium = c;
   }
   if (chromium.empty()) {
-    if (testing::InCi()) FAIL() << "chromium is missing and CI=true (scripts/install-deps.sh installs it)";
+    if (testing::InCi())
+      FAIL() << "chromium is missing and CI=true (scripts/install-deps.sh installs it)";
     GTEST_SKIP() << "chromium not installed";
   }
   testing::TempDir dir;
@@ -129,10 +135,12 @@ TEST(WriteDemoReport, HeadlessChromiumDrawsItsImagesAndPlots) {
   const std::string shot = dir.Join("shot.png");
   std::string out;
   const int rc = testing::RunCommand(
-      chromium + " --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
-                 "--disable-background-networking --disable-component-update --disable-sync "
-                 "--user-data-dir=" + dir.Join("profile") + " --window-size=900,1400 --screenshot=" +
-          shot + " file://" + report,
+      chromium +
+          " --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
+          "--disable-background-networking --disable-component-update --disable-sync "
+          "--user-data-dir=" +
+          dir.Join("profile") + " --window-size=900,1400 --screenshot=" + shot + " file://" +
+          report,
       &out);
   ASSERT_EQ(rc, 0) << out;
   const cv::Mat image = cv::imread(shot, cv::IMREAD_COLOR);

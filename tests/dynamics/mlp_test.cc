@@ -2,10 +2,10 @@
 
 #include "dynamics/mlp.h"
 
-#include <cstring>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cstring>
 
 #include "tests/support/test_support.h"
 
@@ -75,7 +75,8 @@ TEST(TrainMlp, FitsALinearMapInRawUnits) {
   const Eigen::MatrixXf predicted = model.Predict(inputs);
   const Eigen::MatrixXf truth = (data.a_ * inputs).colwise() + data.b_;
   const double rms = std::sqrt((predicted - truth).squaredNorm() / predicted.size());
-  const double spread = std::sqrt((truth.colwise() - truth.rowwise().mean()).squaredNorm() / truth.size());
+  const double spread =
+      std::sqrt((truth.colwise() - truth.rowwise().mean()).squaredNorm() / truth.size());
   EXPECT_LT(rms, 0.1 * spread) << "rms " << rms << " spread " << spread;
 }
 
@@ -133,7 +134,8 @@ TEST(Mlp, SaveLoadRoundTripAndKindCheck) {
   EXPECT_EQ(config["mlp"]["hidden_units"], 32);
   const auto wrong = Mlp::Load(dir.Join("m.pt"), "synthesis", &config);
   EXPECT_EQ(wrong.status().code(), StatusCode::kDataLoss);
-  EXPECT_THAT(wrong.status().message(), HasSubstr("is a removal model, expected a synthesis model"));
+  EXPECT_THAT(wrong.status().message(),
+              HasSubstr("is a removal model, expected a synthesis model"));
 }
 
 TEST(MeasureGemm, GivesAPositiveRate) {

@@ -2,11 +2,11 @@
 
 #include "dynamics/propagation.h"
 
-#include <algorithm>
-#include <cmath>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
 
 #include "sim/procedural_face.h"
 #include "tests/support/test_support.h"
@@ -57,7 +57,8 @@ TEST(SamplePropagation, NearlyInterpolatesTheSamplesAndStaysBounded) {
   double worst_at_samples = 0;
   for (int i = 0; i < propagation.sample_count(); ++i) {
     const Eigen::Vector3d at_sample = rig.skin_samples[i].Evaluate(vertices);
-    worst_at_samples = std::max(worst_at_samples, (at_sample - samples.col(i).cast<double>()).norm());
+    worst_at_samples =
+        std::max(worst_at_samples, (at_sample - samples.col(i).cast<double>()).norm());
   }
   // Offsets at the samples are up to ~1.5 mm; the soft constraints hold them to a few percent.
   EXPECT_LT(worst_at_samples, 0.05);

@@ -2,13 +2,13 @@
 
 #include "dynamics/removal_model.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "core/mesh_primitives.h"
 #include "dynamics/evaluate.h"
@@ -137,8 +137,8 @@ TEST(RemovalModel, SaveLoadGivesBitwiseIdenticalOutputs) {
   RemovalModel model = RemovalModel::Create(RemovalConfig::ForRig(rig, 128.0), 3).value();
   const int n = model.config().input_size();
   model.SetNormalisation(Eigen::VectorXf::LinSpaced(n, -1.0f, 1.0f),
-                         Eigen::VectorXf::LinSpaced(n, 0.5f, 2.0f), Eigen::Vector3f(0.1f, 0.2f, 0.3f),
-                         Eigen::Vector3f(1.5f, 2.5f, 3.5f));
+                         Eigen::VectorXf::LinSpaced(n, 0.5f, 2.0f),
+                         Eigen::Vector3f(0.1f, 0.2f, 0.3f), Eigen::Vector3f(1.5f, 2.5f, 3.5f));
   testing::TempDir dir;
   const std::string path = dir.Join("F.pt");
   ASSERT_TRUE(model.Save(path).ok());
@@ -193,15 +193,14 @@ TEST(TrainRemoval, LearnsAKnownSmoothFunctionOfTheFeatures) {
   const Take take_a = SyntheticTake(rig, 128, 128.0, 0.0);
   const Take take_b = SyntheticTake(rig, 128, 128.0, 1.3);
   MlpTrainSummary summary;
-  const auto model =
-      TrainRemoval({{&take_a, &rig}, {&take_b, &rig}}, QuickOptions(20), &summary);
+  const auto model = TrainRemoval({{&take_a, &rig}, {&take_b, &rig}}, QuickOptions(20), &summary);
   ASSERT_TRUE(model.ok()) << model.status().message();
   ASSERT_EQ(summary.train_loss.size(), 20u);
   ASSERT_EQ(summary.validation_loss.size(), 20u);
   EXPECT_GT(summary.validation_rows, 0);
   std::printf("synthetic: loss %.4g -> %.4g (val %.4g), %.0f samples/s\n",
-              summary.train_loss.front(), summary.train_loss.back(),
-              summary.validation_loss.back(), summary.rows_per_s);
+              summary.train_loss.front(), summary.train_loss.back(), summary.validation_loss.back(),
+              summary.rows_per_s);
   EXPECT_LT(summary.train_loss.back(), summary.train_loss.front() / 20);
   EXPECT_LT(summary.validation_loss.back(), 0.05);
 

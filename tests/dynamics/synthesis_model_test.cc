@@ -2,11 +2,11 @@
 
 #include "dynamics/synthesis_model.h"
 
-#include <cmath>
-#include <cstring>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
 
 #include "sim/procedural_face.h"
 #include "tests/support/test_support.h"
@@ -87,10 +87,12 @@ TEST(SynthesizeDynamics, ComposesPropagatedOffsetsUnderTheNewMotion) {
   // Output normalisation with a tiny std and a mean of (0.5, 1, 0) per sample: H ~ constant.
   const int n_in = model.config().input_size(), n_out = model.config().output_size();
   Eigen::VectorXf out_mean(n_out);
-  for (int i = 0; i < n_out / 3; ++i) out_mean.segment<3>(3 * i) = Eigen::Vector3f(0.5f, 1.0f, 0.0f);
+  for (int i = 0; i < n_out / 3; ++i)
+    out_mean.segment<3>(3 * i) = Eigen::Vector3f(0.5f, 1.0f, 0.0f);
   model.mutable_mlp()->SetNormalisation(Eigen::VectorXf::Zero(n_in), Eigen::VectorXf::Ones(n_in),
                                         out_mean, Eigen::VectorXf::Constant(n_out, 1e-7f));
-  const Take quasistatic = HeldShapeTake(rig, rig.neutral.positions_mm, WobblingPoses(40, 128, 0), 128);
+  const Take quasistatic =
+      HeldShapeTake(rig, rig.neutral.positions_mm, WobblingPoses(40, 128, 0), 128);
   const std::vector<Rigid3> motion = WobblingPoses(40, 128, 2.0);
   const auto result = SynthesizeDynamics(model, quasistatic, motion, "wobble", rig);
   ASSERT_TRUE(result.ok()) << result.status().message();
@@ -99,7 +101,8 @@ TEST(SynthesizeDynamics, ComposesPropagatedOffsetsUnderTheNewMotion) {
   ASSERT_EQ(result->channels.count("quasistatic"), 1u);
   const PointCache& reposed = result->channels.at("quasistatic");
   for (int t = 0; t < 40; t += 13) {
-    const Eigen::Matrix3Xf expected_reposed = motion[t].Apply(rig.neutral.positions_mm).cast<float>();
+    const Eigen::Matrix3Xf expected_reposed =
+        motion[t].Apply(rig.neutral.positions_mm).cast<float>();
     EXPECT_LT((reposed.Frame(t) - expected_reposed).cwiseAbs().maxCoeff(), 1e-3);
     const Eigen::Vector3f expected_offset =
         (motion[t].RotationMatrix() * Eigen::Vector3d(0.5, 1.0, 0.0)).cast<float>();
@@ -111,14 +114,16 @@ TEST(SynthesizeDynamics, ComposesPropagatedOffsetsUnderTheNewMotion) {
 TEST(SynthesizeDynamics, RefusesAMotionOfAnotherLengthOrFps) {
   const FaceRig& rig = Face();
   const SynthesisModel model = SynthesisModel::Create(SynthesisConfig::ForRig(rig, 128), 2).value();
-  const Take quasistatic = HeldShapeTake(rig, rig.neutral.positions_mm, WobblingPoses(40, 128, 0), 128);
+  const Take quasistatic =
+      HeldShapeTake(rig, rig.neutral.positions_mm, WobblingPoses(40, 128, 0), 128);
   EXPECT_THAT(SynthesizeDynamics(model, quasistatic, WobblingPoses(39, 128, 0), "m", rig)
                   .status()
                   .message(),
               HasSubstr("39 poses"));
   const Take at96 = HeldShapeTake(rig, rig.neutral.positions_mm, WobblingPoses(40, 96, 0), 96);
-  EXPECT_THAT(SynthesizeDynamics(model, at96, WobblingPoses(40, 96, 0), "m", rig).status().message(),
-              HasSubstr("fps"));
+  EXPECT_THAT(
+      SynthesizeDynamics(model, at96, WobblingPoses(40, 96, 0), "m", rig).status().message(),
+      HasSubstr("fps"));
 }
 
 TEST(TrainSynthesis, LearnsAKnownFunctionOfTheSkullMotion) {
@@ -158,7 +163,8 @@ TEST(TrainSynthesis, RefusesATakeWithoutOffsets) {
 TEST(NaiveDeltaTransfer, CopiesPerSampleOffsetsOntoTheTarget) {
   const FaceRig& rig = Face();
   const Take source = DecomposedTake(rig, 30, 0.0);
-  const Take target = HeldShapeTake(rig, rig.neutral.positions_mm, WobblingPoses(30, 128, 1.0), 128);
+  const Take target =
+      HeldShapeTake(rig, rig.neutral.positions_mm, WobblingPoses(30, 128, 1.0), 128);
   const auto result = NaiveDeltaTransfer(source, rig, target, rig);
   ASSERT_TRUE(result.ok()) << result.status().message();
   EXPECT_EQ(result->world_from_skull.size(), 30u);
@@ -168,7 +174,8 @@ TEST(NaiveDeltaTransfer, CopiesPerSampleOffsetsOntoTheTarget) {
     EXPECT_LT((offsets.Frame(t).colwise() - expected).cwiseAbs().maxCoeff(),
               0.01 * expected.norm() + 1e-4);
   }
-  const Take short_target = HeldShapeTake(rig, rig.neutral.positions_mm, WobblingPoses(20, 128, 1.0), 128);
+  const Take short_target =
+      HeldShapeTake(rig, rig.neutral.positions_mm, WobblingPoses(20, 128, 1.0), 128);
   EXPECT_FALSE(NaiveDeltaTransfer(source, rig, short_target, rig).ok());
 }
 

@@ -13,7 +13,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 constexpr double kStartGraceS = 1.5;      // a drive may take this long to report "running"
-constexpr double kStoppedBelowHz = 0.05;  // output frequency counted as standstill
 
 Json StatusJson(const Status& status) {
   if (status.ok()) return "ok";
@@ -382,6 +381,7 @@ Status RigSupervisor::Tick() {
   if (log_) {
     Json fields = reading.ToJson();
     fields["state"] = RigStateName(state_);
+    fields["tick_s"] = std::chrono::duration<double>(now - start_).count();  // the clock the ramp used
     fields["vibrating_s"] = exposure_.vibrating_s();
     fields["dose_m2_s3"] = exposure_.dose_m2_s3();
     log_->Write("reply", std::move(fields));
@@ -459,7 +459,8 @@ Status RigSupervisor::RampToStop(const std::string& reason) {
       fields["dose_m2_s3"] = exposure_.dose_m2_s3();
       log_->Write("reply", std::move(fields));
     }
-    if (reading.output_hz < kStoppedBelowHz) break;
+    // Standstill is the drive reporting exactly 0 Hz output (register 0), not "nearly stopped".
+    if (reading.output_hz == 0.0 && !reading.running) break;
     if (ElapsedS() > deadline_s) {
       return FailedPreconditionError(fmt::format("rig {}: still at {:.2f} Hz {} s after the stop command "
                                                  "(safety.stop_timeout_s)", config_.name, reading.output_hz,

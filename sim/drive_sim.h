@@ -20,7 +20,8 @@
 // - DriveSim: a server thread that owns a libmodbus context — TCP on host:port (port 0 picks
 //   a free port) serving any number of clients, or RTU on a serial device (e.g. one end of a
 //   socat pty pair) — answering with modbus_receive/modbus_reply over a modbus_mapping_t laid
-//   out by a DriveProfile, stepping the model on steady_clock. Writes to the profile's command
+//   out by a DriveProfile, stepping the model on steady_clock (at most 50 ms per server loop, so
+//   a starved server thread slows the model instead of tripping its watchdog). Writes to the profile's command
 //   register are interpreted as run/stop/fault-reset; the setpoint register is scaled to Hz;
 //   status, output frequency, oscillation frequency and fault code are refreshed before every
 //   reply. Fault injection: drop the next N requests unanswered, delay replies, garble the

@@ -13,6 +13,7 @@
 #include "app/capture_demo.h"
 
 #include <algorithm>
+#include <random>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -24,6 +25,8 @@
 #include <thread>
 
 #include <fmt/format.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <spdlog/spdlog.h>
 
 #include "app/command.h"
@@ -42,6 +45,7 @@
 #include "rig/supervisor.h"
 #include "rig/sweep.h"
 #include "sim/drive_sim.h"
+#include "sim/calibration_target.h"
 #include "sim/expressions.h"
 #include "sim/sim_capture.h"
 
@@ -225,12 +229,11 @@ StatusOr<TakeOutput> CaptureTake(const capture::CaptureConfig& config, capture::
   }
   capture::VirtualTrigger trigger({config.fps, config.trigger_pace});
   FACEDYN_ASSIGN_OR_RETURN(output.report, capture::RecordTake(session, cameras, &trigger, options));
-  if (stage) {
-    double render_s = 0.0;
-    for (auto& camera : stage->cameras) render_s += camera->render_s();
+  if (stage && output.report.record_wall_s > 0) {
+    // Rendering is the bottleneck of a simulated take: frames/s over all cameras and cores.
     int64_t frames = 0;
     for (const auto& camera : output.report.result.cameras) frames += camera.record.frames_written;
-    output.render_fps = render_s > 0 ? frames / render_s : 0.0;  // per rendering thread
+    output.render_fps = frames / output.report.record_wall_s;
   }
   return output;
 }
@@ -240,18 +243,19 @@ Json TakeJson(const TakeOutput& output) {
   json.erase("name");
   json["take_dir"] = output.report.take_dir;
   json["wall_s"] = output.report.wall_s;
+  json["record_wall_s"] = output.report.record_wall_s;
   json["megabytes_written"] = output.report.bytes_written / 1e6;
   json["megabytes_per_s"] = output.report.MegabytesPerSecond();
-  if (output.render_fps > 0) json["render_frames_per_s_per_thread"] = output.render_fps;
+  if (output.render_fps > 0) json["frames_per_s"] = output.render_fps;
   if (output.simulate_s > 0) json["simulate_s"] = output.simulate_s;
   return json;
 }
 
 void PrintTake(const std::string& name, const TakeOutput& output) {
   const capture::TakeResult& r = output.report.result;
-  std::printf("take %s: %s, %lld of %lld triggers at %.0f fps, %.1f MB in %.1f s (%.1f MB/s)\n", name.c_str(),
+  std::printf("take %s: %s, %lld of %lld triggers at %.0f fps, %.1f MB recorded in %.1f s (%.1f MB/s)\n", name.c_str(),
               r.status.c_str(), static_cast<long long>(r.triggers_emitted), static_cast<long long>(r.triggers_requested), r.fps,
-              output.report.bytes_written / 1e6, output.report.wall_s, output.report.MegabytesPerSecond());
+              output.report.bytes_written / 1e6, output.report.record_wall_s, output.report.MegabytesPerSecond());
   for (const capture::TakeCameraResult& camera : r.cameras) {
     std::printf("  %-6s %5lld frames  missing %lld  duplicated %lld  out-of-order %lld  ts-mismatch %lld (max %.1f us)  dropped %lld\n",
                 camera.name.c_str(), static_cast<long long>(camera.record.frames_written), static_cast<long long>(camera.sync.missing),
@@ -260,7 +264,7 @@ void PrintTake(const std::string& name, const TakeOutput& output) {
                 static_cast<long long>(camera.record.dropped_queue_full));
   }
   if (!r.reason.empty()) std::printf("  reason: %s\n", r.reason.c_str());
-  if (output.render_fps > 0) std::printf("  renderer: %.1f frames/s per thread\n", output.render_fps);
+  if (output.render_fps > 0) std::printf("  simulated cameras: %.1f frames/s rendered and recorded (all cameras)\n", output.render_fps);
 }
 
 struct CaptureCommandOptions {
@@ -421,6 +425,101 @@ Status RunSessionCheck(const std::string& dir, bool json) {
   return Status::Ok();
 }
 
+
+struct CalibrationImagesOptions {
+  std::string config;
+  std::string out;
+  std::string board = "chessboard";
+  int poses = 12;
+  int seed = 1;
+};
+
+// Renders the calibration board at `poses` seeded poses in front of the cameras' common target
+// with every camera of the config: <out>/cam<k>/pose<NNN>.png, plus the ground truth
+// (cameras.yaml, board.json, poses.csv = world_from_board, corners.csv = every inner corner's
+// true pixel, with visible = 0 when off the image).
+Status RunCalibrationImages(const CalibrationImagesOptions& options) {
+  FACEDYN_ASSIGN_OR_RETURN(const capture::CaptureConfig config, capture::LoadCaptureConfig(options.config));
+  if (config.cameras.empty()) return InvalidArgumentError(options.config + ": no camera models (give cameras.calibration or ring)");
+  if (options.poses < 1 || options.poses > 1000) return InvalidArgumentError("--poses must be in 1..1000");
+  sim::CalibrationBoard board;
+  if (options.board == "charuco") {
+    board.kind = sim::BoardKind::kCharuco;
+  } else if (options.board != "chessboard") {
+    return InvalidArgumentError("--board '" + options.board + "' is not chessboard or charuco");
+  }
+  sim::RenderOptions render;
+  render.supersample = 3;
+  render.blur_sigma_px = 0.6;
+  render.read_noise_dn = 1.0;
+  render.seed = static_cast<uint64_t>(options.seed);
+  if (config.sim) {  // the capture config's sensor settings, where it has them
+    auto sim_options = sim::ParseSimCaptureOptions(*config.sim, std::filesystem::path(config.source_path).parent_path().string());
+    if (sim_options.ok()) {
+      render.read_noise_dn = sim_options->render.read_noise_dn;
+      render.shot_noise_gain = sim_options->render.shot_noise_gain;
+      render.blur_sigma_px = sim_options->render.blur_sigma_px;
+    }
+  }
+  const sim::BoardRenderer renderer(board, render);
+  // The point all cameras look at: the least-squares intersection of their optical axes.
+  Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  for (const capture::CameraModel& camera : config.cameras) {
+    const Eigen::Vector3d c = camera.CenterInWorld();
+    const Eigen::Vector3d d = camera.cam_from_world.Inverse().RotateVector(Eigen::Vector3d::UnitZ());
+    const Eigen::Matrix3d p = Eigen::Matrix3d::Identity() - d * d.transpose();
+    a += p;
+    b += p * c;
+  }
+  const Eigen::Vector3d target = config.cameras.size() > 1 ? Eigen::Vector3d(a.ldlt().solve(b))
+                                                            : Eigen::Vector3d(config.cameras[0].CenterInWorld() +
+                                                                              800 * config.cameras[0].cam_from_world.Inverse().RotateVector(Eigen::Vector3d::UnitZ()));
+  FACEDYN_RETURN_IF_ERROR(MakeDirectories(options.out));
+  FACEDYN_RETURN_IF_ERROR(capture::WriteCameraModels(JoinPath(options.out, "cameras.yaml"), config.cameras));
+  FACEDYN_RETURN_IF_ERROR(WriteJsonFile(JoinPath(options.out, "board.json"),
+                                        Json{{"kind", options.board}, {"squares_x", board.squares_x}, {"squares_y", board.squares_y},
+                                             {"square_mm", board.square_mm}, {"marker_mm", board.marker_mm},
+                                             {"aruco_dictionary", "DICT_4X4_50"}, {"inner_corners", {board.squares_x - 1, board.squares_y - 1}},
+                                             {"frame", "origin at the outer corner of square (0,0); corners at (i, j) x square_mm"}}));
+  std::mt19937_64 rng(static_cast<uint64_t>(options.seed));
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  // Upright board facing +Z (the cameras): board X = world X, board Y = world -Y.
+  Eigen::Matrix3d facing;
+  facing << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  const Eigen::Vector3d half(board.squares_x * board.square_mm / 2, board.squares_y * board.square_mm / 2, 0);
+  std::string poses_csv = "pose,qw,qx,qy,qz,tx,ty,tz\n";
+  std::string corners_csv = "camera,pose,corner,u,v,visible\n";
+  for (int k = 0; k < static_cast<int>(config.cameras.size()); ++k) FACEDYN_RETURN_IF_ERROR(MakeDirectories(JoinPath(options.out, "cam" + std::to_string(k))));
+  for (int pose = 0; pose < options.poses; ++pose) {
+    const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(0.6 * unit(rng), Eigen::Vector3d::UnitY()) *
+                                  Eigen::AngleAxisd(0.5 * unit(rng), Eigen::Vector3d::UnitX()) *
+                                  Eigen::AngleAxisd(0.25 * unit(rng), Eigen::Vector3d::UnitZ())).toRotationMatrix();
+    const Eigen::Matrix3d rotation = tilt * facing;
+    const Eigen::Vector3d centre = target + Eigen::Vector3d(40 * unit(rng), 30 * unit(rng), 60 * unit(rng));
+    const Rigid3 world_from_board(Eigen::Quaterniond(rotation), centre - rotation * half);
+    const Eigen::Quaterniond& q = world_from_board.rotation();
+    const Eigen::Vector3d& t = world_from_board.translation();
+    poses_csv += fmt::format("{},{:.12g},{:.12g},{:.12g},{:.12g},{:.9g},{:.9g},{:.9g}\n", pose, q.w(), q.x(), q.y(), q.z(), t.x(), t.y(), t.z());
+    for (int k = 0; k < static_cast<int>(config.cameras.size()); ++k) {
+      const capture::CameraModel& camera = config.cameras[k];
+      cv::Mat image(camera.height_px, camera.width_px, CV_8U);
+      renderer.Render(camera, world_from_board, (static_cast<uint64_t>(k) << 32) | static_cast<uint64_t>(pose), image.data);
+      const std::string path = JoinPath(JoinPath(options.out, "cam" + std::to_string(k)), fmt::format("pose{:03d}.png", pose));
+      if (!cv::imwrite(path, image)) return UnavailableError(path + ": cannot write the image");
+      const std::vector<Eigen::Vector2d> corners = renderer.ProjectInnerCorners(camera, world_from_board);
+      for (size_t c = 0; c < corners.size(); ++c) {
+        const bool visible = std::isfinite(corners[c].x());
+        corners_csv += fmt::format("{},{},{},{:.4f},{:.4f},{}\n", k, pose, c, visible ? corners[c].x() : 0.0,
+                                   visible ? corners[c].y() : 0.0, visible ? 1 : 0);
+      }
+    }
+  }
+  FACEDYN_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(options.out, "poses.csv"), poses_csv));
+  FACEDYN_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(options.out, "corners.csv"), corners_csv));
+  spdlog::info("wrote {} poses x {} cameras of a {} board to {}", options.poses, config.cameras.size(), options.board, options.out);
+  return Status::Ok();
+}
 }  // namespace
 
 void AddCaptureCommands(CLI::App& app, CommandRunner* selected) {
@@ -442,6 +541,23 @@ void AddCaptureCommands(CLI::App& app, CommandRunner* selected) {
   check->add_option("DIR", *dir, "Session folder")->required();
   check->add_flag("--json", *json, "JSON output");
   check->callback([dir, json, selected] { *selected = [dir, json] { return RunSessionCheck(*dir, *json); }; });
+
+  // Calibration images of the simulated cameras, under `facedyn sim` (registered before us).
+  CLI::App* sim = nullptr;
+  try {
+    sim = app.get_subcommand("sim");
+  } catch (const CLI::OptionNotFound&) {
+    sim = app.add_subcommand("sim", "The simulated stage");
+  }
+  auto calibration = std::make_shared<CalibrationImagesOptions>();
+  auto* images = sim->add_subcommand("calibration-images",
+                                     "Render a chessboard/ChArUco target at seeded poses with a capture config's cameras");
+  images->add_option("--config", calibration->config, "CAPTURE.yaml whose cameras film the board")->required();
+  images->add_option("--out", calibration->out, "Output folder: cam<k>/pose<NNN>.png + ground truth")->required();
+  images->add_option("--board", calibration->board, "chessboard | charuco (10 x 7 squares of 20 mm)")->capture_default_str();
+  images->add_option("--poses", calibration->poses, "Number of board poses")->capture_default_str();
+  images->add_option("--seed", calibration->seed, "Pose and noise seed")->capture_default_str();
+  images->callback([calibration, selected] { *selected = [calibration] { return RunCalibrationImages(*calibration); }; });
 }
 
 // ------------------------------------------------------------------------------- demo stage

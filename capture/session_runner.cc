@@ -195,6 +195,7 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
     return Status::Ok();
   };
 
+  const auto record_start = Clock::now();
   const Status trigger_status = trigger->Run(options.triggers, [&](const TriggerEvent& event) -> Status {
     if (state.stop) return AbortedError("stopped");
     if (options.stop_requested != nullptr && options.stop_requested->load()) {
@@ -249,6 +250,7 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
   for (Camera* camera : cameras) (void)camera->Disarm();
   for (auto& worker : workers) worker->thread.join();
   const Status record_status = recorder->Finish();
+  report.record_wall_s = SecondsSince(record_start);
   if (telemetry_file != nullptr) std::fclose(telemetry_file);
 
   const std::vector<CameraRecordStats> stats = recorder->stats();
@@ -287,6 +289,7 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
   result.stop_utc = UtcNowIso8601();
   report.wall_s = SecondsSince(wall_start);
   result.extra["wall_s"] = report.wall_s;
+  result.extra["record_wall_s"] = report.record_wall_s;
   FACEDYN_RETURN_IF_ERROR(session->EndTake(options.name, result));
   return report;
 }

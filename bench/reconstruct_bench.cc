@@ -16,14 +16,13 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <random>
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <opencv2/calib3d.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "core/json_io.h"
 #include "core/progress.h"
@@ -42,7 +41,9 @@ using facedyn::Json;
 using namespace facedyn::reconstruct;
 using Clock = std::chrono::steady_clock;
 
-double Seconds(Clock::time_point a) { return std::chrono::duration<double>(Clock::now() - a).count(); }
+double Seconds(Clock::time_point a) {
+  return std::chrono::duration<double>(Clock::now() - a).count();
+}
 
 // One camera image of the markers on `skin`: disks of the markers' diameter, dark on skin.
 cv::Mat RenderMarkers(const facedyn::FaceRig& rig, const Camera& camera,
@@ -75,7 +76,8 @@ Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int 
     const Eigen::Matrix3Xd markers = MarkerPositions(rig, skin);
     const Eigen::Matrix3Xd normals = MarkerNormals(rig, skin);
     std::vector<cv::Mat> images;
-    for (const Camera& camera : cameras) images.push_back(RenderMarkers(rig, camera, markers, normals, &rng));
+    for (const Camera& camera : cameras)
+      images.push_back(RenderMarkers(rig, camera, markers, normals, &rng));
     auto start = Clock::now();
     std::vector<std::vector<ImageObservation>> observed(cameras.size());
     for (size_t c = 0; c < cameras.size(); ++c) {
@@ -101,7 +103,8 @@ Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int 
       detections += static_cast<int>(observed[c].size());
       for (const ImageObservation& o : observed[c]) {
         double best = 1e9;
-        for (const ImageObservation& t : truth.detections[c]) best = std::min(best, (t.pixel - o.pixel).norm());
+        for (const ImageObservation& t : truth.detections[c])
+          best = std::min(best, (t.pixel - o.pixel).norm());
         if (best < 2.0) {
           sq2d += best * best;
           ++n2d;
@@ -143,7 +146,8 @@ Json BenchPipeline(const facedyn::FaceRig& rig, const facedyn::Take& take) {
             .detections);
   }
   const auto start = Clock::now();
-  const auto result = ReconstructTake(rig, cameras, detections, take.info.fps, ReconstructionOptions());
+  const auto result =
+      ReconstructTake(rig, cameras, detections, take.info.fps, ReconstructionOptions());
   const double total_s = Seconds(start);
   Json out;
   if (!result.ok()) {
@@ -157,7 +161,8 @@ Json BenchPipeline(const facedyn::FaceRig& rig, const facedyn::Take& take) {
   double sab = 0.0, saa = 0.0, sbb = 0.0, sa = 0.0, sb = 0.0;
   long n_offset = 0;
   for (int f = skip; f < take.frame_count(); ++f) {
-    const facedyn::Rigid3 difference = take.world_from_skull[f].Inverse() * result->take.world_from_skull[f];
+    const facedyn::Rigid3 difference =
+        take.world_from_skull[f].Inverse() * result->take.world_from_skull[f];
     const double t = difference.translation().norm(), r = difference.AngleRad() * 180.0 / M_PI;
     sq_t += t * t;
     sq_r += r * r;
@@ -181,7 +186,8 @@ Json BenchPipeline(const facedyn::FaceRig& rig, const facedyn::Take& take) {
     }
   }
   const double cov = sab / n_offset - (sa / n_offset) * (sb / n_offset);
-  const double va = saa / n_offset - std::pow(sa / n_offset, 2), vb = sbb / n_offset - std::pow(sb / n_offset, 2);
+  const double va = saa / n_offset - std::pow(sa / n_offset, 2),
+               vb = sbb / n_offset - std::pow(sb / n_offset, 2);
   const int frames = take.frame_count();
   out["frames"] = frames;
   out["cameras"] = 8;
@@ -257,8 +263,9 @@ Json BenchCalibration(const std::string& shared) {
     } else {
       photos["error"] = result.status().message();
     }
-    photos["opencv"] = {{"rms_px", cv_rms}, {"fx", k.at<double>(0, 0)}, {"fy", k.at<double>(1, 1)},
-                        {"cx", k.at<double>(0, 2)}, {"cy", k.at<double>(1, 2)}, {"seconds", cv_s}};
+    photos["opencv"] = {{"rms_px", cv_rms},         {"fx", k.at<double>(0, 0)},
+                        {"fy", k.at<double>(1, 1)}, {"cx", k.at<double>(0, 2)},
+                        {"cy", k.at<double>(1, 2)}, {"seconds", cv_s}};
     out["opencv_photographs"] = photos;
   }
   // Synthetic 4-camera rig, 40 ChArUco views, 0.3 px noise per axis.
@@ -278,9 +285,11 @@ Json BenchCalibration(const std::string& shared) {
   int n = 0;
   for (int v = 0; v < 40; ++v) {
     const facedyn::Rigid3 world_from_board =
-        facedyn::Rigid3::FromTranslation(Eigen::Vector3d(80 * uniform(rng), 60 * uniform(rng), 80 * uniform(rng))) *
-        facedyn::Rigid3::FromAxisAngle(Eigen::Vector3d(uniform(rng), uniform(rng), 0.3 * uniform(rng)).normalized(),
-                                       0.6 * std::abs(uniform(rng))) *
+        facedyn::Rigid3::FromTranslation(
+            Eigen::Vector3d(80 * uniform(rng), 60 * uniform(rng), 80 * uniform(rng))) *
+        facedyn::Rigid3::FromAxisAngle(
+            Eigen::Vector3d(uniform(rng), uniform(rng), 0.3 * uniform(rng)).normalized(),
+            0.6 * std::abs(uniform(rng))) *
         facedyn::Rigid3::FromAxisAngle(Eigen::Vector3d::UnitX(), M_PI) *
         facedyn::Rigid3::FromTranslation(-Eigen::Vector3d(137.5, 100, 0));
     input.view_names.push_back("v" + std::to_string(v));
@@ -288,7 +297,9 @@ Json BenchCalibration(const std::string& shared) {
       BoardObservation o;
       for (int id = 0; id < input.board.corner_count(); ++id) {
         const Eigen::Vector3d p = world_from_board * input.board.CornerInBoard(id);
-        if (world_from_board.RotateVector(-Eigen::Vector3d::UnitZ()).dot(cameras[c].CenterInWorld() - p) <= 0) continue;
+        if (world_from_board.RotateVector(-Eigen::Vector3d::UnitZ())
+                .dot(cameras[c].CenterInWorld() - p) <= 0)
+          continue;
         Eigen::Vector2d pixel;
         if (!cameras[c].Project(p, &pixel) || !cameras[c].InImage(pixel, 5)) continue;
         const Eigen::Vector2d e(noise(rng), noise(rng));
@@ -317,7 +328,9 @@ Json BenchCalibration(const std::string& shared) {
     const Eigen::Matrix4d b_from_a = Eigen::umeyama(a, b, false);
     double worst = 0.0;
     for (int c = 0; c < 4; ++c) {
-      worst = std::max(worst, (b_from_a.topLeftCorner<3, 3>() * a.col(c) + b_from_a.topRightCorner<3, 1>() - b.col(c)).norm());
+      worst = std::max(worst, (b_from_a.topLeftCorner<3, 3>() * a.col(c) +
+                               b_from_a.topRightCorner<3, 1>() - b.col(c))
+                                  .norm());
     }
     rig["worst_centre_error_mm_after_rigid_alignment"] = worst;
   } else {

@@ -42,7 +42,9 @@ using facedyn::Json;
 using Clock = std::chrono::steady_clock;
 namespace capture = facedyn::capture;
 
-double Seconds(Clock::time_point a) { return std::chrono::duration<double>(Clock::now() - a).count(); }
+double Seconds(Clock::time_point a) {
+  return std::chrono::duration<double>(Clock::now() - a).count();
+}
 
 struct Args {
   std::string dir = std::filesystem::temp_directory_path().string();
@@ -64,21 +66,30 @@ bool Parse(int argc, char** argv, Args* args) {
       }
       return argv[++i];
     };
-    if (a == "--dir") args->dir = next("--dir");
-    else if (a == "--cameras") args->cameras = std::atoi(next("--cameras"));
-    else if (a == "--width") args->width = std::atoi(next("--width"));
-    else if (a == "--height") args->height = std::atoi(next("--height"));
-    else if (a == "--megabytes") args->megabytes = std::atof(next("--megabytes"));
-    else if (a == "--fps") args->fps = std::atof(next("--fps"));
-    else if (a == "--render-frames") args->render_frames = std::atoi(next("--render-frames"));
+    if (a == "--dir")
+      args->dir = next("--dir");
+    else if (a == "--cameras")
+      args->cameras = std::atoi(next("--cameras"));
+    else if (a == "--width")
+      args->width = std::atoi(next("--width"));
+    else if (a == "--height")
+      args->height = std::atoi(next("--height"));
+    else if (a == "--megabytes")
+      args->megabytes = std::atof(next("--megabytes"));
+    else if (a == "--fps")
+      args->fps = std::atof(next("--fps"));
+    else if (a == "--render-frames")
+      args->render_frames = std::atoi(next("--render-frames"));
     else {
       std::fprintf(stderr, "capture_bench: unknown argument '%s'\n", a.c_str());
       return false;
     }
   }
-  if (args->cameras < 1 || args->width < 16 || args->height < 16 || args->megabytes < 16 || args->fps <= 0 ||
-      args->render_frames < 1) {
-    std::fprintf(stderr, "capture_bench: --cameras >= 1, --width/--height >= 16, --megabytes >= 16, --fps > 0\n");
+  if (args->cameras < 1 || args->width < 16 || args->height < 16 || args->megabytes < 16 ||
+      args->fps <= 0 || args->render_frames < 1) {
+    std::fprintf(
+        stderr,
+        "capture_bench: --cameras >= 1, --width/--height >= 16, --megabytes >= 16, --fps > 0\n");
     return false;
   }
   return true;
@@ -116,8 +127,8 @@ struct RecordingResult {
   std::string error;
 };
 
-RecordingResult Record(const Args& args, const std::string& dir, int64_t frames_per_camera, capture::BackpressurePolicy policy,
-                       double pace_fps) {
+RecordingResult Record(const Args& args, const std::string& dir, int64_t frames_per_camera,
+                       capture::BackpressurePolicy policy, double pace_fps) {
   RecordingResult result;
   std::filesystem::remove_all(dir);
   std::vector<std::string> paths;
@@ -141,7 +152,9 @@ RecordingResult Record(const Args& args, const std::string& dir, int64_t frames_
   for (int k = 0; k < args.cameras; ++k) {
     producers.emplace_back([&, k] {
       for (int64_t t = 0; t < frames_per_camera; ++t) {
-        if (pace_fps > 0) std::this_thread::sleep_until(start + std::chrono::nanoseconds(static_cast<int64_t>(t * 1e9 / pace_fps)));
+        if (pace_fps > 0)
+          std::this_thread::sleep_until(
+              start + std::chrono::nanoseconds(static_cast<int64_t>(t * 1e9 / pace_fps)));
         capture::Frame frame;
         frame.camera_index = k;
         frame.trigger_index = t;
@@ -150,7 +163,8 @@ RecordingResult Record(const Args& args, const std::string& dir, int64_t frames_
         frame.height_px = args.height;
         frame.pixels = pool.Acquire(frame_bytes);
         // Touch every page like a camera DMA would, cheaply.
-        for (size_t i = 0; i < frame_bytes; i += 4096) frame.pixels[i] = static_cast<uint8_t>(t + k);
+        for (size_t i = 0; i < frame_bytes; i += 4096)
+          frame.pixels[i] = static_cast<uint8_t>(t + k);
         if ((*recorder)->Push(k, std::move(frame)) == capture::PushResult::kDropped) ++dropped;
       }
     });
@@ -184,9 +198,13 @@ Json RenderFps(int width, int height, double focal, int frames, const facedyn::F
   std::vector<uint8_t> image(static_cast<size_t>(width) * height);
   renderer.Render(camera, rig.neutral.positions_mm, 0, &workspace, image.data());  // warm up
   const auto start = Clock::now();
-  for (int f = 0; f < frames; ++f) renderer.Render(camera, rig.neutral.positions_mm, f, &workspace, image.data());
+  for (int f = 0; f < frames; ++f)
+    renderer.Render(camera, rig.neutral.positions_mm, f, &workspace, image.data());
   const double s = Seconds(start);
-  return Json{{"width_px", width}, {"height_px", height}, {"frames", frames}, {"frames_per_s_one_thread", frames / s}};
+  return Json{{"width_px", width},
+              {"height_px", height},
+              {"frames", frames},
+              {"frames_per_s_one_thread", frames / s}};
 }
 
 }  // namespace
@@ -200,11 +218,15 @@ int main(int argc, char** argv) {
   const size_t frame_bytes = static_cast<size_t>(args.width) * args.height;
   const size_t total_bytes = static_cast<size_t>(args.megabytes * 1e6);
   const int64_t frames_per_camera = std::max<int64_t>(1, total_bytes / frame_bytes / args.cameras);
-  const size_t recorded_bytes = static_cast<size_t>(frames_per_camera) * args.cameras * (frame_bytes + capture::kFrameHeaderBytes);
+  const size_t recorded_bytes = static_cast<size_t>(frames_per_camera) * args.cameras *
+                                (frame_bytes + capture::kFrameHeaderBytes);
 
   Json out;
   out["machine"] = {{"hardware_threads", std::thread::hardware_concurrency()}, {"dir", args.dir}};
-  out["frame"] = {{"width_px", args.width}, {"height_px", args.height}, {"format", "mono8"}, {"bytes", frame_bytes}};
+  out["frame"] = {{"width_px", args.width},
+                  {"height_px", args.height},
+                  {"format", "mono8"},
+                  {"bytes", frame_bytes}};
   // Disk and recording alternate (disk, record, disk, record, disk) and each figure is the
   // median of its runs: the first writes to a fresh virtual disk are slower than later ones,
   // and the page cache and the host change over a run.
@@ -212,34 +234,48 @@ int main(int argc, char** argv) {
   std::vector<RecordingResult> maxes;
   for (int round = 0; round < 3; ++round) {
     disks.push_back(DiskWriteMbPerS(dir + "/sequential.bin", recorded_bytes, frame_bytes));
-    if (round < 2) maxes.push_back(Record(args, dir + "/max", frames_per_camera, capture::BackpressurePolicy::kBlock, 0.0));
+    if (round < 2)
+      maxes.push_back(
+          Record(args, dir + "/max", frames_per_camera, capture::BackpressurePolicy::kBlock, 0.0));
   }
   out["disk_runs_mb_per_s"] = disks;
   std::sort(disks.begin(), disks.end());
   const double disk = disks[1];
   out["disk_sequential_write_mb_per_s"] = disk;
-  const RecordingResult max = maxes[0].mb_per_s < maxes[1].mb_per_s ? maxes[0] : maxes[1];  // the slower of two
+  const RecordingResult max =
+      maxes[0].mb_per_s < maxes[1].mb_per_s ? maxes[0] : maxes[1];  // the slower of two
   out["recording_runs_mb_per_s"] = Json::array({maxes[0].mb_per_s, maxes[1].mb_per_s});
-  out["recording_max"] = {{"cameras", args.cameras}, {"frames", max.frames}, {"seconds", max.seconds},
-                          {"mb_per_s", max.mb_per_s}, {"ratio_to_disk", disk > 0 ? max.mb_per_s / disk : 0.0},
-                          {"dropped", max.dropped}, {"error", max.error.empty() ? Json(nullptr) : Json(max.error)}};
+  out["recording_max"] = {{"cameras", args.cameras},
+                          {"frames", max.frames},
+                          {"seconds", max.seconds},
+                          {"mb_per_s", max.mb_per_s},
+                          {"ratio_to_disk", disk > 0 ? max.mb_per_s / disk : 0.0},
+                          {"dropped", max.dropped},
+                          {"error", max.error.empty() ? Json(nullptr) : Json(max.error)}};
   const double camera_mb_per_s = frame_bytes * args.fps / 1e6;
   out["one_camera_mb_per_s"] = camera_mb_per_s;
   out["sustainable_cameras_at_fps"] = max.mb_per_s / camera_mb_per_s;
 
-  const RecordingResult realtime = Record(args, dir + "/realtime", frames_per_camera, capture::BackpressurePolicy::kDropNewest, args.fps);
-  out["recording_realtime"] = {{"cameras", args.cameras}, {"fps", args.fps}, {"frames_offered", frames_per_camera * args.cameras},
-                               {"frames_written", realtime.frames}, {"dropped", realtime.dropped},
-                               {"required_mb_per_s", camera_mb_per_s * args.cameras}, {"mb_per_s", realtime.mb_per_s},
-                               {"error", realtime.error.empty() ? Json(nullptr) : Json(realtime.error)}};
+  const RecordingResult realtime = Record(args, dir + "/realtime", frames_per_camera,
+                                          capture::BackpressurePolicy::kDropNewest, args.fps);
+  out["recording_realtime"] = {
+      {"cameras", args.cameras},
+      {"fps", args.fps},
+      {"frames_offered", frames_per_camera * args.cameras},
+      {"frames_written", realtime.frames},
+      {"dropped", realtime.dropped},
+      {"required_mb_per_s", camera_mb_per_s * args.cameras},
+      {"mb_per_s", realtime.mb_per_s},
+      {"error", realtime.error.empty() ? Json(nullptr) : Json(realtime.error)}};
 
   auto rig = facedyn::sim::MakeProceduralFace(facedyn::sim::ProceduralFaceOptions());
   if (!rig.ok()) {
     std::fprintf(stderr, "capture_bench: %s\n", rig.status().message().c_str());
     return 1;
   }
-  out["render"] = Json::array({RenderFps(args.width, args.height, 3600.0 * args.width / 1280, args.render_frames, *rig),
-                               RenderFps(320, 256, 900, args.render_frames * 4, *rig)});
+  out["render"] = Json::array(
+      {RenderFps(args.width, args.height, 3600.0 * args.width / 1280, args.render_frames, *rig),
+       RenderFps(320, 256, 900, args.render_frames * 4, *rig)});
   out["render_vertices"] = rig->vertex_count();
   std::filesystem::remove_all(dir);
   std::printf("%s\n", out.dump(2).c_str());

@@ -28,7 +28,8 @@ namespace facedyn::capture {
 class AravisCamera : public Camera {
  public:
   // `device_id`: an Aravis id ("Aravis-Fake-GV01"), a serial or an IP address.
-  AravisCamera(int camera_index, std::string name, std::string device_id, std::string hardware_line = "");
+  AravisCamera(int camera_index, std::string name, std::string device_id,
+               std::string hardware_line = "");
   ~AravisCamera() override;
 
   const std::string& name() const override { return name_; }

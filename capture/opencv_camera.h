@@ -13,9 +13,8 @@
 #include <condition_variable>
 #include <deque>
 #include <mutex>
-#include <string>
-
 #include <opencv2/videoio.hpp>
+#include <string>
 
 #include "capture/camera.h"
 

@@ -1,13 +1,13 @@
 // `facedyn sim calibration-images`: rendered boards are found by OpenCV where the ground truth
 // says their corners are.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <fstream>
-#include <sstream>
-
-#include <gtest/gtest.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 #include "capture/camera_model.h"
 #include "tests/capture/cli_helpers.h"
@@ -19,8 +19,12 @@ namespace {
 TEST(CalibrationImages, BoardsAreDetectedAtTheirTrueCorners) {
   testing::TempDir dir;
   std::string output;
-  ASSERT_EQ(testing::RunCommand(Facedyn() + " -q sim calibration-images --config " + kSource + "/config/capture/sim3.yaml --out " +
-                                    dir.Join("calib") + " --poses 3 --seed 4", &output), 0) << output;
+  ASSERT_EQ(testing::RunCommand(Facedyn() + " -q sim calibration-images --config " + kSource +
+                                    "/config/capture/sim3.yaml --out " + dir.Join("calib") +
+                                    " --poses 3 --seed 4",
+                                &output),
+            0)
+      << output;
   auto cameras = ReadCameraModels(dir.Join("calib/cameras.yaml"));
   ASSERT_TRUE(cameras.ok()) << cameras.status().message();
   ASSERT_EQ(cameras->size(), 3u);
@@ -35,13 +39,15 @@ TEST(CalibrationImages, BoardsAreDetectedAtTheirTrueCorners) {
     int camera, pose, corner, visible;
     float u, v;
     char comma;
-    row >> camera >> comma >> pose >> comma >> corner >> comma >> u >> comma >> v >> comma >> visible;
+    row >> camera >> comma >> pose >> comma >> corner >> comma >> u >> comma >> v >> comma >>
+        visible;
     if (visible) truth[{camera, pose}].emplace_back(u, v);
   }
   int found = 0;
   for (int camera = 0; camera < 3; ++camera) {
     for (int pose = 0; pose < 3; ++pose) {
-      const cv::Mat image = cv::imread(dir.Join("calib/cam" + std::to_string(camera) + "/pose00" + std::to_string(pose) + ".png"),
+      const cv::Mat image = cv::imread(dir.Join("calib/cam" + std::to_string(camera) + "/pose00" +
+                                                std::to_string(pose) + ".png"),
                                        cv::IMREAD_GRAYSCALE);
       ASSERT_FALSE(image.empty());
       EXPECT_EQ(image.cols, 320);
@@ -54,7 +60,8 @@ TEST(CalibrationImages, BoardsAreDetectedAtTheirTrueCorners) {
       ASSERT_EQ(expected.size(), 54u);
       for (const cv::Point2f& p : corners) {
         double best = 1e9;
-        for (const cv::Point2f& t : expected) best = std::min(best, static_cast<double>(std::hypot(p.x - t.x, p.y - t.y)));
+        for (const cv::Point2f& t : expected)
+          best = std::min(best, static_cast<double>(std::hypot(p.x - t.x, p.y - t.y)));
         EXPECT_LT(best, 0.35);
       }
     }
@@ -65,8 +72,11 @@ TEST(CalibrationImages, BoardsAreDetectedAtTheirTrueCorners) {
 TEST(CalibrationImages, BadBoardIsRefused) {
   testing::TempDir dir;
   std::string output;
-  EXPECT_EQ(testing::RunCommand(Facedyn() + " sim calibration-images --config " + kSource + "/config/capture/sim3.yaml --out " +
-                                    dir.Join("c") + " --board circles", &output), 1);
+  EXPECT_EQ(testing::RunCommand(Facedyn() + " sim calibration-images --config " + kSource +
+                                    "/config/capture/sim3.yaml --out " + dir.Join("c") +
+                                    " --board circles",
+                                &output),
+            1);
   EXPECT_NE(output.find("circles"), std::string::npos) << output;
 }
 

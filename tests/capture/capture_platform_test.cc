@@ -1,9 +1,9 @@
 // `facedyn capture` with the simulated platform: set, settle, record with telemetry, stop; and
 // the capture step of a sweep.
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <fstream>
-
-#include <gtest/gtest.h>
 
 #include "tests/capture/cli_helpers.h"
 #include "tests/support/test_support.h"
@@ -15,11 +15,16 @@ namespace {
 TEST(CaptureCli, SimulatedPlatformSettlesAndTelemetryIsRecorded) {
   testing::TempDir dir;
   const std::string session = dir.Join("session");
-  const std::string platform = "platform: {rig: " + kSource + "/config/rigs/sim-tcp.yaml, start_simulated_drive: true, hz: 9, "
+  const std::string platform = "platform: {rig: " + kSource +
+                               "/config/rigs/sim-tcp.yaml, start_simulated_drive: true, hz: 9, "
                                "settle_timeout_s: 30, telemetry_period_s: 0.02}\n";
   std::string output;
-  ASSERT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " + Sim3Config(dir.path(), "", platform, 0.5) + " --session " +
-                                    session + " --take p9 --json", &output), 0) << output;
+  ASSERT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " +
+                                    Sim3Config(dir.path(), "", platform, 0.5) + " --session " +
+                                    session + " --take p9 --json",
+                                &output),
+            0)
+      << output;
   const json report = json::parse(output);
   EXPECT_EQ(report["status"], "complete");
   EXPECT_NEAR(report["platform"]["measured_hz_at_start"].get<double>(), 9.0, 0.06);
@@ -45,10 +50,16 @@ TEST(CaptureCli, SimulatedPlatformSettlesAndTelemetryIsRecorded) {
 TEST(CaptureCli, SweepRecordsOneCompleteTakePerStep) {
   testing::TempDir dir;
   const std::string session = dir.Join("session");
-  const std::string platform = "platform: {rig: " + kSource + "/config/rigs/sim-tcp.yaml, start_simulated_drive: true, hz: 8}\n";
+  const std::string platform = "platform: {rig: " + kSource +
+                               "/config/rigs/sim-tcp.yaml, start_simulated_drive: true, hz: 8}\n";
   std::string output;
-  ASSERT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " + Sim3Config(dir.path(), "", platform, 0.25) + " --session " +
-                                    session + " --sweep " + kSource + "/config/sweeps/demo.yaml --json", &output), 0) << output;
+  ASSERT_EQ(
+      testing::RunCommand(Facedyn() + " -q capture --config " +
+                              Sim3Config(dir.path(), "", platform, 0.25) + " --session " + session +
+                              " --sweep " + kSource + "/config/sweeps/demo.yaml --json",
+                          &output),
+      0)
+      << output;
   const json report = json::parse(output.substr(output.find('{')));
   ASSERT_EQ(report["takes"].size(), 3u);
   for (const auto& take : report["takes"]) {

@@ -40,20 +40,22 @@ Status OpenCvCamera::Configure(const CameraSettings& settings) {
   }
   if (!capture_.isOpened())
     return UnavailableError("camera " + name_ + ": OpenCV cannot open source '" + source_ + "'");
-  if (!is_file_) {
+  if (device) {
     capture_.set(cv::CAP_PROP_FRAME_WIDTH, settings.width_px);
     capture_.set(cv::CAP_PROP_FRAME_HEIGHT, settings.height_px);
     capture_.set(cv::CAP_PROP_FPS, settings.fps);
   }
   const int width = static_cast<int>(capture_.get(cv::CAP_PROP_FRAME_WIDTH));
   const int height = static_cast<int>(capture_.get(cv::CAP_PROP_FRAME_HEIGHT));
-  if (width != settings.width_px || height != settings.height_px) {
+  // A GStreamer pipeline reports 0x0 until its first buffer: its size is checked frame by frame.
+  const bool size_unknown = pipeline && width == 0 && height == 0;
+  if (!size_unknown && (width != settings.width_px || height != settings.height_px)) {
     return InvalidArgumentError("camera " + name_ + ": source " + source_ + " delivers " +
                                 std::to_string(width) + "x" + std::to_string(height) +
                                 ", the take wants " + std::to_string(settings.width_px) + "x" +
                                 std::to_string(settings.height_px));
   }
-  if (!is_file_ && !capture_.set(cv::CAP_PROP_EXPOSURE, settings.exposure_us / 100.0)) {
+  if (device && !capture_.set(cv::CAP_PROP_EXPOSURE, settings.exposure_us / 100.0)) {
     spdlog::warn(
         "camera {}: the source does not accept an exposure setting; it runs on its own exposure",
         name_);

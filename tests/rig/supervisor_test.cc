@@ -3,14 +3,14 @@
 // supervisor never sees.
 #include "rig/supervisor.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <string>
 #include <thread>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "rig/session_log.h"
 #include "sim/drive_sim.h"
@@ -178,13 +178,15 @@ TEST(RigSupervisor, LinkCutDuringHoldStopsTheDriveWithinItsWatchdog) {
   ASSERT_GE(fired_after_s, 0.0) << "the simulated drive's watchdog never fired";
   // The last request before the cut was < 1 control period earlier.
   EXPECT_LE(fired_after_s, bench->config.safety.comm_watchdog_s + 0.05);
-  EXPECT_GE(fired_after_s, bench->config.safety.comm_watchdog_s - bench->config.safety.control_period_s - 0.05);
+  EXPECT_GE(fired_after_s,
+            bench->config.safety.comm_watchdog_s - bench->config.safety.control_period_s - 0.05);
   ASSERT_FALSE(hold.ok());
   EXPECT_EQ(hold.status().code(), StatusCode::kUnavailable);
   EXPECT_THAT(hold.status().message(), HasSubstr("link to the drive lost"));
   EXPECT_THAT(hold.status().message(), HasSubstr("comm watchdog"));
   EXPECT_EQ((*supervisor)->state(), RigState::kLinkLost);
-  std::this_thread::sleep_for(std::chrono::milliseconds(1800));  // the sim's own ramp down from 8 Hz
+  std::this_thread::sleep_for(
+      std::chrono::milliseconds(1800));  // the sim's own ramp down from 8 Hz
   EXPECT_EQ(bench->sim->state().output_hz, 0.0);
   bool logged = false;
   for (const Json& r : Records(*bench)) logged |= r["event"] == "link_lost";

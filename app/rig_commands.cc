@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "app/command.h"
+#include "app/rig_demo.h"
 #include "core/config_node.h"
 #include "rig/drive_client.h"
 #include "rig/drive_profile.h"
@@ -170,7 +171,9 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
   auto* serve_config = serve_command->add_option(
       "--config", serve->config,
       "Rig config YAML: serve its profile at its endpoint with its sim: section");
-  serve_command->add_option("--profile", serve->profile, "Drive profile YAML whose map to serve")
+  serve_command
+      ->add_option("--profile", serve->profile,
+                   "Drive profile YAML whose map to serve (default: config/drives/sim.yaml)")
       ->excludes(serve_config);
   auto* serve_tcp = serve_command->add_option("--tcp", serve->tcp,
                                               "Listen address HOST:PORT (port 0: any free port)");
@@ -197,11 +200,14 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
   serve_command->add_option("--trip-code", serve->trip_code, "Fault code of the injected trip")
       ->capture_default_str();
   serve_command->callback([serve, selected] {
-    if (serve->config.empty() && serve->profile.empty())
-      throw CLI::RequiredError("--config or --profile");
     *selected = [serve]() -> Status {
       rig::DriveProfile profile;
       sim::DriveSimOptions options = serve->sim;
+      if (serve->config.empty() && serve->profile.empty()) {
+        // Default: the simulated drive's own map from the shipped config folder.
+        FACEDYN_ASSIGN_OR_RETURN(const std::string config_dir, FindConfigDir());
+        serve->profile = config_dir + "/drives/sim.yaml";
+      }
       if (!serve->config.empty()) {
         FACEDYN_RETURN_IF_ERROR(sim::LoadDriveSimFromRig(serve->config, &profile, &options));
       } else {

@@ -25,6 +25,8 @@ bool IsFile(const std::string& path) {
   return ::stat(path.c_str(), &info) == 0 && S_ISREG(info.st_mode);
 }
 
+}  // namespace
+
 StatusOr<std::string> FindConfigDir() {
   std::vector<std::string> candidates;
   if (const char* env = std::getenv("FACEDYN_CONFIG_DIR")) candidates.push_back(env);
@@ -43,12 +45,10 @@ StatusOr<std::string> FindConfigDir() {
     if (IsFile(dir + "/rigs/sim-tcp.yaml") && IsFile(dir + "/sweeps/demo.yaml")) return dir;
   }
   return NotFoundError(
-      fmt::format("rig demo: no config folder with rigs/sim-tcp.yaml and sweeps/demo.yaml "
+      fmt::format("no facedyn config folder with rigs/sim-tcp.yaml and sweeps/demo.yaml "
                   "(looked in {}); set FACEDYN_CONFIG_DIR",
                   fmt::join(candidates, ", ")));
 }
-
-}  // namespace
 
 Status RunRigDemoStage(const std::string& out_dir, bool quick, Json* metrics) {
   FACEDYN_ASSIGN_OR_RETURN(const std::string config_dir, FindConfigDir());

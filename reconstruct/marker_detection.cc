@@ -2,8 +2,10 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <thread>
 
 namespace facedyn::reconstruct {
 namespace {
@@ -399,6 +401,27 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
   }
   summary.accepted = static_cast<int>(unique.size());
   return unique;
+}
+
+std::vector<StatusOr<std::vector<MarkerDetection>>> DetectMarkersInImages(
+    const std::vector<cv::Mat>& images, const MarkerDetectionOptions& options, int threads) {
+  std::vector<StatusOr<std::vector<MarkerDetection>>> results(
+      images.size(), StatusOr<std::vector<MarkerDetection>>(InternalError("not run")));
+  if (threads <= 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  threads = std::min<int>(threads, static_cast<int>(images.size()));
+  std::atomic<size_t> next{0};
+  auto work = [&] {
+    for (size_t i = next++; i < images.size(); i = next++) {
+      results[i] = images[i].empty()
+                       ? StatusOr<std::vector<MarkerDetection>>(std::vector<MarkerDetection>())
+                       : DetectMarkers(images[i], options);
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& thread : pool) thread.join();
+  return results;
 }
 
 }  // namespace facedyn::reconstruct

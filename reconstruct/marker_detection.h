@@ -76,6 +76,11 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
                                                      const MarkerDetectionOptions& options,
                                                      MarkerDetectionSummary* summary = nullptr);
 
+// DetectMarkers on several images (one per camera) on up to `threads` threads (0 = the
+// machine's hardware threads); results in image order.
+std::vector<StatusOr<std::vector<MarkerDetection>>> DetectMarkersInImages(
+    const std::vector<cv::Mat>& images, const MarkerDetectionOptions& options, int threads = 0);
+
 // The blurred-ellipse model and its gradient with respect to
 // p = (x0, y0, l11, l12, l22, w, a, b), at pixel (x, y). Exposed for the gradient test.
 inline constexpr int kDiskParameterCount = 8;

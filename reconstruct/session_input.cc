@@ -157,14 +157,17 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
         out.frame_problems[t].push_back(
             out.cameras[c].name + ": out of sync by " +
             std::to_string(static_cast<int>(std::lround((stamps[c] - median) / 1e6))) + " ms");
+        images[c] = cv::Mat();
+      }
+    }
+    const auto found = DetectMarkersInImages(images, options.detection);
+    for (size_t c = 0; c < out.cameras.size(); ++c) {
+      if (images[c].empty()) continue;
+      if (!found[c].ok()) {
+        out.frame_problems[t].push_back(out.cameras[c].name + ": " + found[c].status().message());
         continue;
       }
-      const auto found = DetectMarkers(images[c], options.detection);
-      if (!found.ok()) {
-        out.frame_problems[t].push_back(out.cameras[c].name + ": " + found.status().message());
-        continue;
-      }
-      for (const MarkerDetection& d : *found) {
+      for (const MarkerDetection& d : *found[c]) {
         ImageObservation o;
         o.camera = static_cast<int>(c);
         o.detection = static_cast<int>(out.detections[t][c].size());

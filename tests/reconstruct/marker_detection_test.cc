@@ -158,6 +158,24 @@ TEST(DetectMarkers, PartialOcclusionBiasesLittleAndLowersQuality) {
   EXPECT_LT(occluded_quality / occluded, clear_quality / clear - 0.1);
 }
 
+TEST(DetectMarkersInImages, SameAsOneByOneInImageOrder) {
+  std::vector<cv::Mat> images;
+  for (uint32_t seed = 1; seed <= 5; ++seed) images.push_back(MakeDots(4.0, 1.0, 3.0, seed).image);
+  images.push_back(cv::Mat());  // a camera without a frame
+  const auto all = DetectMarkersInImages(images, MarkerDetectionOptions(), 3);
+  ASSERT_EQ(all.size(), images.size());
+  for (size_t i = 0; i + 1 < images.size(); ++i) {
+    const auto one = DetectMarkers(images[i], MarkerDetectionOptions());
+    ASSERT_TRUE(all[i].ok() && one.ok());
+    ASSERT_EQ(all[i]->size(), one->size());
+    for (size_t k = 0; k < one->size(); ++k) {
+      EXPECT_EQ((*all[i])[k].center_px, (*one)[k].center_px);
+    }
+  }
+  ASSERT_TRUE(all.back().ok());
+  EXPECT_TRUE(all.back()->empty());
+}
+
 TEST(DetectMarkers, NothingInAFlatImageAndBadInputRefused) {
   cv::Mat flat(200, 200, CV_8UC1, cv::Scalar(150));
   std::mt19937 rng(1);

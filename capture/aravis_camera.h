@@ -38,7 +38,7 @@ class AravisCamera : public Camera {
   const CameraSettings& settings() const override { return settings_; }
   Status Arm() override;
   Status OnTrigger(const TriggerEvent& trigger) override;
-  Status NextFrame(double timeout_s, Frame* frame) override;
+  Status NextFrame(double timeout_s, Frame* frame, bool* got_frame) override;
   Status Disarm() override;
 
   int64_t incomplete_buffers() const { return incomplete_buffers_; }

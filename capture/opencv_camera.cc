@@ -90,7 +90,8 @@ Status OpenCvCamera::Disarm() {
   return Status::Ok();
 }
 
-Status OpenCvCamera::NextFrame(double timeout_s, Frame* frame) {
+Status OpenCvCamera::NextFrame(double timeout_s, Frame* frame, bool* got_frame) {
+  *got_frame = false;
   for (;;) {
     Pending pending;
     {
@@ -99,8 +100,7 @@ Status OpenCvCamera::NextFrame(double timeout_s, Frame* frame) {
                         [&] { return !pending_.empty() || disarmed_; });
       if (pending_.empty()) {
         if (disarmed_) return AbortedError("camera " + name_ + ": disarmed");
-        return UnavailableError("camera " + name_ + ": no trigger within " +
-                                std::to_string(timeout_s) + " s");
+        return Status::Ok();  // no trigger within the timeout
       }
       pending = pending_.front();
       pending_.pop_front();
@@ -156,6 +156,7 @@ Status OpenCvCamera::NextFrame(double timeout_s, Frame* frame) {
         static_cast<size_t>(settings_.width_px) * BytesPerPixel(settings_.format);
     for (int y = 0; y < settings_.height_px; ++y)
       std::memcpy(frame->pixels.data() + y * row_bytes, converted_.ptr(y), row_bytes);
+    *got_frame = true;
     return Status::Ok();
   }
 }

@@ -32,7 +32,7 @@ class OpenCvCamera : public Camera {
   const CameraSettings& settings() const override { return settings_; }
   Status Arm() override;
   Status OnTrigger(const TriggerEvent& trigger) override;
-  Status NextFrame(double timeout_s, Frame* frame) override;
+  Status NextFrame(double timeout_s, Frame* frame, bool* got_frame) override;
   Status Disarm() override;
 
   bool is_file() const { return is_file_; }

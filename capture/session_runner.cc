@@ -131,9 +131,10 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
       Frame frame;
       for (;;) {
         frame.pixels = pool.Acquire(0);
-        Status status = worker->camera->NextFrame(0.5, &frame);
-        if (status.code() == StatusCode::kAborted) break;         // disarmed and drained
-        if (status.code() == StatusCode::kUnavailable) continue;  // nothing yet
+        bool got_frame = false;
+        Status status = worker->camera->NextFrame(0.5, &frame, &got_frame);
+        if (status.code() == StatusCode::kAborted) break;  // disarmed and drained
+        if (status.ok() && !got_frame) continue;           // nothing within the timeout
         if (!status.ok()) {
           worker->error = status.message();
           (void)events.Append({{"event", "camera_error"},

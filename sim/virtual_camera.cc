@@ -406,11 +406,13 @@ Status SimCamera::RenderTrigger(const capture::TriggerEvent& trigger, capture::F
   return Status::Ok();
 }
 
-Status SimCamera::NextFrame(double timeout_s, capture::Frame* frame) {
+Status SimCamera::NextFrame(double timeout_s, capture::Frame* frame, bool* got_frame) {
+  *got_frame = false;
   for (;;) {
     if (has_repeat_) {  // a duplicated frame, delivered right after its original
       has_repeat_ = false;
       *frame = repeat_frame_;
+      *got_frame = true;
       return Status::Ok();
     }
     capture::TriggerEvent trigger;
@@ -422,12 +424,11 @@ Status SimCamera::NextFrame(double timeout_s, capture::Frame* frame) {
         if (has_late_) {  // the late frame had nothing after it: deliver it now
           has_late_ = false;
           *frame = std::move(late_frame_);
+          *got_frame = true;
           return Status::Ok();
         }
         if (disarmed_) return AbortedError("camera " + model_.name + ": disarmed");
-        if (!ready)
-          return UnavailableError("camera " + model_.name + ": no trigger within " +
-                                  std::to_string(timeout_s) + " s");
+        if (!ready) return Status::Ok();  // nothing within the timeout
         continue;
       }
       trigger = pending_.front();
@@ -450,6 +451,7 @@ Status SimCamera::NextFrame(double timeout_s, capture::Frame* frame) {
       has_late_ = false;
       has_repeat_ = true;
     }
+    *got_frame = true;
     return Status::Ok();
   }
 }

@@ -142,7 +142,7 @@ class SimCamera : public capture::Camera {
   const capture::CameraSettings& settings() const override { return settings_; }
   Status Arm() override;
   Status OnTrigger(const capture::TriggerEvent& trigger) override;
-  Status NextFrame(double timeout_s, capture::Frame* frame) override;
+  Status NextFrame(double timeout_s, capture::Frame* frame, bool* got_frame) override;
   Status Disarm() override;
 
   const capture::CameraModel& model() const { return model_; }

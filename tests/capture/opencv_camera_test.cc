@@ -50,9 +50,11 @@ TEST(OpenCvCamera, ReplaysAFileFrameExactAndCountsTheShortfall) {
   Frame frame;
   int frames = 0;
   for (;;) {
-    Status status = camera.NextFrame(0.5, &frame);
+    bool got = false;
+    Status status = camera.NextFrame(0.5, &frame, &got);
     if (status.code() == StatusCode::kAborted) break;
     ASSERT_TRUE(status.ok()) << status.message();
+    ASSERT_TRUE(got);  // disarmed: either a frame or the end
     ASSERT_EQ(frame.trigger_index, frames);
     const cv::Mat expected = Pattern(frames);
     EXPECT_EQ(0, std::memcmp(frame.pixels.data(), expected.data, frame.pixels.size()))
@@ -77,27 +79,32 @@ TEST(OpenCvCamera, GStreamerPipelineIsALiveSource) {
   OpenCvCamera camera(0, "cam0", pipeline);
   const Status configured = camera.Configure({320, 240, PixelFormat::kMono8, 1000, 30.0});
   if (!configured.ok() && configured.message().find("cannot open") != std::string::npos) {
-    if (testing::InCi()) FAIL() << configured.message() << " (install gstreamer1.0-plugins-base) and CI=true";
+    if (testing::InCi())
+      FAIL() << configured.message() << " (install gstreamer1.0-plugins-base) and CI=true";
     GTEST_SKIP() << configured.message() << " (install gstreamer1.0-plugins-base)";
   }
   ASSERT_TRUE(configured.ok()) << configured.message();
   EXPECT_FALSE(camera.is_file());
   ASSERT_TRUE(camera.Arm().ok());
-  for (int k = 0; k < 15; ++k) ASSERT_TRUE(camera.OnTrigger({k, VirtualTrigger::PulseTimeNs(k, 30.0)}).ok());
+  for (int k = 0; k < 15; ++k)
+    ASSERT_TRUE(camera.OnTrigger({k, VirtualTrigger::PulseTimeNs(k, 30.0)}).ok());
   ASSERT_TRUE(camera.Disarm().ok());
   Frame frame;
   std::vector<Frame> frames;
   for (;;) {
-    Status status = camera.NextFrame(0.5, &frame);
+    bool got = false;
+    Status status = camera.NextFrame(0.5, &frame, &got);
     if (status.code() == StatusCode::kAborted) break;
     ASSERT_TRUE(status.ok()) << status.message();
+    ASSERT_TRUE(got);  // disarmed: either a frame or the end
     frames.push_back(frame);
   }
   ASSERT_EQ(frames.size(), 12u);
   EXPECT_EQ(camera.exhausted_triggers(), 3);
   for (size_t k = 0; k < frames.size(); ++k) {
     EXPECT_EQ(frames[k].trigger_index, static_cast<int64_t>(k));
-    EXPECT_GE(frames[k].timestamp_ns, VirtualTrigger::PulseTimeNs(k, 30.0));  // never before its trigger
+    EXPECT_GE(frames[k].timestamp_ns,
+              VirtualTrigger::PulseTimeNs(k, 30.0));  // never before its trigger
   }
   EXPECT_NE(frames[0].pixels, frames[6].pixels);  // the ball moves
 }

@@ -187,7 +187,9 @@ TEST(FaceRenderer, MotionBlurAveragesOverTheExposure) {
     EXPECT_TRUE(sim.Arm().ok());
     EXPECT_TRUE(sim.OnTrigger({0, 0}).ok());
     capture::Frame frame;
-    EXPECT_TRUE(sim.NextFrame(1.0, &frame).ok());
+    bool got = false;
+    EXPECT_TRUE(sim.NextFrame(1.0, &frame, &got).ok());
+    EXPECT_TRUE(got);
     return frame.pixels;
   };
   const Eigen::Vector3d still = Eigen::Vector3d::Zero(), moving(6.0, 0, 0);
@@ -228,9 +230,11 @@ TEST(SimCamera, InjectedFaultsAreSeenByTheSyncChecker) {
   });
   capture::Frame frame;
   for (;;) {
-    const Status status = sim.NextFrame(0.5, &frame);
+    bool got = false;
+    const Status status = sim.NextFrame(0.5, &frame, &got);
     if (status.code() == StatusCode::kAborted) break;
     ASSERT_TRUE(status.ok()) << status.message();
+    if (!got) continue;
     EXPECT_EQ(frame.camera_index, 1);
     order.push_back(frame.trigger_index);
     (void)checker.Observe(frame.trigger_index, frame.timestamp_ns,
@@ -260,7 +264,9 @@ TEST(SimCamera, ConfigureRejectsMismatchedSettings) {
   ASSERT_TRUE(sim.Arm().ok());
   ASSERT_TRUE(sim.OnTrigger({5, 0}).ok());
   capture::Frame frame;
-  const Status beyond = sim.NextFrame(0.5, &frame);
+  bool got = false;
+  const Status beyond = sim.NextFrame(0.5, &frame, &got);
+  EXPECT_FALSE(got);
   EXPECT_NE(beyond.message().find("beyond"), std::string::npos) << beyond.message();
 }
 

@@ -1,12 +1,12 @@
 // `facedyn calibrate`: camera intrinsics and rig extrinsics from images of a board.
 
+#include <spdlog/spdlog.h>
+
 #include <cstdio>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
-#include <spdlog/spdlog.h>
 
 #include "app/command.h"
 #include "reconstruct/board.h"
@@ -90,8 +90,8 @@ void AddCalibrateCommand(CLI::App& app, CommandRunner* selected) {
              {"fy", camera.fy()},
              {"cx", camera.cx()},
              {"cy", camera.cy()},
-             {"distortion", std::vector<double>(camera.intrinsics.begin() + 4,
-                                                camera.intrinsics.end())},
+             {"distortion",
+              std::vector<double>(camera.intrinsics.begin() + 4, camera.intrinsics.end())},
              {"center_in_world_mm", {centre.x(), centre.y(), centre.z()}},
              {"rms_px", calibration.camera_rms_px[c]},
              {"corners", calibration.camera_corners[c]}});
@@ -110,10 +110,11 @@ void AddCalibrateCommand(CLI::App& app, CommandRunner* selected) {
       if (options->json) {
         std::printf("%s\n", report.dump(2).c_str());
       } else {
-        std::printf("calibrated %zu camera(s) from %zu images (%zu skipped), %d corners, %d "
-                    "outliers: RMS %.3f px -> %s\n",
-                    calibration.cameras.size(), paths.size(), skipped.size(), summary.corners,
-                    summary.outliers, calibration.rms_px, options->out.c_str());
+        std::printf(
+            "calibrated %zu camera(s) from %zu images (%zu skipped), %d corners, %d "
+            "outliers: RMS %.3f px -> %s\n",
+            calibration.cameras.size(), paths.size(), skipped.size(), summary.corners,
+            summary.outliers, calibration.rms_px, options->out.c_str());
         for (size_t c = 0; c < calibration.cameras.size(); ++c) {
           const auto& camera = calibration.cameras[c];
           std::printf("  %-10s fx %.2f fy %.2f cx %.2f cy %.2f  k1 %.4f k2 %.4f  RMS %.3f px\n",

@@ -1,12 +1,12 @@
 // `facedyn reconstruct`: a recorded take of a capture session -> a Take (meshes in the
 // FaceRig's topology plus world_from_skull per frame) and a per-frame quality report.
 
+#include <spdlog/spdlog.h>
+
 #include <cstdio>
 #include <memory>
-#include <string>
-
 #include <nlohmann/json.hpp>
-#include <spdlog/spdlog.h>
+#include <string>
 
 #include "app/command.h"
 #include "core/face_rig.h"
@@ -37,13 +37,15 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
   command->add_option("--session", options->session, "Capture session folder")->required();
   command->add_option("--take", options->take, "Take name in the session")->required();
   command->add_option("--out", options->out, "Output take folder")->required();
-  command->add_option("--face", options->face,
-                      "FaceRig folder of the subject, or \"procedural\" (the built-in face)")
+  command
+      ->add_option("--face", options->face,
+                   "FaceRig folder of the subject, or \"procedural\" (the built-in face)")
       ->capture_default_str();
   command->add_option("--calibration", options->calibration,
                       "Calibration YAML (default: the session's calibration.yaml)");
-  command->add_option("--marker-diameter-px", options->marker_diameter_px,
-                      "Typical marker diameter in the images (tunes the detector)")
+  command
+      ->add_option("--marker-diameter-px", options->marker_diameter_px,
+                   "Typical marker diameter in the images (tunes the detector)")
       ->capture_default_str();
   command->add_flag("--bright-markers", options->bright, "Markers brighter than the skin");
   command->add_flag("--json", options->json, "Print the summary as JSON on stdout");
@@ -58,8 +60,8 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
       reconstruct::SessionInputOptions input_options;
       input_options.calibration_path = options->calibration;
       auto& detection = input_options.detection;
-      detection.polarity =
-          options->bright ? reconstruct::MarkerPolarity::kBright : reconstruct::MarkerPolarity::kDark;
+      detection.polarity = options->bright ? reconstruct::MarkerPolarity::kBright
+                                           : reconstruct::MarkerPolarity::kDark;
       if (!(options->marker_diameter_px >= 2.0 && options->marker_diameter_px <= 100.0)) {
         return InvalidArgumentError("--marker-diameter-px must be in [2, 100], got " +
                                     std::to_string(options->marker_diameter_px));
@@ -127,12 +129,13 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
         brief.erase("per_frame");
         std::printf("%s\n", brief.dump(2).c_str());
       } else {
-        std::printf("reconstructed %d frames from %zu cameras -> %s\n"
-                    "  reprojection %.3f px, %.1f of %zu markers labelled per frame, fit %.3f mm; "
-                    "%d frames with problems (see %s/reconstruction.json)\n",
-                    result.take.frame_count(), input.cameras.size(), options->out.c_str(),
-                    mean_reprojection, mean_labelled, rig.markers.size(), mean_fit, problem_frames,
-                    options->out.c_str());
+        std::printf(
+            "reconstructed %d frames from %zu cameras -> %s\n"
+            "  reprojection %.3f px, %.1f of %zu markers labelled per frame, fit %.3f mm; "
+            "%d frames with problems (see %s/reconstruction.json)\n",
+            result.take.frame_count(), input.cameras.size(), options->out.c_str(),
+            mean_reprojection, mean_labelled, rig.markers.size(), mean_fit, problem_frames,
+            options->out.c_str());
       }
       return Status::Ok();
     };

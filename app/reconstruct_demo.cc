@@ -46,7 +46,8 @@ StatusOr<RigCalibration> CalibrateDemoRig(const std::vector<Camera>& truth, int 
         observation.corner_ids.push_back(id);
         observation.pixels.push_back(pixel + Eigen::Vector2d(noise(*rng), noise(*rng)));
       }
-      if (observation.size() > 0) input.observations.push_back({static_cast<int>(c), v, observation});
+      if (observation.size() > 0)
+        input.observations.push_back({static_cast<int>(c), v, observation});
     }
   }
   FACEDYN_ASSIGN_OR_RETURN(RigCalibration calibration, Calibrate(input, CalibrationOptions()));
@@ -64,8 +65,9 @@ StatusOr<RigCalibration> CalibrateDemoRig(const std::vector<Camera>& truth, int 
   for (size_t c = 0; c < truth.size(); ++c) {
     calibration.cameras[c].cam_from_world =
         calibration.cameras[c].cam_from_world * stage_from_calibration.Inverse();
-    *worst_centre_mm = std::max(
-        *worst_centre_mm, (calibration.cameras[c].CenterInWorld() - truth[c].CenterInWorld()).norm());
+    *worst_centre_mm =
+        std::max(*worst_centre_mm,
+                 (calibration.cameras[c].CenterInWorld() - truth[c].CenterInWorld()).norm());
   }
   return calibration;
 }
@@ -115,9 +117,12 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
   Json frames = Json::array();
   for (int f = 0; f < simulated.frame_count(); ++f) {
     const auto& q = result.quality[f];
-    frames.push_back({{"frame", f}, {"points", q.points}, {"labelled", q.labelled},
+    frames.push_back({{"frame", f},
+                      {"points", q.points},
+                      {"labelled", q.labelled},
                       {"reprojection_rms_px", q.reprojection_rms_px},
-                      {"fit_marker_rms_mm", q.fit_marker_rms_mm}, {"problem", q.problem}});
+                      {"fit_marker_rms_mm", q.fit_marker_rms_mm},
+                      {"problem", q.problem}});
     if (f < skip) continue;
     const Rigid3 d = simulated.world_from_skull[f].Inverse() * result.take.world_from_skull[f];
     const double t = d.translation().norm(), r = d.AngleRad() * 180.0 / M_PI;
@@ -131,7 +136,8 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
     sq_s += (fitted - dynamic).colwise().squaredNorm().sum();
     n_sample += fitted.cols();
     if (quasistatic == simulated.channels.end()) continue;
-    const Eigen::Matrix3Xd still = face.SamplePositions(quasistatic->second.Frame(f).cast<double>());
+    const Eigen::Matrix3Xd still =
+        face.SamplePositions(quasistatic->second.Frame(f).cast<double>());
     const Eigen::Matrix3d rotation = simulated.world_from_skull[f].Inverse().RotationMatrix();
     const Eigen::Matrix3Xd a = rotation * (fitted - still), b = rotation * (dynamic - still);
     for (int i = 0; i < a.size(); ++i) {
@@ -143,7 +149,8 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
       ++n_offset;
     }
   }
-  FACEDYN_RETURN_IF_ERROR(WriteJsonFile(JoinPath(stage_dir, "quality.json"), Json{{"frames", frames}}));
+  FACEDYN_RETURN_IF_ERROR(
+      WriteJsonFile(JoinPath(stage_dir, "quality.json"), Json{{"frames", frames}}));
   const int frame_count = simulated.frame_count();
   Json m;
   m["calibration_rms_px"] = calibration.rms_px;

@@ -4,16 +4,17 @@
 // heartbeat, drive-side watchdog, session log); --profile P --tcp HOST:PORT talks to the drive
 // directly with only DriveClient's setpoint window, for bring-up and register checks.
 
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
 #include <chrono>
 #include <cstdio>
 #include <memory>
 #include <string>
 #include <thread>
 
-#include <fmt/format.h>
-#include <spdlog/spdlog.h>
-
 #include "app/command.h"
+#include "app/rig_demo.h"
 #include "core/config_node.h"
 #include "rig/drive_client.h"
 #include "rig/drive_profile.h"
@@ -87,7 +88,8 @@ StatusOr<uint16_t> ParseUsbId(const std::string& text, const std::string& flag) 
   char* end = nullptr;
   const long value = std::strtol(text.c_str(), &end, 16);
   if (text.empty() || *end != '\0' || value < 0 || value > 0xFFFF) {
-    return InvalidArgumentError(fmt::format("{}: '{}' is not a 16-bit hex id (e.g. 1209)", flag, text));
+    return InvalidArgumentError(
+        fmt::format("{}: '{}' is not a 16-bit hex id (e.g. 1209)", flag, text));
   }
   return static_cast<uint16_t>(value);
 }
@@ -115,24 +117,29 @@ void PrintReading(const rig::RigSupervisor& supervisor, const rig::PlatformReadi
     std::printf("%s\n", ReadingJson(supervisor, r).dump(2).c_str());
     return;
   }
-  std::printf("rig       %s (drive %s)\nstate     %s\nrunning   %s\noutput    %.2f Hz (drive)\n"
-              "platform  %.3f Hz (%s)\nfault     %s\n",
-              supervisor.config().name.c_str(), supervisor.config().profile.name.c_str(),
-              rig::RigStateName(supervisor.state()), r.running ? "yes" : "no", r.output_hz, r.measured_hz,
-              supervisor.config().feedback == "sensor" ? "measured" : "estimated from the drive output",
-              r.faulted ? r.fault_text.c_str() : "none");
+  std::printf(
+      "rig       %s (drive %s)\nstate     %s\nrunning   %s\noutput    %.2f Hz (drive)\n"
+      "platform  %.3f Hz (%s)\nfault     %s\n",
+      supervisor.config().name.c_str(), supervisor.config().profile.name.c_str(),
+      rig::RigStateName(supervisor.state()), r.running ? "yes" : "no", r.output_hz, r.measured_hz,
+      supervisor.config().feedback == "sensor" ? "measured" : "estimated from the drive output",
+      r.faulted ? r.fault_text.c_str() : "none");
 }
 
 void AddConnectionOptions(CLI::App* command, RigOptions* options) {
-  auto* config = command->add_option("--config", options->config, "Rig config YAML (config/rigs/*.yaml)");
-  command->add_option("--profile", options->profile, "Drive profile YAML, direct mode (needs --tcp)")
+  auto* config =
+      command->add_option("--config", options->config, "Rig config YAML (config/rigs/*.yaml)");
+  command
+      ->add_option("--profile", options->profile, "Drive profile YAML, direct mode (needs --tcp)")
       ->excludes(config);
-  command->add_option("--tcp", options->tcp, "Drive (or gateway) address HOST:PORT, direct mode")->excludes(config);
+  command->add_option("--tcp", options->tcp, "Drive (or gateway) address HOST:PORT, direct mode")
+      ->excludes(config);
   command->add_option("--timeout", options->timeout_s, "Direct mode: response timeout in seconds")
       ->capture_default_str();
   command->add_option("--retries", options->retries, "Direct mode: extra attempts per request")
       ->capture_default_str();
-  command->add_option("--log", options->log, "Append the JSON Lines session log here (with --config)")
+  command
+      ->add_option("--log", options->log, "Append the JSON Lines session log here (with --config)")
       ->needs(config);
 }
 
@@ -162,31 +169,45 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
   auto* serve_command = rig_command->add_subcommand(
       "serve-sim", "Run a simulated drive and platform behind a real Modbus server (TCP or RTU)");
   auto* serve_config = serve_command->add_option(
-      "--config", serve->config, "Rig config YAML: serve its profile at its endpoint with its sim: section");
-  serve_command->add_option("--profile", serve->profile, "Drive profile YAML whose map to serve")
+      "--config", serve->config,
+      "Rig config YAML: serve its profile at its endpoint with its sim: section");
+  serve_command
+      ->add_option("--profile", serve->profile,
+                   "Drive profile YAML whose map to serve (default: config/drives/sim.yaml)")
       ->excludes(serve_config);
-  auto* serve_tcp = serve_command->add_option("--tcp", serve->tcp, "Listen address HOST:PORT (port 0: any free port)");
-  serve_command->add_option("--rtu", serve->rtu, "Serve Modbus RTU on this serial device (e.g. a socat pty)")
+  auto* serve_tcp = serve_command->add_option("--tcp", serve->tcp,
+                                              "Listen address HOST:PORT (port 0: any free port)");
+  serve_command
+      ->add_option("--rtu", serve->rtu, "Serve Modbus RTU on this serial device (e.g. a socat pty)")
       ->excludes(serve_tcp);
   serve_command->add_option("--seconds", serve->seconds, "Stop after this long (0: until Ctrl-C)")
       ->capture_default_str();
   serve_command->add_option("--accel-hz-per-s", serve->sim.model.accel_hz_per_s, "Motor ramp rate")
       ->capture_default_str();
-  serve_command->add_option("--watchdog-s", serve->sim.model.watchdog_s,
-                            "Comm watchdog until a client writes its own: stop when no request for this long (0: off)")
+  serve_command
+      ->add_option("--watchdog-s", serve->sim.model.watchdog_s,
+                   "Comm watchdog until a client writes its own: stop when no request for this "
+                   "long (0: off)")
       ->capture_default_str();
-  serve_command->add_option("--watchdog-fault-code", serve->sim.model.watchdog_fault_code,
-                            "Fault code latched when the comm watchdog fires (0: stop without a trip)")
+  serve_command
+      ->add_option("--watchdog-fault-code", serve->sim.model.watchdog_fault_code,
+                   "Fault code latched when the comm watchdog fires (0: stop without a trip)")
       ->capture_default_str();
-  serve_command->add_option("--trip-after-s", serve->trip_after_s,
-                            "Fault injection: trip once the motor has run this long (0: never)")
+  serve_command
+      ->add_option("--trip-after-s", serve->trip_after_s,
+                   "Fault injection: trip once the motor has run this long (0: never)")
       ->capture_default_str();
-  serve_command->add_option("--trip-code", serve->trip_code, "Fault code of the injected trip")->capture_default_str();
+  serve_command->add_option("--trip-code", serve->trip_code, "Fault code of the injected trip")
+      ->capture_default_str();
   serve_command->callback([serve, selected] {
-    if (serve->config.empty() && serve->profile.empty()) throw CLI::RequiredError("--config or --profile");
     *selected = [serve]() -> Status {
       rig::DriveProfile profile;
       sim::DriveSimOptions options = serve->sim;
+      if (serve->config.empty() && serve->profile.empty()) {
+        // Default: the simulated drive's own map from the shipped config folder.
+        FACEDYN_ASSIGN_OR_RETURN(const std::string config_dir, FindConfigDir());
+        serve->profile = config_dir + "/drives/sim.yaml";
+      }
       if (!serve->config.empty()) {
         FACEDYN_RETURN_IF_ERROR(sim::LoadDriveSimFromRig(serve->config, &profile, &options));
       } else {
@@ -205,16 +226,19 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
       if (serve->trip_after_s > 0.0) server->ScheduleTrip(serve->trip_after_s, serve->trip_code);
       // The address goes to stdout so scripts can start us with port 0 and read where we are.
       if (options.is_rtu()) {
-        std::printf("listening rtu %s profile %s\n", options.rtu_device.c_str(), profile.name.c_str());
+        std::printf("listening rtu %s profile %s\n", options.rtu_device.c_str(),
+                    profile.name.c_str());
       } else {
-        std::printf("listening %s:%d profile %s\n", server->host().c_str(), server->port(), profile.name.c_str());
+        std::printf("listening %s:%d profile %s\n", server->host().c_str(), server->port(),
+                    profile.name.c_str());
       }
       std::fflush(stdout);
       const std::atomic<bool>* stop = rig::InstallStopSignalHandlers();
       const auto start = std::chrono::steady_clock::now();
       while (!stop->load()) {
         if (serve->seconds > 0.0 &&
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() >= serve->seconds) {
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() >=
+                serve->seconds) {
           break;
         }
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -232,10 +256,12 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
   };
   auto usb = std::make_shared<UsbOptions>();
   auto* usb_command = rig_command->add_subcommand(
-      "usb-status", "Find the USB platform/sync controller (rig/usb_controller.h) and print its info and status");
+      "usb-status",
+      "Find the USB platform/sync controller (rig/usb_controller.h) and print its info and status");
   usb_command->add_option("--vid", usb->vid, "Vendor id, hex")->capture_default_str();
   usb_command->add_option("--pid", usb->pid, "Product id, hex")->capture_default_str();
-  usb_command->add_option("--serial", usb->serial, "Serial number string (default: the first match)");
+  usb_command->add_option("--serial", usb->serial,
+                          "Serial number string (default: the first match)");
   usb_command->add_flag("--json", usb->json, "Print JSON on stdout");
   usb_command->callback([usb, selected] {
     *selected = [usb]() -> Status {
@@ -252,11 +278,13 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
         out["status"] = status.ToJson();
         std::printf("%s\n", out.dump(2).c_str());
       } else {
-        std::printf("controller %s, protocol %d, firmware %d\nrunning    %s\nsetpoint   %.2f Hz\n"
-                    "measured   %.2f Hz\nfault      %s\n", options.Describe().c_str(),
-                    controller->info().protocol_version, controller->info().firmware_version,
-                    status.running ? "yes" : "no", status.setpoint_hz, status.measured_hz,
-                    status.faulted ? std::to_string(status.fault_code).c_str() : "none");
+        std::printf(
+            "controller %s, protocol %d, firmware %d\nrunning    %s\nsetpoint   %.2f Hz\n"
+            "measured   %.2f Hz\nfault      %s\n",
+            options.Describe().c_str(), controller->info().protocol_version,
+            controller->info().firmware_version, status.running ? "yes" : "no", status.setpoint_hz,
+            status.measured_hz,
+            status.faulted ? std::to_string(status.fault_code).c_str() : "none");
       }
       return Status::Ok();
     };
@@ -264,19 +292,27 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
 
   auto set_options = std::make_shared<RigOptions>();
   auto* set_command = rig_command->add_subcommand(
-      "set", "Run the platform at a frequency (6-11 Hz). With --config: ramp, trim until settled, "
-             "hold until Ctrl-C or --seconds, then ramp to stop");
+      "set",
+      "Run the platform at a frequency (6-11 Hz). With --config: ramp, trim until settled, "
+      "hold until Ctrl-C or --seconds, then ramp to stop");
   AddConnectionOptions(set_command, set_options.get());
-  set_command->add_option("--hz", set_options->hz, "Platform frequency in Hz (--config) or drive frequency (direct)")
+  set_command
+      ->add_option("--hz", set_options->hz,
+                   "Platform frequency in Hz (--config) or drive frequency (direct)")
       ->required();
   set_command->add_flag("--json", set_options->json, "Print the result as JSON");
-  set_command->add_option("--seconds", set_options->seconds, "With --config: hold this long, then ramp to stop (0: until Ctrl-C)")
+  set_command
+      ->add_option("--seconds", set_options->seconds,
+                   "With --config: hold this long, then ramp to stop (0: until Ctrl-C)")
       ->capture_default_str();
-  set_command->add_option("--settle-timeout", set_options->settle_timeout_s, "With --config: fail if not settled by then (s)")
+  set_command
+      ->add_option("--settle-timeout", set_options->settle_timeout_s,
+                   "With --config: fail if not settled by then (s)")
       ->capture_default_str();
-  set_command->add_flag("--detach", set_options->detach,
-                        "With --config: exit once settled and leave the drive running (disarms the drive-side "
-                        "comm watchdog; stop it with `rig stop`)");
+  set_command->add_flag(
+      "--detach", set_options->detach,
+      "With --config: exit once settled and leave the drive running (disarms the drive-side "
+      "comm watchdog; stop it with `rig stop`)");
   set_command->callback([set_options, selected] {
     RequireConnection(*set_options);
     *selected = [set_options]() -> Status {
@@ -287,7 +323,8 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
         FACEDYN_RETURN_IF_ERROR(c.client->Start());
         return PrintStatus(*c.client, o.json);
       }
-      if (!(o.seconds >= 0.0)) return InvalidArgumentError(fmt::format("--seconds: {} must be >= 0", o.seconds));
+      if (!(o.seconds >= 0.0))
+        return InvalidArgumentError(fmt::format("--seconds: {} must be >= 0", o.seconds));
       const std::atomic<bool>* stop = rig::InstallStopSignalHandlers();
       FACEDYN_ASSIGN_OR_RETURN(Supervised s, ConnectSupervised(o, stop));
       rig::RigSupervisor& supervisor = *s.supervisor;
@@ -298,11 +335,15 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
       Json out = ReadingJson(supervisor, settled);
       if (o.detach) {
         FACEDYN_RETURN_IF_ERROR(supervisor.Detach());
-        spdlog::warn("rig {}: left running at {} Hz with the drive-side comm watchdog disarmed; "
-                     "`facedyn rig stop --config {}` stops it", s.config.name, o.hz, o.config);
+        spdlog::warn(
+            "rig {}: left running at {} Hz with the drive-side comm watchdog disarmed; "
+            "`facedyn rig stop --config {}` stops it",
+            s.config.name, o.hz, o.config);
       } else {
-        spdlog::info("rig {}: settled at {:.3f} Hz (target {} Hz); holding{}", s.config.name, settled.measured_hz,
-                     o.hz, o.seconds > 0.0 ? fmt::format(" for {} s", o.seconds) : ", Ctrl-C ramps to stop");
+        spdlog::info(
+            "rig {}: settled at {:.3f} Hz (target {} Hz); holding{}", s.config.name,
+            settled.measured_hz, o.hz,
+            o.seconds > 0.0 ? fmt::format(" for {} s", o.seconds) : ", Ctrl-C ramps to stop");
         const double hold_s = o.seconds > 0.0 ? o.seconds : 1e9;
         auto hold = supervisor.Hold(hold_s);
         if (!hold.ok() && hold.status().code() != StatusCode::kAborted) return hold.status();
@@ -316,15 +357,16 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
       if (o.json) {
         std::printf("%s\n", out.dump(2).c_str());
       } else {
-        std::printf("settled at %.3f Hz (target %.2f Hz, trim %+.3f Hz)\n", settled.measured_hz, o.hz,
-                    settled.correction_hz);
+        std::printf("settled at %.3f Hz (target %.2f Hz, trim %+.3f Hz)\n", settled.measured_hz,
+                    o.hz, settled.correction_hz);
       }
       return Status::Ok();
     };
   });
 
   auto stop_options = std::make_shared<RigOptions>();
-  auto* stop_command = rig_command->add_subcommand("stop", "Stop the drive (ramp to stop) and wait for standstill");
+  auto* stop_command =
+      rig_command->add_subcommand("stop", "Stop the drive (ramp to stop) and wait for standstill");
   AddConnectionOptions(stop_command, stop_options.get());
   stop_command->add_flag("--json", stop_options->json, "Print the resulting status as JSON");
   stop_command->callback([stop_options, selected] {
@@ -336,7 +378,8 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
         FACEDYN_RETURN_IF_ERROR(c.client->Stop());
         return PrintStatus(*c.client, o.json);
       }
-      FACEDYN_ASSIGN_OR_RETURN(Supervised s, ConnectSupervised(o, nullptr));  // a stop is not interruptible
+      FACEDYN_ASSIGN_OR_RETURN(Supervised s,
+                               ConnectSupervised(o, nullptr));  // a stop is not interruptible
       FACEDYN_RETURN_IF_ERROR(s.supervisor->RampToStop("rig stop"));
       PrintReading(*s.supervisor, s.supervisor->last(), o.json);
       return Status::Ok();
@@ -344,7 +387,8 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
   });
 
   auto status_options = std::make_shared<RigOptions>();
-  auto* status_command = rig_command->add_subcommand("status", "Running, output and platform frequency, fault");
+  auto* status_command =
+      rig_command->add_subcommand("status", "Running, output and platform frequency, fault");
   AddConnectionOptions(status_command, status_options.get());
   status_command->add_flag("--json", status_options->json, "Print JSON on stdout");
   status_command->callback([status_options, selected] {
@@ -363,7 +407,8 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
   });
 
   auto reset_options = std::make_shared<RigOptions>();
-  auto* reset_command = rig_command->add_subcommand("reset", "Acknowledge a drive trip (explicit only)");
+  auto* reset_command =
+      rig_command->add_subcommand("reset", "Acknowledge a drive trip (explicit only)");
   AddConnectionOptions(reset_command, reset_options.get());
   reset_command->add_flag("--json", reset_options->json, "Print the resulting status as JSON");
   reset_command->callback([reset_options, selected] {

@@ -1,5 +1,8 @@
 #include "app/rig_demo.h"
 
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <spdlog/spdlog.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -8,10 +11,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <vector>
-
-#include <fmt/format.h>
-#include <fmt/ranges.h>
-#include <spdlog/spdlog.h>
 
 #include "core/file_util.h"
 #include "rig/rig_config.h"
@@ -25,6 +24,8 @@ bool IsFile(const std::string& path) {
   struct stat info {};
   return ::stat(path.c_str(), &info) == 0 && S_ISREG(info.st_mode);
 }
+
+}  // namespace
 
 StatusOr<std::string> FindConfigDir() {
   std::vector<std::string> candidates;
@@ -43,11 +44,11 @@ StatusOr<std::string> FindConfigDir() {
   for (const std::string& dir : candidates) {
     if (IsFile(dir + "/rigs/sim-tcp.yaml") && IsFile(dir + "/sweeps/demo.yaml")) return dir;
   }
-  return NotFoundError(fmt::format("rig demo: no config folder with rigs/sim-tcp.yaml and sweeps/demo.yaml "
-                                   "(looked in {}); set FACEDYN_CONFIG_DIR", fmt::join(candidates, ", ")));
+  return NotFoundError(
+      fmt::format("no facedyn config folder with rigs/sim-tcp.yaml and sweeps/demo.yaml "
+                  "(looked in {}); set FACEDYN_CONFIG_DIR",
+                  fmt::join(candidates, ", ")));
 }
-
-}  // namespace
 
 Status RunRigDemoStage(const std::string& out_dir, bool quick, Json* metrics) {
   FACEDYN_ASSIGN_OR_RETURN(const std::string config_dir, FindConfigDir());
@@ -56,7 +57,8 @@ Status RunRigDemoStage(const std::string& out_dir, bool quick, Json* metrics) {
   sim::DriveSimOptions sim_options;
   FACEDYN_RETURN_IF_ERROR(sim::LoadDriveSimFromRig(rig_path, &profile, &sim_options));
   FACEDYN_ASSIGN_OR_RETURN(rig::RigConfig rig, rig::LoadRigConfig(rig_path));
-  FACEDYN_ASSIGN_OR_RETURN(rig::SweepScript script, rig::LoadSweepScript(config_dir + "/sweeps/demo.yaml"));
+  FACEDYN_ASSIGN_OR_RETURN(rig::SweepScript script,
+                           rig::LoadSweepScript(config_dir + "/sweeps/demo.yaml"));
   if (quick) {
     for (rig::SweepStep& step : script.steps) step.hold_s = std::min(step.hold_s, 0.5);
   }
@@ -65,8 +67,8 @@ Status RunRigDemoStage(const std::string& out_dir, bool quick, Json* metrics) {
   FACEDYN_ASSIGN_OR_RETURN(auto sim, sim::DriveSim::Start(profile, sim_options));
   rig.transport.host = "127.0.0.1";
   rig.transport.port = sim->port();
-  spdlog::info("rig demo: simulated drive ({}) on {}, sweep {} ({} steps)", profile.name, sim->Describe(),
-               script.name, script.InstanceCount());
+  spdlog::info("rig demo: simulated drive ({}) on {}, sweep {} ({} steps)", profile.name,
+               sim->Describe(), script.name, script.InstanceCount());
 
   const std::string session = JoinPath(out_dir, "rig-session");
   FACEDYN_RETURN_IF_ERROR(MakeDirectories(session));
@@ -96,16 +98,20 @@ Status RunRigDemoStage(const std::string& out_dir, bool quick, Json* metrics) {
   };
   FACEDYN_ASSIGN_OR_RETURN(const rig::SweepResult result, rig::RunSweep(script, rig, options));
 
-  std::printf("\nRig: simulated drive over Modbus TCP (%s), sweep %s\n", sim->Describe().c_str(), script.name.c_str());
-  std::printf("  %-9s %-10s %-12s %-12s %-10s %s\n", "step", "target", "measured", "true", "max err", "prompt");
+  std::printf("\nRig: simulated drive over Modbus TCP (%s), sweep %s\n", sim->Describe().c_str(),
+              script.name.c_str());
+  std::printf("  %-9s %-10s %-12s %-12s %-10s %s\n", "step", "target", "measured", "true",
+              "max err", "prompt");
   Json steps = Json::array();
   double worst_max = 0.0, worst_steady = 0.0;
   for (const rig::SweepStepResult& step : result.steps) {
     const int i = step.instance;
     const double true_hz = i < static_cast<int>(true_samples.size()) && true_samples[i] > 0
-                               ? true_sum_hz[i] / true_samples[i] : std::nan("");
-    std::printf("  %-9d %-10.2f %-12.3f %-12.3f %-10.3f %s\n", i + 1, step.target_hz, step.hold.mean_measured_hz,
-                true_hz, step.hold.max_abs_error_hz, step.prompt.c_str());
+                               ? true_sum_hz[i] / true_samples[i]
+                               : std::nan("");
+    std::printf("  %-9d %-10.2f %-12.3f %-12.3f %-10.3f %s\n", i + 1, step.target_hz,
+                step.hold.mean_measured_hz, true_hz, step.hold.max_abs_error_hz,
+                step.prompt.c_str());
     worst_max = std::max(worst_max, step.hold.max_abs_error_hz);
     worst_steady = std::max(worst_steady, std::abs(step.hold.mean_measured_hz - step.target_hz));
     Json s;
@@ -118,8 +124,8 @@ Status RunRigDemoStage(const std::string& out_dir, bool quick, Json* metrics) {
     steps.push_back(s);
   }
   std::printf("  exposure: %.1f s of vibration, A(8) %.3f m/s^2 (unweighted); journal %s\n",
-              result.exposure.value("vibrating_s", 0.0), result.exposure.value("a8_unweighted_m_s2", 0.0),
-              result.log_path.c_str());
+              result.exposure.value("vibrating_s", 0.0),
+              result.exposure.value("a8_unweighted_m_s2", 0.0), result.log_path.c_str());
   if (metrics != nullptr) {
     (*metrics)["steps"] = steps;
     (*metrics)["max_abs_error_hz"] = worst_max;

@@ -18,4 +18,7 @@ namespace facedyn::app {
 // else ../../config or ../config next to the executable (the build tree), else ./config.
 Status RunRigDemoStage(const std::string& out_dir, bool quick, Json* metrics);
 
+// The shipped config folder (drives/, rigs/, sweeps/), searched as described above.
+StatusOr<std::string> FindConfigDir();
+
 }  // namespace facedyn::app

@@ -2,7 +2,8 @@
 //
 //  - detection + triangulation, 8 cameras: rendered 1280x1024 marker images of a simulated
 //    face (painted disks projected through the cameras, lens blur, sensor noise), DetectMarkers
-//    on all 8 then TriangulateDetections; frames/s, 2D centre error and 3D marker error;
+//    on all 8 (on 1 thread, and on all hardware threads) then TriangulateDetections; frames/s,
+//    2D centre error and 3D marker error;
 //  - the full take pipeline (triangulation, tracking, skull pose, dense fit) on a simulated
 //    11 Hz take through the same cameras at 0.2 px detection noise; dense-fit frames/s, skull
 //    pose error, 344-sample error, dynamic-offset correlation;
@@ -16,14 +17,13 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <random>
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <opencv2/calib3d.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "core/json_io.h"
 #include "core/progress.h"
@@ -42,7 +42,9 @@ using facedyn::Json;
 using namespace facedyn::reconstruct;
 using Clock = std::chrono::steady_clock;
 
-double Seconds(Clock::time_point a) { return std::chrono::duration<double>(Clock::now() - a).count(); }
+double Seconds(Clock::time_point a) {
+  return std::chrono::duration<double>(Clock::now() - a).count();
+}
 
 // One camera image of the markers on `skin`: disks of the markers' diameter, dark on skin.
 cv::Mat RenderMarkers(const facedyn::FaceRig& rig, const Camera& camera,
@@ -60,7 +62,8 @@ cv::Mat RenderMarkers(const facedyn::FaceRig& rig, const Camera& camera,
   return image;
 }
 
-Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int frames) {
+Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int frames,
+                    int threads) {
   const std::vector<Camera> cameras = MakeFaceCameraRing(8);
   std::mt19937 rng(1);
   MarkerDetectionOptions detection;
@@ -75,11 +78,13 @@ Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int 
     const Eigen::Matrix3Xd markers = MarkerPositions(rig, skin);
     const Eigen::Matrix3Xd normals = MarkerNormals(rig, skin);
     std::vector<cv::Mat> images;
-    for (const Camera& camera : cameras) images.push_back(RenderMarkers(rig, camera, markers, normals, &rng));
+    for (const Camera& camera : cameras)
+      images.push_back(RenderMarkers(rig, camera, markers, normals, &rng));
     auto start = Clock::now();
     std::vector<std::vector<ImageObservation>> observed(cameras.size());
+    const auto found_all = DetectMarkersInImages(images, detection, threads);
     for (size_t c = 0; c < cameras.size(); ++c) {
-      const auto found = DetectMarkers(images[c], detection);
+      const auto& found = found_all[c];
       if (!found.ok()) continue;
       for (const MarkerDetection& d : *found) {
         ImageObservation o;
@@ -101,7 +106,8 @@ Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int 
       detections += static_cast<int>(observed[c].size());
       for (const ImageObservation& o : observed[c]) {
         double best = 1e9;
-        for (const ImageObservation& t : truth.detections[c]) best = std::min(best, (t.pixel - o.pixel).norm());
+        for (const ImageObservation& t : truth.detections[c])
+          best = std::min(best, (t.pixel - o.pixel).norm());
         if (best < 2.0) {
           sq2d += best * best;
           ++n2d;
@@ -119,6 +125,7 @@ Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int 
   }
   Json out;
   out["cameras"] = 8;
+  out["threads"] = threads;
   out["image_size"] = {1280, 1024};
   out["frames"] = frames;
   out["detect_ms_per_frame"] = 1e3 * detect_s / frames;
@@ -143,7 +150,8 @@ Json BenchPipeline(const facedyn::FaceRig& rig, const facedyn::Take& take) {
             .detections);
   }
   const auto start = Clock::now();
-  const auto result = ReconstructTake(rig, cameras, detections, take.info.fps, ReconstructionOptions());
+  const auto result =
+      ReconstructTake(rig, cameras, detections, take.info.fps, ReconstructionOptions());
   const double total_s = Seconds(start);
   Json out;
   if (!result.ok()) {
@@ -157,7 +165,8 @@ Json BenchPipeline(const facedyn::FaceRig& rig, const facedyn::Take& take) {
   double sab = 0.0, saa = 0.0, sbb = 0.0, sa = 0.0, sb = 0.0;
   long n_offset = 0;
   for (int f = skip; f < take.frame_count(); ++f) {
-    const facedyn::Rigid3 difference = take.world_from_skull[f].Inverse() * result->take.world_from_skull[f];
+    const facedyn::Rigid3 difference =
+        take.world_from_skull[f].Inverse() * result->take.world_from_skull[f];
     const double t = difference.translation().norm(), r = difference.AngleRad() * 180.0 / M_PI;
     sq_t += t * t;
     sq_r += r * r;
@@ -181,7 +190,8 @@ Json BenchPipeline(const facedyn::FaceRig& rig, const facedyn::Take& take) {
     }
   }
   const double cov = sab / n_offset - (sa / n_offset) * (sb / n_offset);
-  const double va = saa / n_offset - std::pow(sa / n_offset, 2), vb = sbb / n_offset - std::pow(sb / n_offset, 2);
+  const double va = saa / n_offset - std::pow(sa / n_offset, 2),
+               vb = sbb / n_offset - std::pow(sb / n_offset, 2);
   const int frames = take.frame_count();
   out["frames"] = frames;
   out["cameras"] = 8;
@@ -257,8 +267,9 @@ Json BenchCalibration(const std::string& shared) {
     } else {
       photos["error"] = result.status().message();
     }
-    photos["opencv"] = {{"rms_px", cv_rms}, {"fx", k.at<double>(0, 0)}, {"fy", k.at<double>(1, 1)},
-                        {"cx", k.at<double>(0, 2)}, {"cy", k.at<double>(1, 2)}, {"seconds", cv_s}};
+    photos["opencv"] = {{"rms_px", cv_rms},         {"fx", k.at<double>(0, 0)},
+                        {"fy", k.at<double>(1, 1)}, {"cx", k.at<double>(0, 2)},
+                        {"cy", k.at<double>(1, 2)}, {"seconds", cv_s}};
     out["opencv_photographs"] = photos;
   }
   // Synthetic 4-camera rig, 40 ChArUco views, 0.3 px noise per axis.
@@ -278,9 +289,11 @@ Json BenchCalibration(const std::string& shared) {
   int n = 0;
   for (int v = 0; v < 40; ++v) {
     const facedyn::Rigid3 world_from_board =
-        facedyn::Rigid3::FromTranslation(Eigen::Vector3d(80 * uniform(rng), 60 * uniform(rng), 80 * uniform(rng))) *
-        facedyn::Rigid3::FromAxisAngle(Eigen::Vector3d(uniform(rng), uniform(rng), 0.3 * uniform(rng)).normalized(),
-                                       0.6 * std::abs(uniform(rng))) *
+        facedyn::Rigid3::FromTranslation(
+            Eigen::Vector3d(80 * uniform(rng), 60 * uniform(rng), 80 * uniform(rng))) *
+        facedyn::Rigid3::FromAxisAngle(
+            Eigen::Vector3d(uniform(rng), uniform(rng), 0.3 * uniform(rng)).normalized(),
+            0.6 * std::abs(uniform(rng))) *
         facedyn::Rigid3::FromAxisAngle(Eigen::Vector3d::UnitX(), M_PI) *
         facedyn::Rigid3::FromTranslation(-Eigen::Vector3d(137.5, 100, 0));
     input.view_names.push_back("v" + std::to_string(v));
@@ -288,7 +301,9 @@ Json BenchCalibration(const std::string& shared) {
       BoardObservation o;
       for (int id = 0; id < input.board.corner_count(); ++id) {
         const Eigen::Vector3d p = world_from_board * input.board.CornerInBoard(id);
-        if (world_from_board.RotateVector(-Eigen::Vector3d::UnitZ()).dot(cameras[c].CenterInWorld() - p) <= 0) continue;
+        if (world_from_board.RotateVector(-Eigen::Vector3d::UnitZ())
+                .dot(cameras[c].CenterInWorld() - p) <= 0)
+          continue;
         Eigen::Vector2d pixel;
         if (!cameras[c].Project(p, &pixel) || !cameras[c].InImage(pixel, 5)) continue;
         const Eigen::Vector2d e(noise(rng), noise(rng));
@@ -317,7 +332,9 @@ Json BenchCalibration(const std::string& shared) {
     const Eigen::Matrix4d b_from_a = Eigen::umeyama(a, b, false);
     double worst = 0.0;
     for (int c = 0; c < 4; ++c) {
-      worst = std::max(worst, (b_from_a.topLeftCorner<3, 3>() * a.col(c) + b_from_a.topRightCorner<3, 1>() - b.col(c)).norm());
+      worst = std::max(worst, (b_from_a.topLeftCorner<3, 3>() * a.col(c) +
+                               b_from_a.topRightCorner<3, 1>() - b.col(c))
+                                  .norm());
     }
     rig["worst_centre_error_mm_after_rigid_alignment"] = worst;
   } else {
@@ -366,7 +383,9 @@ int main(int argc, char** argv) {
   }
   Json out;
   out["machine"] = {{"hardware_threads", std::thread::hardware_concurrency()}};
-  out["detection_triangulation"] = BenchDetection(*rig, *take, frames);
+  out["detection_triangulation_1_thread"] = BenchDetection(*rig, *take, frames, 1);
+  out["detection_triangulation"] =
+      BenchDetection(*rig, *take, frames, static_cast<int>(std::thread::hardware_concurrency()));
   out["pipeline_11hz_smile"] = BenchPipeline(*rig, *take);
   out["calibration"] = BenchCalibration(shared);
   std::printf("%s\n", out.dump(2).c_str());

@@ -151,8 +151,9 @@ int main(int argc, char** argv) {
   facedyn::InitLogging(facedyn::Verbosity::kQuiet);
   Args args;
   if (!ParseArgs(argc, argv, &args)) {
-    std::fprintf(stderr, "usage: rig_bench [--rig RIG.yaml] [--from HZ] [--to HZ] [--step HZ] [--hold-s S] "
-                         "[--no-open-loop]\n");
+    std::fprintf(stderr,
+                 "usage: rig_bench [--rig RIG.yaml] [--from HZ] [--to HZ] [--step HZ] [--hold-s S] "
+                 "[--no-open-loop]\n");
     return 2;
   }
   facedyn::rig::DriveProfile profile;
@@ -160,7 +161,8 @@ int main(int argc, char** argv) {
   Status loaded = facedyn::sim::LoadDriveSimFromRig(args.rig, &profile, &sim_options);
   auto rig = facedyn::rig::LoadRigConfig(args.rig);
   if (!loaded.ok() || !rig.ok()) {
-    std::fprintf(stderr, "rig_bench: %s\n", (loaded.ok() ? rig.status() : loaded).message().c_str());
+    std::fprintf(stderr, "rig_bench: %s\n",
+                 (loaded.ok() ? rig.status() : loaded).message().c_str());
     return 1;
   }
   if (rig->transport.kind != facedyn::rig::TransportOptions::Kind::kTcp) {
@@ -175,14 +177,18 @@ int main(int argc, char** argv) {
   }
   rig->transport.port = (*sim)->port();
   std::vector<double> frequencies;
-  for (double hz = args.from_hz; hz <= args.to_hz + 1e-9; hz += args.step_hz) frequencies.push_back(hz);
+  for (double hz = args.from_hz; hz <= args.to_hz + 1e-9; hz += args.step_hz)
+    frequencies.push_back(hz);
 
   Json out;
   out["rig"] = rig->name;
-  out["controller"] = {{"nominal_slip", rig->platform.slip}, {"ratio", rig->platform.ratio},
-                       {"trim_gain_per_s", rig->trim.gain_per_s}, {"settle_tolerance_hz", rig->settle.tolerance_hz},
+  out["controller"] = {{"nominal_slip", rig->platform.slip},
+                       {"ratio", rig->platform.ratio},
+                       {"trim_gain_per_s", rig->trim.gain_per_s},
+                       {"settle_tolerance_hz", rig->settle.tolerance_hz},
                        {"settle_time_s", rig->settle.time_s}};
-  out["simulated_platform"] = {{"slip_base", sim_options.model.slip_base}, {"slip_load", sim_options.model.slip_load},
+  out["simulated_platform"] = {{"slip_base", sim_options.model.slip_base},
+                               {"slip_load", sim_options.model.slip_load},
                                {"slip_reference_hz", sim_options.model.slip_reference_hz},
                                {"sensor_window_s", sim_options.model.sensor_window_s},
                                {"sensor_noise_hz", sim_options.model.sensor_noise_hz}};
@@ -209,7 +215,8 @@ int main(int argc, char** argv) {
     }
     if (i < open.size()) {
       row["open_loop"] = open[i].ToJson();
-      if (open[i].error.empty()) worst_open = std::max(worst_open, std::abs(open[i].true_mean_hz - open[i].target_hz));
+      if (open[i].error.empty())
+        worst_open = std::max(worst_open, std::abs(open[i].true_mean_hz - open[i].target_hz));
     }
     table.push_back(row);
   }

@@ -1,9 +1,9 @@
 #include "capture/aravis_camera.h"
 
+#include <arv.h>
+
 #include <algorithm>
 #include <cstring>
-
-#include <arv.h>
 
 namespace facedyn::capture {
 namespace {
@@ -20,8 +20,11 @@ constexpr int kStreamBuffers = 32;
 
 }  // namespace
 
-AravisCamera::AravisCamera(int camera_index, std::string name, std::string device_id, std::string hardware_line)
-    : camera_index_(camera_index), name_(std::move(name)), device_id_(std::move(device_id)),
+AravisCamera::AravisCamera(int camera_index, std::string name, std::string device_id,
+                           std::string hardware_line)
+    : camera_index_(camera_index),
+      name_(std::move(name)),
+      device_id_(std::move(device_id)),
       hardware_line_(std::move(hardware_line)) {}
 
 AravisCamera::~AravisCamera() {
@@ -38,20 +41,28 @@ Status AravisCamera::Configure(const CameraSettings& settings) {
   GError* error = nullptr;
   if (camera_ == nullptr) {
     camera_ = arv_camera_new(device_id_.c_str(), &error);
-    FACEDYN_RETURN_IF_ERROR(TakeError(&error, "camera " + name_ + ": cannot open Aravis device '" + device_id_ + "'"));
-    if (camera_ == nullptr) return UnavailableError("camera " + name_ + ": no Aravis device '" + device_id_ + "'");
+    FACEDYN_RETURN_IF_ERROR(
+        TakeError(&error, "camera " + name_ + ": cannot open Aravis device '" + device_id_ + "'"));
+    if (camera_ == nullptr)
+      return UnavailableError("camera " + name_ + ": no Aravis device '" + device_id_ + "'");
   }
   const std::string what = "camera " + name_ + " (" + device_id_ + ")";
-  arv_camera_set_pixel_format(camera_, settings.format == PixelFormat::kMono8 ? ARV_PIXEL_FORMAT_MONO_8 : ARV_PIXEL_FORMAT_MONO_16, &error);
-  FACEDYN_RETURN_IF_ERROR(TakeError(&error, what + ": PixelFormat " + PixelFormatName(settings.format)));
+  arv_camera_set_pixel_format(
+      camera_,
+      settings.format == PixelFormat::kMono8 ? ARV_PIXEL_FORMAT_MONO_8 : ARV_PIXEL_FORMAT_MONO_16,
+      &error);
+  FACEDYN_RETURN_IF_ERROR(
+      TakeError(&error, what + ": PixelFormat " + PixelFormatName(settings.format)));
   arv_camera_set_region(camera_, 0, 0, settings.width_px, settings.height_px, &error);
-  FACEDYN_RETURN_IF_ERROR(TakeError(&error, what + ": region " + std::to_string(settings.width_px) + "x" + std::to_string(settings.height_px)));
+  FACEDYN_RETURN_IF_ERROR(TakeError(&error, what + ": region " + std::to_string(settings.width_px) +
+                                                "x" + std::to_string(settings.height_px)));
   gint x, y, width, height;
   arv_camera_get_region(camera_, &x, &y, &width, &height, &error);
   FACEDYN_RETURN_IF_ERROR(TakeError(&error, what + ": reading the region back"));
   if (width != settings.width_px || height != settings.height_px) {
-    return InvalidArgumentError(what + ": asked for " + std::to_string(settings.width_px) + "x" + std::to_string(settings.height_px) +
-                                ", the camera set " + std::to_string(width) + "x" + std::to_string(height));
+    return InvalidArgumentError(what + ": asked for " + std::to_string(settings.width_px) + "x" +
+                                std::to_string(settings.height_px) + ", the camera set " +
+                                std::to_string(width) + "x" + std::to_string(height));
   }
   arv_camera_set_acquisition_mode(camera_, ARV_ACQUISITION_MODE_CONTINUOUS, &error);
   FACEDYN_RETURN_IF_ERROR(TakeError(&error, what + ": AcquisitionMode Continuous"));
@@ -67,27 +78,35 @@ Status AravisCamera::Configure(const CameraSettings& settings) {
       FACEDYN_RETURN_IF_ERROR(TakeError(&error, what + ": AcquisitionFrameRate"));
     }
   }
-  arv_camera_set_trigger(camera_, hardware_line_.empty() ? "Software" : hardware_line_.c_str(), &error);
-  FACEDYN_RETURN_IF_ERROR(TakeError(&error, what + ": TriggerSource " + (hardware_line_.empty() ? std::string("Software") : hardware_line_)));
+  arv_camera_set_trigger(camera_, hardware_line_.empty() ? "Software" : hardware_line_.c_str(),
+                         &error);
+  FACEDYN_RETURN_IF_ERROR(
+      TakeError(&error, what + ": TriggerSource " +
+                            (hardware_line_.empty() ? std::string("Software") : hardware_line_)));
   arv_camera_set_exposure_time(camera_, settings.exposure_us, &error);
-  FACEDYN_RETURN_IF_ERROR(TakeError(&error, what + ": ExposureTime " + std::to_string(settings.exposure_us) + " us"));
+  FACEDYN_RETURN_IF_ERROR(
+      TakeError(&error, what + ": ExposureTime " + std::to_string(settings.exposure_us) + " us"));
   payload_bytes_ = arv_camera_get_payload(camera_, &error);
   FACEDYN_RETURN_IF_ERROR(TakeError(&error, what + ": PayloadSize"));
   settings_ = settings;
-  const size_t expected = static_cast<size_t>(settings.width_px) * settings.height_px * BytesPerPixel(settings.format);
+  const size_t expected =
+      static_cast<size_t>(settings.width_px) * settings.height_px * BytesPerPixel(settings.format);
   if (payload_bytes_ < expected) {
-    return FailedPreconditionError(what + ": payload " + std::to_string(payload_bytes_) + " bytes is smaller than the image");
+    return FailedPreconditionError(what + ": payload " + std::to_string(payload_bytes_) +
+                                   " bytes is smaller than the image");
   }
   return Status::Ok();
 }
 
 Status AravisCamera::Arm() {
-  if (camera_ == nullptr) return FailedPreconditionError("camera " + name_ + ": Arm before Configure");
+  if (camera_ == nullptr)
+    return FailedPreconditionError("camera " + name_ + ": Arm before Configure");
   GError* error = nullptr;
   stream_ = arv_camera_create_stream(camera_, nullptr, nullptr, &error);
   FACEDYN_RETURN_IF_ERROR(TakeError(&error, "camera " + name_ + ": creating the stream"));
   if (stream_ == nullptr) return UnavailableError("camera " + name_ + ": no stream");
-  for (int i = 0; i < kStreamBuffers; ++i) arv_stream_push_buffer(stream_, arv_buffer_new(payload_bytes_, nullptr));
+  for (int i = 0; i < kStreamBuffers; ++i)
+    arv_stream_push_buffer(stream_, arv_buffer_new(payload_bytes_, nullptr));
   trigger_time_ns_.clear();
   first_frame_id_ = last_frame_id_ = -1;
   frame_id_base_ = 0;
@@ -102,13 +121,16 @@ Status AravisCamera::Arm() {
 }
 
 Status AravisCamera::OnTrigger(const TriggerEvent& trigger) {
-  if (!armed_ || disarmed_) return FailedPreconditionError("camera " + name_ + ": trigger while not armed");
-  if (static_cast<int64_t>(trigger_time_ns_.size()) <= trigger.index) trigger_time_ns_.resize(trigger.index + 1, 0);
+  if (!armed_ || disarmed_)
+    return FailedPreconditionError("camera " + name_ + ": trigger while not armed");
+  if (static_cast<int64_t>(trigger_time_ns_.size()) <= trigger.index)
+    trigger_time_ns_.resize(trigger.index + 1, 0);
   trigger_time_ns_[trigger.index] = trigger.time_ns;
   if (!hardware_line_.empty()) return Status::Ok();
   GError* error = nullptr;
   arv_camera_software_trigger(camera_, &error);
-  return TakeError(&error, "camera " + name_ + ": TriggerSoftware for trigger " + std::to_string(trigger.index));
+  return TakeError(
+      &error, "camera " + name_ + ": TriggerSoftware for trigger " + std::to_string(trigger.index));
 }
 
 Status AravisCamera::Disarm() {
@@ -120,7 +142,8 @@ Status AravisCamera::Disarm() {
   return status;
 }
 
-Status AravisCamera::NextFrame(double timeout_s, Frame* frame) {
+Status AravisCamera::NextFrame(double timeout_s, Frame* frame, bool* got_frame) {
+  *got_frame = false;
   if (stream_ == nullptr) return AbortedError("camera " + name_ + ": not armed");
   for (;;) {
     // After Disarm, drain what the stream already holds without waiting long.
@@ -133,7 +156,7 @@ Status AravisCamera::NextFrame(double timeout_s, Frame* frame) {
         armed_ = false;
         return AbortedError("camera " + name_ + ": disarmed");
       }
-      return UnavailableError("camera " + name_ + ": no frame within " + std::to_string(timeout_s) + " s");
+      return Status::Ok();  // nothing within the timeout
     }
     if (arv_buffer_get_status(buffer) != ARV_BUFFER_STATUS_SUCCESS) {
       ++incomplete_buffers_;  // the frame id then never arrives: a gap the sync checker counts
@@ -161,11 +184,12 @@ Status AravisCamera::NextFrame(double timeout_s, Frame* frame) {
     frame->pixels.resize(frame->ExpectedBytes());
     if (size < frame->pixels.size()) {
       arv_stream_push_buffer(stream_, buffer);
-      return DataLossError("camera " + name_ + ": buffer of " + std::to_string(size) + " bytes for a " +
-                           std::to_string(frame->pixels.size()) + "-byte image");
+      return DataLossError("camera " + name_ + ": buffer of " + std::to_string(size) +
+                           " bytes for a " + std::to_string(frame->pixels.size()) + "-byte image");
     }
     std::memcpy(frame->pixels.data(), data, frame->pixels.size());
     arv_stream_push_buffer(stream_, buffer);
+    *got_frame = true;
     return Status::Ok();
   }
 }

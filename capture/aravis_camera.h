@@ -28,7 +28,8 @@ namespace facedyn::capture {
 class AravisCamera : public Camera {
  public:
   // `device_id`: an Aravis id ("Aravis-Fake-GV01"), a serial or an IP address.
-  AravisCamera(int camera_index, std::string name, std::string device_id, std::string hardware_line = "");
+  AravisCamera(int camera_index, std::string name, std::string device_id,
+               std::string hardware_line = "");
   ~AravisCamera() override;
 
   const std::string& name() const override { return name_; }
@@ -37,7 +38,7 @@ class AravisCamera : public Camera {
   const CameraSettings& settings() const override { return settings_; }
   Status Arm() override;
   Status OnTrigger(const TriggerEvent& trigger) override;
-  Status NextFrame(double timeout_s, Frame* frame) override;
+  Status NextFrame(double timeout_s, Frame* frame, bool* got_frame) override;
   Status Disarm() override;
 
   int64_t incomplete_buffers() const { return incomplete_buffers_; }

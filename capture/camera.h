@@ -52,10 +52,11 @@ class Camera {
   // Called from the trigger thread for every trigger, in index order. Must not block for long
   // (a bounded wait is allowed for simulated cameras, whose clock is virtual).
   virtual Status OnTrigger(const TriggerEvent& trigger) = 0;
-  // The next acquired frame into *frame (its pixel buffer is reused). Waits at most
-  // `timeout_s`; returns an Unavailable status on timeout and an Aborted status once the
-  // camera has been disarmed and has no more frames.
-  virtual Status NextFrame(double timeout_s, Frame* frame) = 0;
+  // The next acquired frame into *frame (its pixel buffer is reused), waiting at most
+  // `timeout_s`. OK with *got_frame = true: a frame; OK with *got_frame = false: nothing within
+  // the timeout (not an error); Aborted: disarmed and drained, no more frames; any other
+  // status: the device failed (the take stops and the message is logged).
+  virtual Status NextFrame(double timeout_s, Frame* frame, bool* got_frame) = 0;
   // Stops acquisition. Frames already acquired remain available to NextFrame. Idempotent.
   virtual Status Disarm() = 0;
 };

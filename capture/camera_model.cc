@@ -1,9 +1,8 @@
 #include "capture/camera_model.h"
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <filesystem>
-
-#include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 #include <opencv2/core/eigen.hpp>
 
@@ -35,7 +34,8 @@ CameraModel CameraModel::LookAt(const std::string& name, int width_px, int heigh
   camera.name = name;
   camera.width_px = width_px;
   camera.height_px = height_px;
-  camera.intrinsics = {focal_px, focal_px, (width_px - 1) / 2.0, (height_px - 1) / 2.0, 0, 0, 0, 0, 0};
+  camera.intrinsics = {focal_px, focal_px, (width_px - 1) / 2.0, (height_px - 1) / 2.0, 0, 0, 0,
+                       0,        0};
   camera.cam_from_world = Rigid3(Eigen::Quaterniond(cam_from_world_rotation),
                                  -cam_from_world_rotation * center_in_world);
   return camera;
@@ -54,7 +54,8 @@ Eigen::Vector3d CameraModel::CenterInWorld() const {
   return cam_from_world.Inverse().translation();
 }
 
-bool CameraModel::ProjectFromCam(const Eigen::Vector3d& point_in_cam, Eigen::Vector2d* pixel) const {
+bool CameraModel::ProjectFromCam(const Eigen::Vector3d& point_in_cam,
+                                 Eigen::Vector2d* pixel) const {
   if (!(point_in_cam.z() > 1e-9)) return false;
   const double x = point_in_cam.x() / point_in_cam.z();
   const double y = point_in_cam.y() / point_in_cam.z();
@@ -84,8 +85,12 @@ Eigen::Vector2d CameraModel::Undistort(const Eigen::Vector2d& pixel) const {
     if (residual.norm() < 1e-15) break;
     constexpr double kStep = 1e-7;
     Eigen::Matrix2d jacobian;
-    jacobian.col(0) = (distort(p + Eigen::Vector2d(kStep, 0)) - distort(p - Eigen::Vector2d(kStep, 0))) / (2 * kStep);
-    jacobian.col(1) = (distort(p + Eigen::Vector2d(0, kStep)) - distort(p - Eigen::Vector2d(0, kStep))) / (2 * kStep);
+    jacobian.col(0) =
+        (distort(p + Eigen::Vector2d(kStep, 0)) - distort(p - Eigen::Vector2d(kStep, 0))) /
+        (2 * kStep);
+    jacobian.col(1) =
+        (distort(p + Eigen::Vector2d(0, kStep)) - distort(p - Eigen::Vector2d(0, kStep))) /
+        (2 * kStep);
     if (std::abs(jacobian.determinant()) < 1e-12) break;
     p -= jacobian.inverse() * residual;
   }
@@ -103,12 +108,16 @@ Status CameraModel::Check() const {
     return InvalidArgumentError(what + ": image size " + std::to_string(width_px) + "x" +
                                 std::to_string(height_px) + " is not positive");
   }
-  static const char* kNames[kIntrinsicCount] = {"fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"};
+  static const char* kNames[kIntrinsicCount] = {"fx", "fy", "cx", "cy", "k1",
+                                                "k2", "p1", "p2", "k3"};
   for (int i = 0; i < kIntrinsicCount; ++i) {
-    if (!std::isfinite(intrinsics[i])) return InvalidArgumentError(what + ": " + kNames[i] + " is not finite");
+    if (!std::isfinite(intrinsics[i]))
+      return InvalidArgumentError(what + ": " + kNames[i] + " is not finite");
   }
-  if (!(fx() > 0) || !(fy() > 0)) return InvalidArgumentError(what + ": focal lengths fx, fy must be positive");
-  if (!cam_from_world.translation().allFinite() || !cam_from_world.rotation().coeffs().allFinite()) {
+  if (!(fx() > 0) || !(fy() > 0))
+    return InvalidArgumentError(what + ": focal lengths fx, fy must be positive");
+  if (!cam_from_world.translation().allFinite() ||
+      !cam_from_world.rotation().coeffs().allFinite()) {
     return InvalidArgumentError(what + ": cam_from_world is not finite");
   }
   return Status::Ok();
@@ -122,10 +131,12 @@ Status WriteCameraModels(const std::string& path, const std::vector<CameraModel>
   std::string text;
   try {
     cv::FileStorage fs(".yaml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
-    fs.writeComment("facedyn camera models (capture/camera_model.h); lengths in mm, pixels with (0,0)"
-                    " at the centre of the top-left pixel; distortion k1 k2 p1 p2 k3 (OpenCV)");
+    fs.writeComment(
+        "facedyn camera models (capture/camera_model.h); lengths in mm, pixels with (0,0)"
+        " at the centre of the top-left pixel; distortion k1 k2 p1 p2 k3 (OpenCV)");
     fs << "camera_count" << static_cast<int>(cameras.size());
-    fs << "cameras" << "[";
+    fs << "cameras"
+       << "[";
     for (const CameraModel& camera : cameras) {
       cv::Mat k, dist, pose;
       Eigen::Matrix<double, 1, 5> d;
@@ -134,7 +145,8 @@ Status WriteCameraModels(const std::string& path, const std::vector<CameraModel>
       cv::eigen2cv(Eigen::Matrix3d(camera.CameraMatrix()), k);
       cv::eigen2cv(d, dist);
       cv::eigen2cv(Eigen::Matrix4d(camera.cam_from_world.ToMatrix4()), pose);
-      fs << "{" << "name" << camera.name << "image_width" << camera.width_px << "image_height"
+      fs << "{"
+         << "name" << camera.name << "image_width" << camera.width_px << "image_height"
          << camera.height_px << "camera_matrix" << k << "distortion_coefficients" << dist
          << "cam_from_world" << pose << "}";
     }
@@ -154,15 +166,17 @@ Status ReadMatrix(const cv::FileNode& node, const std::string& field, int rows, 
   try {
     node[field] >> *out;
   } catch (const cv::Exception& e) {
-    return InvalidArgumentError(what + ": field '" + field + "' is not an opencv-matrix: " + e.what());
+    return InvalidArgumentError(what + ": field '" + field +
+                                "' is not an opencv-matrix: " + e.what());
   }
-  if (out->rows * out->cols == rows * cols && (out->rows == 1 || out->cols == 1) && (rows == 1 || cols == 1)) {
+  if (out->rows * out->cols == rows * cols && (out->rows == 1 || out->cols == 1) &&
+      (rows == 1 || cols == 1)) {
     *out = out->reshape(1, rows);  // accept a 5x1 distortion vector as well as 1x5
   }
   if (out->rows != rows || out->cols != cols) {
-    return InvalidArgumentError(what + ": field '" + field + "' is " + std::to_string(out->rows) + "x" +
-                                std::to_string(out->cols) + ", expected " + std::to_string(rows) + "x" +
-                                std::to_string(cols));
+    return InvalidArgumentError(what + ": field '" + field + "' is " + std::to_string(out->rows) +
+                                "x" + std::to_string(out->cols) + ", expected " +
+                                std::to_string(rows) + "x" + std::to_string(cols));
   }
   out->convertTo(*out, CV_64F);
   return Status::Ok();
@@ -178,7 +192,8 @@ StatusOr<std::vector<CameraModel>> ReadCameraModels(const std::string& path) {
     cv::FileStorage fs(path, cv::FileStorage::READ);
     if (!fs.isOpened()) return InvalidArgumentError(path + ": not an OpenCV FileStorage file");
     const cv::FileNode list = fs["cameras"];
-    if (list.empty() || !list.isSeq()) return InvalidArgumentError(path + ": missing sequence 'cameras'");
+    if (list.empty() || !list.isSeq())
+      return InvalidArgumentError(path + ": missing sequence 'cameras'");
     int index = 0;
     for (auto it = list.begin(); it != list.end(); ++it, ++index) {
       const cv::FileNode node = *it;
@@ -202,15 +217,17 @@ StatusOr<std::vector<CameraModel>> ReadCameraModels(const std::string& path) {
       FACEDYN_RETURN_IF_ERROR(ReadMatrix(node, "cam_from_world", 4, 4, what, &pose));
       if (k.at<double>(0, 1) != 0.0 || k.at<double>(1, 0) != 0.0 || k.at<double>(2, 0) != 0.0 ||
           k.at<double>(2, 1) != 0.0 || k.at<double>(2, 2) != 1.0) {
-        return InvalidArgumentError(what + ": camera_matrix must be [fx 0 cx; 0 fy cy; 0 0 1] (no skew)");
+        return InvalidArgumentError(what +
+                                    ": camera_matrix must be [fx 0 cx; 0 fy cy; 0 0 1] (no skew)");
       }
-      camera.intrinsics = {k.at<double>(0, 0), k.at<double>(1, 1), k.at<double>(0, 2), k.at<double>(1, 2),
-                           dist.at<double>(0, 0), dist.at<double>(0, 1), dist.at<double>(0, 2),
-                           dist.at<double>(0, 3), dist.at<double>(0, 4)};
+      camera.intrinsics = {k.at<double>(0, 0),    k.at<double>(1, 1),    k.at<double>(0, 2),
+                           k.at<double>(1, 2),    dist.at<double>(0, 0), dist.at<double>(0, 1),
+                           dist.at<double>(0, 2), dist.at<double>(0, 3), dist.at<double>(0, 4)};
       Eigen::Matrix4d pose_matrix;
       cv::cv2eigen(pose, pose_matrix);
       if (!pose_matrix.allFinite() || !Rigid3::IsRigidMatrix(pose_matrix, 1e-6)) {
-        return InvalidArgumentError(what + ": cam_from_world is not a rigid transform [R t; 0 0 0 1]");
+        return InvalidArgumentError(what +
+                                    ": cam_from_world is not a rigid transform [R t; 0 0 0 1]");
       }
       camera.cam_from_world = Rigid3::FromMatrix4(pose_matrix);
       Status status = camera.Check();
@@ -218,7 +235,8 @@ StatusOr<std::vector<CameraModel>> ReadCameraModels(const std::string& path) {
       cameras.push_back(std::move(camera));
     }
     if (!fs["camera_count"].empty() && static_cast<int>(fs["camera_count"]) != index) {
-      return InvalidArgumentError(path + ": camera_count is " + std::to_string(static_cast<int>(fs["camera_count"])) +
+      return InvalidArgumentError(path + ": camera_count is " +
+                                  std::to_string(static_cast<int>(fs["camera_count"])) +
                                   " but 'cameras' lists " + std::to_string(index));
     }
   } catch (const cv::Exception& e) {

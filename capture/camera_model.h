@@ -22,16 +22,16 @@
 //      - name: cam0
 //        image_width: 1280
 //        image_height: 1024
-//        camera_matrix: !!opencv-matrix { rows: 3, cols: 3, dt: d, data: [fx,0,cx, 0,fy,cy, 0,0,1] }
-//        distortion_coefficients: !!opencv-matrix { rows: 1, cols: 5, dt: d, data: [k1,k2,p1,p2,k3] }
-//        cam_from_world: !!opencv-matrix { rows: 4, cols: 4, dt: d, data: [R t; 0 0 0 1] }
+//        camera_matrix: !!opencv-matrix { rows: 3, cols: 3, dt: d, data: [fx,0,cx, 0,fy,cy, 0,0,1]
+//        } distortion_coefficients: !!opencv-matrix { rows: 1, cols: 5, dt: d, data:
+//        [k1,k2,p1,p2,k3] } cam_from_world: !!opencv-matrix { rows: 4, cols: 4, dt: d, data: [R t;
+//        0 0 0 1] }
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/rigid3.h"
 #include "core/status.h"
@@ -74,8 +74,8 @@ struct CameraModel {
 
   // A camera at `center_in_world` looking at `target_in_world`; the image's -Y (up) is as
   // close to `up_in_world` as possible. Principal point at the image centre, no distortion.
-  static CameraModel LookAt(const std::string& name, int width_px, int height_px,
-                            double focal_px, const Eigen::Vector3d& center_in_world,
+  static CameraModel LookAt(const std::string& name, int width_px, int height_px, double focal_px,
+                            const Eigen::Vector3d& center_in_world,
                             const Eigen::Vector3d& target_in_world,
                             const Eigen::Vector3d& up_in_world);
 

@@ -31,11 +31,10 @@
 // Relative paths are resolved against the file's folder. Unknown fields are errors.
 #pragma once
 
+#include <Eigen/Core>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "capture/camera.h"
 #include "capture/camera_model.h"
@@ -85,11 +84,11 @@ struct CaptureConfig {
   std::string backend = "sim";
   std::vector<CameraModel> cameras;  // from calibration or ring (sim), or sized from devices
   std::vector<CameraModel> uncalibrated_sizes;  // cameras.size_px: names and sizes only
-  std::string calibration_path;      // "" when the cameras came from a ring
-  std::vector<std::string> sources;  // opencv
-  std::vector<std::string> devices;  // aravis
+  std::string calibration_path;                 // "" when the cameras came from a ring
+  std::vector<std::string> sources;             // opencv
+  std::vector<std::string> devices;             // aravis
   PlatformPlan platform;
-  std::optional<ConfigNode> sim;     // the sim: section, when present
+  std::optional<ConfigNode> sim;  // the sim: section, when present
 
   int64_t TriggerCount() const;
   CameraSettings SettingsFor(int camera) const;

@@ -4,18 +4,24 @@ namespace facedyn::capture {
 
 int BytesPerPixel(PixelFormat format) {
   switch (format) {
-    case PixelFormat::kMono8: return 1;
-    case PixelFormat::kMono16: return 2;
-    case PixelFormat::kBgr8: return 3;
+    case PixelFormat::kMono8:
+      return 1;
+    case PixelFormat::kMono16:
+      return 2;
+    case PixelFormat::kBgr8:
+      return 3;
   }
   return 0;
 }
 
 const char* PixelFormatName(PixelFormat format) {
   switch (format) {
-    case PixelFormat::kMono8: return "mono8";
-    case PixelFormat::kMono16: return "mono16";
-    case PixelFormat::kBgr8: return "bgr8";
+    case PixelFormat::kMono8:
+      return "mono8";
+    case PixelFormat::kMono16:
+      return "mono16";
+    case PixelFormat::kBgr8:
+      return "bgr8";
   }
   return "unknown";
 }

@@ -6,19 +6,27 @@ namespace facedyn::capture {
 
 const char* SyncVerdictName(SyncVerdict verdict) {
   switch (verdict) {
-    case SyncVerdict::kOk: return "ok";
-    case SyncVerdict::kGap: return "gap";
-    case SyncVerdict::kOutOfOrder: return "out_of_order";
-    case SyncVerdict::kDuplicate: return "duplicate";
-    case SyncVerdict::kUnknownTrigger: return "unknown_trigger";
+    case SyncVerdict::kOk:
+      return "ok";
+    case SyncVerdict::kGap:
+      return "gap";
+    case SyncVerdict::kOutOfOrder:
+      return "out_of_order";
+    case SyncVerdict::kDuplicate:
+      return "duplicate";
+    case SyncVerdict::kUnknownTrigger:
+      return "unknown_trigger";
   }
   return "unknown";
 }
 
 Json SyncCounts::ToJson() const {
-  return Json{{"received", received},       {"unique", unique},
-              {"missing", missing},         {"duplicated", duplicated},
-              {"out_of_order", out_of_order}, {"unknown_trigger", unknown_trigger},
+  return Json{{"received", received},
+              {"unique", unique},
+              {"missing", missing},
+              {"duplicated", duplicated},
+              {"out_of_order", out_of_order},
+              {"unknown_trigger", unknown_trigger},
               {"timestamp_mismatch", timestamp_mismatch},
               {"max_timestamp_error_ns", max_timestamp_error_ns}};
 }

@@ -26,9 +26,9 @@ enum class SyncVerdict { kOk, kGap, kOutOfOrder, kDuplicate, kUnknownTrigger };
 const char* SyncVerdictName(SyncVerdict verdict);
 
 struct SyncCounts {
-  int64_t received = 0;            // every frame the camera delivered
-  int64_t unique = 0;              // distinct valid triggers with a frame
-  int64_t missing = 0;             // emitted triggers without a frame (final after Finish)
+  int64_t received = 0;  // every frame the camera delivered
+  int64_t unique = 0;    // distinct valid triggers with a frame
+  int64_t missing = 0;   // emitted triggers without a frame (final after Finish)
   int64_t duplicated = 0;
   int64_t out_of_order = 0;
   int64_t unknown_trigger = 0;
@@ -53,7 +53,8 @@ struct SyncObservation {
 
 class FrameSyncChecker {
  public:
-  explicit FrameSyncChecker(int64_t timestamp_tolerance_ns) : tolerance_ns_(timestamp_tolerance_ns) {}
+  explicit FrameSyncChecker(int64_t timestamp_tolerance_ns)
+      : tolerance_ns_(timestamp_tolerance_ns) {}
 
   // `emitted_so_far` pulses have been emitted when the frame is examined; `trigger_time_ns`
   // is the emitted time of the frame's trigger (ignored for unknown triggers).

@@ -13,9 +13,8 @@
 #include <condition_variable>
 #include <deque>
 #include <mutex>
-#include <string>
-
 #include <opencv2/videoio.hpp>
+#include <string>
 
 #include "capture/camera.h"
 
@@ -33,7 +32,7 @@ class OpenCvCamera : public Camera {
   const CameraSettings& settings() const override { return settings_; }
   Status Arm() override;
   Status OnTrigger(const TriggerEvent& trigger) override;
-  Status NextFrame(double timeout_s, Frame* frame) override;
+  Status NextFrame(double timeout_s, Frame* frame, bool* got_frame) override;
   Status Disarm() override;
 
   bool is_file() const { return is_file_; }

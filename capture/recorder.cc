@@ -16,7 +16,8 @@ StatusOr<BackpressurePolicy> ParseBackpressurePolicy(const std::string& name) {
 
 Status RecorderOptions::Check() const {
   if (queue_frames < 1 || queue_frames > 4096) {
-    return InvalidArgumentError("recorder queue_frames " + std::to_string(queue_frames) + " is not in 1..4096");
+    return InvalidArgumentError("recorder queue_frames " + std::to_string(queue_frames) +
+                                " is not in 1..4096");
   }
   if (!(block_timeout_s > 0)) return InvalidArgumentError("recorder block_timeout_s must be > 0");
   return Status::Ok();
@@ -57,11 +58,14 @@ void Recorder::SetErrorCallback(std::function<void(const Status&)> callback) {
 }
 
 PushResult Recorder::Push(int camera, Frame&& frame) {
-  FACEDYN_CHECK(camera >= 0 && camera < camera_count(), "Recorder::Push: camera index out of range");
+  FACEDYN_CHECK(camera >= 0 && camera < camera_count(),
+                "Recorder::Push: camera index out of range");
   if (failed_) return PushResult::kFailed;
   Queue& q = *queues_[camera];
   std::unique_lock<std::mutex> lock(q.mutex);
-  const auto has_space = [&] { return static_cast<int>(q.frames.size()) < options_.queue_frames || q.closed || failed_; };
+  const auto has_space = [&] {
+    return static_cast<int>(q.frames.size()) < options_.queue_frames || q.closed || failed_;
+  };
   if (!has_space()) {
     if (options_.policy == BackpressurePolicy::kBlock) {
       q.not_full.wait_for(lock, std::chrono::duration<double>(options_.block_timeout_s), has_space);
@@ -73,7 +77,8 @@ PushResult Recorder::Push(int camera, Frame&& frame) {
     return PushResult::kDropped;
   }
   q.frames.push_back(std::move(frame));
-  if (static_cast<int>(q.frames.size()) > q.stats.max_queue_depth) q.stats.max_queue_depth = static_cast<int>(q.frames.size());
+  if (static_cast<int>(q.frames.size()) > q.stats.max_queue_depth)
+    q.stats.max_queue_depth = static_cast<int>(q.frames.size());
   q.not_empty.notify_one();
   return PushResult::kQueued;
 }

@@ -102,7 +102,8 @@ class Recorder {
     std::thread thread;
   };
 
-  explicit Recorder(const RecorderOptions& options, BufferPool* pool) : options_(options), pool_(pool) {}
+  explicit Recorder(const RecorderOptions& options, BufferPool* pool)
+      : options_(options), pool_(pool) {}
   void WriterLoop(Queue* queue);
   void Fail(const Status& status);
 

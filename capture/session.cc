@@ -1,6 +1,7 @@
 #include "capture/session.h"
 
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -10,8 +11,6 @@
 #include <fstream>
 #include <set>
 #include <sstream>
-
-#include <fmt/format.h>
 
 #include "capture/frame_file.h"
 #include "core/config_node.h"
@@ -80,7 +79,8 @@ Status EventLog::Append(Json event) {
   // unterminated line, which readers report and ignore.
   const ssize_t n = ::write(fd_, line.data(), line.size());
   if (n != static_cast<ssize_t>(line.size())) {
-    return UnavailableError(path_ + ": event append failed: " + (n < 0 ? std::strerror(errno) : "short write"));
+    return UnavailableError(
+        path_ + ": event append failed: " + (n < 0 ? std::strerror(errno) : "short write"));
   }
   if (::fsync(fd_) != 0) return UnavailableError(path_ + ": fsync failed: " + std::strerror(errno));
   return Status::Ok();
@@ -91,15 +91,17 @@ Status EventLog::Append(Json event) {
 bool IsValidTakeName(const std::string& name) {
   if (name.empty() || name.size() > 128 || name[0] == '.') return false;
   for (char c : name) {
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) return false;
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.'))
+      return false;
   }
   return true;
 }
 
-StatusOr<std::unique_ptr<SessionWriter>> SessionWriter::Open(const std::string& dir, const std::string& clock,
-                                                             const std::vector<SessionCameraInfo>& cameras,
-                                                             const Json& rig) {
-  if (clock != "virtual" && clock != "steady") return InvalidArgumentError("session clock must be virtual or steady");
+StatusOr<std::unique_ptr<SessionWriter>> SessionWriter::Open(
+    const std::string& dir, const std::string& clock, const std::vector<SessionCameraInfo>& cameras,
+    const Json& rig) {
+  if (clock != "virtual" && clock != "steady")
+    return InvalidArgumentError("session clock must be virtual or steady");
   std::unique_ptr<SessionWriter> writer(new SessionWriter());
   writer->dir_ = dir;
   FACEDYN_RETURN_IF_ERROR(MakeDirectories(JoinPath(dir, "takes")));
@@ -112,12 +114,14 @@ StatusOr<std::unique_ptr<SessionWriter>> SessionWriter::Open(const std::string& 
     writer->session_ = Json::parse(text, nullptr, false);
     if (writer->session_.is_discarded()) return DataLossError(session_path + ": not valid JSON");
     if (existing.cameras.size() != cameras.size()) {
-      return FailedPreconditionError(session_path + ": the session has " + std::to_string(existing.cameras.size()) +
+      return FailedPreconditionError(session_path + ": the session has " +
+                                     std::to_string(existing.cameras.size()) +
                                      " cameras, this capture " + std::to_string(cameras.size()) +
                                      "; use a new session folder");
     }
     if (existing.clock != clock) {
-      return FailedPreconditionError(session_path + ": the session's clock is " + existing.clock + ", this capture's " + clock);
+      return FailedPreconditionError(session_path + ": the session's clock is " + existing.clock +
+                                     ", this capture's " + clock);
     }
     reopened = true;
   } else {
@@ -133,7 +137,8 @@ StatusOr<std::unique_ptr<SessionWriter>> SessionWriter::Open(const std::string& 
   }
   FACEDYN_ASSIGN_OR_RETURN(writer->events_, EventLog::Open(JoinPath(dir, "events.jsonl")));
   FACEDYN_RETURN_IF_ERROR(writer->WriteSessionJson());
-  FACEDYN_RETURN_IF_ERROR(writer->events_->Append({{"event", reopened ? "session_reopen" : "session_open"}}));
+  FACEDYN_RETURN_IF_ERROR(
+      writer->events_->Append({{"event", reopened ? "session_reopen" : "session_open"}}));
   return writer;
 }
 
@@ -146,20 +151,26 @@ Status SessionWriter::SetCalibration(const std::string& relative_path) {
   return WriteSessionJson();
 }
 
-std::string SessionWriter::TakeDir(const std::string& name) const { return JoinPath(JoinPath(dir_, "takes"), name); }
+std::string SessionWriter::TakeDir(const std::string& name) const {
+  return JoinPath(JoinPath(dir_, "takes"), name);
+}
 
-StatusOr<std::string> SessionWriter::BeginTake(const std::string& name, double fps, int64_t triggers_requested) {
+StatusOr<std::string> SessionWriter::BeginTake(const std::string& name, double fps,
+                                               int64_t triggers_requested) {
   if (!IsValidTakeName(name)) {
-    return InvalidArgumentError("take name '" + name + "': use letters, digits, '_', '-', '.' (not first)");
+    return InvalidArgumentError("take name '" + name +
+                                "': use letters, digits, '_', '-', '.' (not first)");
   }
   const std::string take_dir = TakeDir(name);
   std::error_code ec;
   if (fs::exists(take_dir, ec)) {
-    return InvalidArgumentError("take '" + name + "' already exists in " + dir_ + "; takes are never overwritten");
+    return InvalidArgumentError("take '" + name + "' already exists in " + dir_ +
+                                "; takes are never overwritten");
   }
   FACEDYN_RETURN_IF_ERROR(MakeDirectories(take_dir));
   const int camera_count = static_cast<int>(session_["cameras"].size());
-  for (int k = 0; k < camera_count; ++k) FACEDYN_RETURN_IF_ERROR(MakeDirectories(JoinPath(take_dir, CameraDirName(k))));
+  for (int k = 0; k < camera_count; ++k)
+    FACEDYN_RETURN_IF_ERROR(MakeDirectories(JoinPath(take_dir, CameraDirName(k))));
   FACEDYN_RETURN_IF_ERROR(WriteReserve(JoinPath(take_dir, kReserveFileName)));
   TakeResult result;
   result.fps = fps;
@@ -172,11 +183,15 @@ StatusOr<std::string> SessionWriter::BeginTake(const std::string& name, double f
     result.cameras.push_back(camera);
   }
   Json manifest = TakeResultToJson(name, result);
-  FACEDYN_RETURN_IF_ERROR(WriteFileAtomic(JoinPath(take_dir, "capture.json"), manifest.dump(2) + "\n"));
+  FACEDYN_RETURN_IF_ERROR(
+      WriteFileAtomic(JoinPath(take_dir, "capture.json"), manifest.dump(2) + "\n"));
   session_["takes"].push_back({{"name", name}, {"dir", "takes/" + name}, {"status", "recording"}});
   FACEDYN_RETURN_IF_ERROR(WriteSessionJson());
-  FACEDYN_RETURN_IF_ERROR(events_->Append({{"event", "take_start"}, {"take", name}, {"t_ns", 0},
-                                           {"fps", fps}, {"triggers_requested", triggers_requested}}));
+  FACEDYN_RETURN_IF_ERROR(events_->Append({{"event", "take_start"},
+                                           {"take", name},
+                                           {"t_ns", 0},
+                                           {"fps", fps},
+                                           {"triggers_requested", triggers_requested}}));
   return take_dir;
 }
 
@@ -210,13 +225,17 @@ Json TakeResultToJson(const std::string& name, const TakeResult& result) {
 Status SessionWriter::EndTake(const std::string& name, const TakeResult& result) {
   const std::string take_dir = TakeDir(name);
   ::unlink(JoinPath(take_dir, kReserveFileName).c_str());
-  Status status = WriteFileAtomic(JoinPath(take_dir, "capture.json"), TakeResultToJson(name, result).dump(2) + "\n");
+  Status status = WriteFileAtomic(JoinPath(take_dir, "capture.json"),
+                                  TakeResultToJson(name, result).dump(2) + "\n");
   for (auto& take : session_["takes"]) {
     if (take["name"] == name) take["status"] = result.status;
   }
   Status session_status = WriteSessionJson();
-  Status event_status = events_->Append({{"event", "take_stop"}, {"take", name}, {"status", result.status},
-                                         {"reason", result.reason}, {"triggers_emitted", result.triggers_emitted}});
+  Status event_status = events_->Append({{"event", "take_stop"},
+                                         {"take", name},
+                                         {"status", result.status},
+                                         {"reason", result.reason},
+                                         {"triggers_emitted", result.triggers_emitted}});
   FACEDYN_RETURN_IF_ERROR(status);
   FACEDYN_RETURN_IF_ERROR(session_status);
   return event_status;
@@ -226,7 +245,8 @@ Status SessionWriter::EndTake(const std::string& name, const TakeResult& result)
 
 namespace {
 
-SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& name, int camera_count) {
+SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& name,
+                             int camera_count) {
   SessionTake take;
   take.name = name;
   take.dir = fs::absolute(JoinPath(JoinPath(session_dir, "takes"), name)).string();
@@ -234,8 +254,9 @@ SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& 
   auto fallback_cameras = [&] {
     take.cameras.clear();
     for (int k = 0; k < camera_count; ++k) {
-      take.cameras.push_back({k, "cam" + std::to_string(k),
-                              JoinPath(JoinPath(take.dir, SessionWriter::CameraDirName(k)), kFrameFileName), -1});
+      take.cameras.push_back(
+          {k, "cam" + std::to_string(k),
+           JoinPath(JoinPath(take.dir, SessionWriter::CameraDirName(k)), kFrameFileName), -1});
     }
   };
   StatusOr<ConfigNode> node = ConfigNode::ReadFile(manifest_path);
@@ -247,12 +268,15 @@ SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& 
   }
   auto status_text = node->Get<std::string>("status");
   take.status = status_text.ok() ? *status_text : "unreadable";
-  take.reason = node->GetOr<std::string>("reason", "").ok() ? *node->GetOr<std::string>("reason", "") : "";
+  take.reason =
+      node->GetOr<std::string>("reason", "").ok() ? *node->GetOr<std::string>("reason", "") : "";
   if (auto fps = node->Get<double>("fps"); fps.ok()) take.fps = *fps;
-  if (auto emitted = node->Get<int64_t>("triggers_emitted"); emitted.ok() && take.status != "recording") {
+  if (auto emitted = node->Get<int64_t>("triggers_emitted");
+      emitted.ok() && take.status != "recording") {
     take.triggers_emitted = *emitted;  // a take that never stopped has no final count
   }
-  if (auto requested = node->Get<int64_t>("triggers_requested"); requested.ok()) take.triggers_requested = *requested;
+  if (auto requested = node->Get<int64_t>("triggers_requested"); requested.ok())
+    take.triggers_requested = *requested;
   take.manifest = node->ToJson();
   auto cameras = node->Child("cameras");
   if (!cameras.ok() || !cameras->IsSequence()) {
@@ -263,9 +287,13 @@ SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& 
     auto camera = cameras->At(k);
     SessionTakeCamera entry;
     entry.index = static_cast<int>(k);
-    entry.name = camera.ok() && camera->Get<std::string>("name").ok() ? *camera->Get<std::string>("name") : "cam" + std::to_string(k);
-    std::string frame_file = SessionWriter::CameraDirName(static_cast<int>(k)) + "/" + kFrameFileName;
-    if (camera.ok() && camera->Get<std::string>("frame_file").ok()) frame_file = *camera->Get<std::string>("frame_file");
+    entry.name = camera.ok() && camera->Get<std::string>("name").ok()
+                     ? *camera->Get<std::string>("name")
+                     : "cam" + std::to_string(k);
+    std::string frame_file =
+        SessionWriter::CameraDirName(static_cast<int>(k)) + "/" + kFrameFileName;
+    if (camera.ok() && camera->Get<std::string>("frame_file").ok())
+      frame_file = *camera->Get<std::string>("frame_file");
     entry.frame_file = JoinPath(take.dir, frame_file);
     if (take.status != "recording" && camera.ok() && camera->Get<int64_t>("frames_written").ok()) {
       entry.frames_in_manifest = *camera->Get<int64_t>("frames_written");
@@ -281,7 +309,8 @@ StatusOr<SessionInfo> ReadSession(const std::string& dir) {
   const std::string path = JoinPath(dir, "session.json");
   FACEDYN_ASSIGN_OR_RETURN(const ConfigNode root, ConfigNode::ReadFile(path));
   FACEDYN_ASSIGN_OR_RETURN(const std::string format, root.Get<std::string>("format"));
-  if (format != kSessionFormat) return root.Error("format", "is '" + format + "', expected '" + kSessionFormat + "'");
+  if (format != kSessionFormat)
+    return root.Error("format", "is '" + format + "', expected '" + kSessionFormat + "'");
   FACEDYN_ASSIGN_OR_RETURN(const int version, root.Get<int>("version"));
   if (version != kSessionFormatVersion) {
     return root.Error("version", std::to_string(version) + " is not supported (this build reads " +
@@ -303,14 +332,16 @@ StatusOr<SessionInfo> ReadSession(const std::string& dir) {
     FACEDYN_ASSIGN_OR_RETURN(entry.pixel_format, camera.Get<std::string>("pixel_format"));
     info.cameras.push_back(entry);
   }
-  FACEDYN_ASSIGN_OR_RETURN(const std::string calibration, root.GetOr<std::string>("calibration", ""));
+  FACEDYN_ASSIGN_OR_RETURN(const std::string calibration,
+                           root.GetOr<std::string>("calibration", ""));
   if (!calibration.empty()) info.calibration_path = JoinPath(info.dir, calibration);
   std::set<std::string> listed;
   FACEDYN_ASSIGN_OR_RETURN(const ConfigNode takes, root.Child("takes"));
   for (size_t i = 0; i < takes.size(); ++i) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode take, takes.At(i));
     FACEDYN_ASSIGN_OR_RETURN(const std::string name, take.Get<std::string>("name"));
-    if (!IsValidTakeName(name)) return take.Error("name", "'" + name + "' is not a valid take name");
+    if (!IsValidTakeName(name))
+      return take.Error("name", "'" + name + "' is not a valid take name");
     listed.insert(name);
     info.takes.push_back(ReadTakeManifest(dir, name, static_cast<int>(info.cameras.size())));
   }
@@ -319,7 +350,8 @@ StatusOr<SessionInfo> ReadSession(const std::string& dir) {
   std::vector<std::string> unlisted;
   for (const auto& entry : fs::directory_iterator(JoinPath(dir, "takes"), ec)) {
     const std::string name = entry.path().filename().string();
-    if (entry.is_directory() && IsValidTakeName(name) && !listed.count(name)) unlisted.push_back(name);
+    if (entry.is_directory() && IsValidTakeName(name) && !listed.count(name))
+      unlisted.push_back(name);
   }
   std::sort(unlisted.begin(), unlisted.end());
   for (const std::string& name : unlisted) {
@@ -337,18 +369,27 @@ bool SessionCheck::Complete() const {
 }
 
 Json SessionCheck::ToJson() const {
-  Json json{{"dir", dir}, {"complete", Complete()}, {"events", events},
+  Json json{{"dir", dir},
+            {"complete", Complete()},
+            {"events", events},
             {"events_problem", events_problem.empty() ? Json(nullptr) : Json(events_problem)}};
   Json list = Json::array();
   for (const TakeCheck& take : takes) {
     Json cameras = Json::array();
     for (const CameraCheck& camera : take.cameras) {
-      cameras.push_back({{"name", camera.name}, {"frames", camera.frames}, {"unique_triggers", camera.unique_triggers},
-                         {"missing", camera.missing},
-                         {"tail_problem", camera.tail_problem.empty() ? Json(nullptr) : Json(camera.tail_problem)}});
+      cameras.push_back(
+          {{"name", camera.name},
+           {"frames", camera.frames},
+           {"unique_triggers", camera.unique_triggers},
+           {"missing", camera.missing},
+           {"tail_problem",
+            camera.tail_problem.empty() ? Json(nullptr) : Json(camera.tail_problem)}});
     }
-    list.push_back({{"name", take.name}, {"status", take.status}, {"complete", take.complete},
-                    {"problems", take.problems}, {"cameras", cameras}});
+    list.push_back({{"name", take.name},
+                    {"status", take.status},
+                    {"complete", take.complete},
+                    {"problems", take.problems},
+                    {"cameras", cameras}});
   }
   json["takes"] = list;
   return json;
@@ -356,13 +397,15 @@ Json SessionCheck::ToJson() const {
 
 std::string SessionCheck::ToText() const {
   std::ostringstream out;
-  out << "session " << dir << ": " << (Complete() ? "complete" : "INCOMPLETE") << ", " << takes.size()
-      << " take(s), " << events << " event(s)\n";
+  out << "session " << dir << ": " << (Complete() ? "complete" : "INCOMPLETE") << ", "
+      << takes.size() << " take(s), " << events << " event(s)\n";
   if (!events_problem.empty()) out << "  events.jsonl: " << events_problem << "\n";
   for (const TakeCheck& take : takes) {
-    out << "  take " << take.name << ": " << (take.complete ? "complete" : "incomplete") << " (status " << take.status << ")\n";
+    out << "  take " << take.name << ": " << (take.complete ? "complete" : "incomplete")
+        << " (status " << take.status << ")\n";
     for (const CameraCheck& camera : take.cameras) {
-      out << "    " << camera.name << ": " << camera.frames << " frames, " << camera.missing << " missing";
+      out << "    " << camera.name << ": " << camera.frames << " frames, " << camera.missing
+          << " missing";
       if (!camera.tail_problem.empty()) out << ", " << camera.tail_problem;
       out << "\n";
     }
@@ -388,7 +431,8 @@ StatusOr<SessionCheck> CheckSession(const std::string& dir) {
         const size_t end = text.find('\n', start);
         ++line_number;
         if (end == std::string::npos) {
-          check.events_problem = "line " + std::to_string(line_number) + " is torn (no newline; a crash mid-append)";
+          check.events_problem =
+              "line " + std::to_string(line_number) + " is torn (no newline; a crash mid-append)";
           break;
         }
         if (Json::parse(text.substr(start, end - start), nullptr, false).is_discarded()) {
@@ -405,9 +449,10 @@ StatusOr<SessionCheck> CheckSession(const std::string& dir) {
     result.name = take.name;
     result.status = take.status;
     if (take.status != "complete") {
-      result.problems.push_back(take.status == "recording"
-                                    ? std::string("the take never stopped (interrupted while recording)")
-                                    : "status " + take.status + (take.reason.empty() ? "" : ": " + take.reason));
+      result.problems.push_back(
+          take.status == "recording"
+              ? std::string("the take never stopped (interrupted while recording)")
+              : "status " + take.status + (take.reason.empty() ? "" : ": " + take.reason));
     }
     int64_t expected = take.triggers_emitted;
     for (const SessionTakeCamera& camera : take.cameras) {
@@ -430,23 +475,27 @@ StatusOr<SessionCheck> CheckSession(const std::string& dir) {
         for (int64_t t : triggers) present += (t >= 0 && t < expected);
         camera_check.missing = expected - present;
       }
-      if (!scan.tail_problem.empty()) result.problems.push_back(camera.name + ": " + scan.tail_problem);
+      if (!scan.tail_problem.empty())
+        result.problems.push_back(camera.name + ": " + scan.tail_problem);
       if (camera.frames_in_manifest >= 0 && camera.frames_in_manifest != camera_check.frames) {
-        result.problems.push_back(fmt::format("{}: manifest says {} frames, the file holds {}", camera.name,
-                                              camera.frames_in_manifest, camera_check.frames));
+        result.problems.push_back(fmt::format("{}: manifest says {} frames, the file holds {}",
+                                              camera.name, camera.frames_in_manifest,
+                                              camera_check.frames));
       }
       if (camera_check.missing > 0) {
-        result.problems.push_back(fmt::format("{}: {} of {} triggers have no frame", camera.name, camera_check.missing, expected));
+        result.problems.push_back(fmt::format("{}: {} of {} triggers have no frame", camera.name,
+                                              camera_check.missing, expected));
       }
       if (camera_check.unique_triggers != camera_check.frames) {
-        result.problems.push_back(fmt::format("{}: {} frames for {} distinct triggers", camera.name, camera_check.frames,
-                                              camera_check.unique_triggers));
+        result.problems.push_back(fmt::format("{}: {} frames for {} distinct triggers", camera.name,
+                                              camera_check.frames, camera_check.unique_triggers));
       }
       result.cameras.push_back(camera_check);
     }
-    if (take.triggers_requested >= 0 && take.triggers_emitted >= 0 && take.triggers_emitted < take.triggers_requested) {
-      result.problems.push_back(fmt::format("{} of {} requested triggers were emitted", take.triggers_emitted,
-                                            take.triggers_requested));
+    if (take.triggers_requested >= 0 && take.triggers_emitted >= 0 &&
+        take.triggers_emitted < take.triggers_requested) {
+      result.problems.push_back(fmt::format("{} of {} requested triggers were emitted",
+                                            take.triggers_emitted, take.triggers_requested));
     }
     result.complete = result.problems.empty();
     check.takes.push_back(result);

@@ -94,9 +94,9 @@ class SessionWriter {
  public:
   // Creates DIR (and events.jsonl, session.json) or reopens an existing session there.
   // `clock` is "virtual" or "steady". `rig` is free-form (the capture config's summary).
-  static StatusOr<std::unique_ptr<SessionWriter>> Open(const std::string& dir, const std::string& clock,
-                                                       const std::vector<SessionCameraInfo>& cameras,
-                                                       const Json& rig);
+  static StatusOr<std::unique_ptr<SessionWriter>> Open(
+      const std::string& dir, const std::string& clock,
+      const std::vector<SessionCameraInfo>& cameras, const Json& rig);
 
   const std::string& dir() const { return dir_; }
   EventLog& events() { return *events_; }
@@ -111,7 +111,9 @@ class SessionWriter {
   Status EndTake(const std::string& name, const TakeResult& result);
 
   std::string TakeDir(const std::string& name) const;
-  static std::string CameraDirName(int camera_index) { return "cam" + std::to_string(camera_index); }
+  static std::string CameraDirName(int camera_index) {
+    return "cam" + std::to_string(camera_index);
+  }
 
  private:
   SessionWriter() = default;
@@ -130,7 +132,7 @@ Json TakeResultToJson(const std::string& name, const TakeResult& result);
 struct SessionTakeCamera {
   int index = 0;
   std::string name;
-  std::string frame_file;  // absolute path of frames.fdr
+  std::string frame_file;           // absolute path of frames.fdr
   int64_t frames_in_manifest = -1;  // -1 when the manifest does not say (take not stopped)
 };
 
@@ -151,7 +153,7 @@ struct SessionInfo {
   std::string name;
   std::string clock;
   std::vector<SessionCameraInfo> cameras;
-  std::string calibration_path;  // absolute, "" when the session has none
+  std::string calibration_path;    // absolute, "" when the session has none
   std::vector<SessionTake> takes;  // session.json order, then take folders it does not list
 };
 

@@ -1,12 +1,12 @@
 #include "capture/session_runner.h"
 
+#include <fmt/format.h>
+
 #include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <mutex>
 #include <thread>
-
-#include <fmt/format.h>
 
 #include "capture/frame_file.h"
 #include "capture/frame_sync.h"
@@ -56,13 +56,14 @@ Status TakeOptions::Check() const {
   return recorder.Check();
 }
 
-StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera*>& cameras, TriggerSource* trigger,
-                                const TakeOptions& options) {
+StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera*>& cameras,
+                                TriggerSource* trigger, const TakeOptions& options) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (cameras.empty()) return InvalidArgumentError("a take needs at least one camera");
   const auto wall_start = Clock::now();
   TakeReport report;
-  FACEDYN_ASSIGN_OR_RETURN(report.take_dir, session->BeginTake(options.name, trigger->rate_hz(), options.triggers));
+  FACEDYN_ASSIGN_OR_RETURN(report.take_dir,
+                           session->BeginTake(options.name, trigger->rate_hz(), options.triggers));
   EventLog& events = session->events();
   TakeResult& result = report.result;
   result.fps = trigger->rate_hz();
@@ -83,7 +84,8 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
     result.status = "aborted";
     result.reason = reason;
     result.stop_utc = UtcNowIso8601();
-    for (int k = 0; k < camera_count; ++k) result.cameras.push_back({cameras[k]->name(), SessionWriter::CameraDirName(k), {}, {}});
+    for (int k = 0; k < camera_count; ++k)
+      result.cameras.push_back({cameras[k]->name(), SessionWriter::CameraDirName(k), {}, {}});
     FACEDYN_RETURN_IF_ERROR(session->EndTake(options.name, result));
     report.wall_s = SecondsSince(wall_start);
     return report;
@@ -103,7 +105,8 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
 
   std::vector<std::string> paths;
   for (int k = 0; k < camera_count; ++k) {
-    paths.push_back(JoinPath(JoinPath(report.take_dir, SessionWriter::CameraDirName(k)), kFrameFileName));
+    paths.push_back(
+        JoinPath(JoinPath(report.take_dir, SessionWriter::CameraDirName(k)), kFrameFileName));
   }
   BufferPool pool(static_cast<size_t>(camera_count) * (options.recorder.queue_frames + 4));
   auto recorder_or = Recorder::Start(options.recorder, paths, &pool);
@@ -115,7 +118,8 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
   TakeState state;
   state.trigger_time_ns.assign(options.triggers, 0);
   recorder->SetErrorCallback([&](const Status& error) {
-    (void)events.Append({{"event", "write_error"}, {"take", options.name}, {"message", error.message()}});
+    (void)events.Append(
+        {{"event", "write_error"}, {"take", options.name}, {"message", error.message()}});
     state.Fail("write error: " + error.message());
     trigger->Stop();
   });
@@ -127,25 +131,33 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
       Frame frame;
       for (;;) {
         frame.pixels = pool.Acquire(0);
-        Status status = worker->camera->NextFrame(0.5, &frame);
+        bool got_frame = false;
+        Status status = worker->camera->NextFrame(0.5, &frame, &got_frame);
         if (status.code() == StatusCode::kAborted) break;  // disarmed and drained
-        if (status.code() == StatusCode::kUnavailable) continue;  // nothing yet
+        if (status.ok() && !got_frame) continue;           // nothing within the timeout
         if (!status.ok()) {
           worker->error = status.message();
-          (void)events.Append({{"event", "camera_error"}, {"take", options.name}, {"camera", worker->camera->name()},
+          (void)events.Append({{"event", "camera_error"},
+                               {"take", options.name},
+                               {"camera", worker->camera->name()},
                                {"message", status.message()}});
           state.Fail(worker->camera->name() + ": " + status.message());
           trigger->Stop();
           break;
         }
         const int64_t emitted = state.emitted.load();
-        const int64_t trigger_time =
-            frame.trigger_index >= 0 && frame.trigger_index < emitted ? state.trigger_time_ns[frame.trigger_index] : 0;
-        const SyncObservation seen = worker->checker.Observe(frame.trigger_index, frame.timestamp_ns, trigger_time, emitted);
-        if ((seen.verdict != SyncVerdict::kOk || seen.timestamp_mismatch) && worker->anomaly_events < options.max_anomaly_events) {
+        const int64_t trigger_time = frame.trigger_index >= 0 && frame.trigger_index < emitted
+                                         ? state.trigger_time_ns[frame.trigger_index]
+                                         : 0;
+        const SyncObservation seen =
+            worker->checker.Observe(frame.trigger_index, frame.timestamp_ns, trigger_time, emitted);
+        if ((seen.verdict != SyncVerdict::kOk || seen.timestamp_mismatch) &&
+            worker->anomaly_events < options.max_anomaly_events) {
           ++worker->anomaly_events;
-          Json event{{"event", "frame_anomaly"}, {"take", options.name}, {"camera", worker->camera->name()},
-                     {"t_ns", frame.timestamp_ns}, {"trigger", frame.trigger_index}, {"verdict", SyncVerdictName(seen.verdict)}};
+          Json event{
+              {"event", "frame_anomaly"},         {"take", options.name},
+              {"camera", worker->camera->name()}, {"t_ns", frame.timestamp_ns},
+              {"trigger", frame.trigger_index},   {"verdict", SyncVerdictName(seen.verdict)}};
           if (seen.verdict == SyncVerdict::kGap) event["missing_before"] = seen.gap_triggers;
           if (seen.timestamp_mismatch) event["timestamp_error_ns"] = seen.timestamp_error_ns;
           if (!seen.record) event["recorded"] = false;
@@ -160,9 +172,13 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
           ++worker->dropped;
           if (worker->anomaly_events < options.max_anomaly_events) {
             ++worker->anomaly_events;
-            (void)events.Append({{"event", "drop"}, {"take", options.name}, {"camera", worker->camera->name()},
-                                 {"trigger", trigger_index}, {"reason", "queue_full"},
-                                 {"backpressure", BackpressurePolicyName(options.recorder.policy)}});
+            (void)events.Append(
+                {{"event", "drop"},
+                 {"take", options.name},
+                 {"camera", worker->camera->name()},
+                 {"trigger", trigger_index},
+                 {"reason", "queue_full"},
+                 {"backpressure", BackpressurePolicyName(options.recorder.policy)}});
           }
         }
         // kFailed: the take is stopping (write error); keep draining the camera.
@@ -174,7 +190,8 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
   std::FILE* telemetry_file = nullptr;
   if (options.telemetry) {
     telemetry_file = std::fopen(JoinPath(report.take_dir, "telemetry.csv").c_str(), "w");
-    if (telemetry_file != nullptr) std::fputs("t_ns,state,running,faulted,output_hz,measured_hz,target_hz\n", telemetry_file);
+    if (telemetry_file != nullptr)
+      std::fputs("t_ns,state,running,faulted,output_hz,measured_hz,target_hz\n", telemetry_file);
     result.extra["telemetry"] = "telemetry.csv";
   }
   auto last_telemetry = Clock::now() - std::chrono::hours(1);
@@ -182,46 +199,56 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
   auto sample_telemetry = [&](int64_t t_ns) -> Status {
     FACEDYN_ASSIGN_OR_RETURN(const TelemetrySample sample, options.telemetry());
     if (telemetry_file != nullptr) {
-      std::fprintf(telemetry_file, "%lld,%s,%d,%d,%.4f,%.4f,%.4f\n", static_cast<long long>(t_ns), sample.state.c_str(),
-                   sample.running ? 1 : 0, sample.faulted ? 1 : 0, sample.output_hz, sample.measured_hz, sample.target_hz);
+      std::fprintf(telemetry_file, "%lld,%s,%d,%d,%.4f,%.4f,%.4f\n", static_cast<long long>(t_ns),
+                   sample.state.c_str(), sample.running ? 1 : 0, sample.faulted ? 1 : 0,
+                   sample.output_hz, sample.measured_hz, sample.target_hz);
       std::fflush(telemetry_file);
     }
     if (sample.state != last_rig_state) {
       last_rig_state = sample.state;
-      (void)events.Append({{"event", "rig_state"}, {"take", options.name}, {"t_ns", t_ns}, {"state", sample.state},
+      (void)events.Append({{"event", "rig_state"},
+                           {"take", options.name},
+                           {"t_ns", t_ns},
+                           {"state", sample.state},
                            {"measured_hz", sample.measured_hz}});
     }
     if (sample.faulted) return UnavailableError("the drive tripped during the take");
     return Status::Ok();
   };
 
-  const Status trigger_status = trigger->Run(options.triggers, [&](const TriggerEvent& event) -> Status {
-    if (state.stop) return AbortedError("stopped");
-    if (options.stop_requested != nullptr && options.stop_requested->load()) {
-      (void)events.Append({{"event", "interrupted"}, {"take", options.name}, {"t_ns", event.time_ns}});
-      state.Fail("interrupted (stop requested) at trigger " + std::to_string(event.index));
-      return AbortedError("interrupted");
-    }
-    state.trigger_time_ns[event.index] = event.time_ns;
-    state.emitted.store(event.index + 1);
-    if (options.telemetry && SecondsSince(last_telemetry) >= options.telemetry_period_s) {
-      last_telemetry = Clock::now();
-      Status status = sample_telemetry(event.time_ns);
-      if (!status.ok()) {
-        (void)events.Append({{"event", "rig_error"}, {"take", options.name}, {"t_ns", event.time_ns}, {"message", status.message()}});
-        state.Fail("rig: " + status.message());
-        return status;
-      }
-    }
-    for (Camera* camera : cameras) {
-      Status status = camera->OnTrigger(event);
-      if (!status.ok()) {
-        state.Fail(camera->name() + ": " + status.message());
-        return status;
-      }
-    }
-    return Status::Ok();
-  });
+  const auto record_start = Clock::now();
+  const Status trigger_status =
+      trigger->Run(options.triggers, [&](const TriggerEvent& event) -> Status {
+        if (state.stop) return AbortedError("stopped");
+        if (options.stop_requested != nullptr && options.stop_requested->load()) {
+          (void)events.Append(
+              {{"event", "interrupted"}, {"take", options.name}, {"t_ns", event.time_ns}});
+          state.Fail("interrupted (stop requested) at trigger " + std::to_string(event.index));
+          return AbortedError("interrupted");
+        }
+        state.trigger_time_ns[event.index] = event.time_ns;
+        state.emitted.store(event.index + 1);
+        if (options.telemetry && SecondsSince(last_telemetry) >= options.telemetry_period_s) {
+          last_telemetry = Clock::now();
+          Status status = sample_telemetry(event.time_ns);
+          if (!status.ok()) {
+            (void)events.Append({{"event", "rig_error"},
+                                 {"take", options.name},
+                                 {"t_ns", event.time_ns},
+                                 {"message", status.message()}});
+            state.Fail("rig: " + status.message());
+            return status;
+          }
+        }
+        for (Camera* camera : cameras) {
+          Status status = camera->OnTrigger(event);
+          if (!status.ok()) {
+            state.Fail(camera->name() + ": " + status.message());
+            return status;
+          }
+        }
+        return Status::Ok();
+      });
   result.triggers_emitted = state.emitted.load();
 
   // Drain: wait for every camera to catch up, or to stall.
@@ -249,6 +276,7 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
   for (Camera* camera : cameras) (void)camera->Disarm();
   for (auto& worker : workers) worker->thread.join();
   const Status record_status = recorder->Finish();
+  report.record_wall_s = SecondsSince(record_start);
   if (telemetry_file != nullptr) std::fclose(telemetry_file);
 
   const std::vector<CameraRecordStats> stats = recorder->stats();
@@ -264,13 +292,16 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
     camera.sync = worker.checker.counts();
     camera.record = stats[k];
     report.bytes_written += static_cast<double>(stats[k].bytes_written);
-    const bool camera_clean = camera.sync.Clean() && stats[k].dropped_queue_full == 0 && stats[k].error.empty() &&
+    const bool camera_clean = camera.sync.Clean() && stats[k].dropped_queue_full == 0 &&
+                              stats[k].error.empty() &&
                               stats[k].frames_written == result.triggers_emitted;
     if (!camera_clean && reason.empty()) {
-      reason = fmt::format("{}: {} missing, {} duplicated, {} out of order, {} timestamp mismatches, {} dropped (queue full), {} written of {}",
-                           camera.name, camera.sync.missing, camera.sync.duplicated, camera.sync.out_of_order,
-                           camera.sync.timestamp_mismatch, stats[k].dropped_queue_full, stats[k].frames_written,
-                           result.triggers_emitted);
+      reason = fmt::format(
+          "{}: {} missing, {} duplicated, {} out of order, {} timestamp mismatches, {} dropped "
+          "(queue full), {} written of {}",
+          camera.name, camera.sync.missing, camera.sync.duplicated, camera.sync.out_of_order,
+          camera.sync.timestamp_mismatch, stats[k].dropped_queue_full, stats[k].frames_written,
+          result.triggers_emitted);
     }
     clean = clean && camera_clean;
     result.cameras.push_back(camera);
@@ -287,6 +318,7 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
   result.stop_utc = UtcNowIso8601();
   report.wall_s = SecondsSince(wall_start);
   result.extra["wall_s"] = report.wall_s;
+  result.extra["record_wall_s"] = report.record_wall_s;
   FACEDYN_RETURN_IF_ERROR(session->EndTake(options.name, result));
   return report;
 }

@@ -36,7 +36,7 @@ struct TelemetrySample {
   double output_hz = 0.0;    // drive output
   double measured_hz = 0.0;  // platform oscillation frequency
   double target_hz = 0.0;
-  std::string state;         // supervisor state name
+  std::string state;  // supervisor state name
 };
 
 struct TakeOptions {
@@ -65,9 +65,12 @@ struct TakeOptions {
 struct TakeReport {
   TakeResult result;
   std::string take_dir;
-  double wall_s = 0.0;
+  double wall_s = 0.0;         // the whole call, ground truth and arming included
+  double record_wall_s = 0.0;  // first trigger to the last byte on disk (files synced)
   double bytes_written = 0.0;
-  double MegabytesPerSecond() const { return wall_s > 0 ? bytes_written / 1e6 / wall_s : 0.0; }
+  double MegabytesPerSecond() const {
+    return record_wall_s > 0 ? bytes_written / 1e6 / record_wall_s : 0.0;
+  }
 };
 
 // Records the take. Errors are returned only when nothing could be recorded (bad options, the

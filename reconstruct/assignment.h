@@ -1,9 +1,8 @@
 // Minimum-cost assignment (the Hungarian method, shortest augmenting paths, O(n^2 m)).
 #pragma once
 
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 namespace facedyn::reconstruct {
 

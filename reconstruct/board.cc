@@ -3,25 +3,32 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <sstream>
-
 #include <opencv2/aruco.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 namespace facedyn::reconstruct {
 namespace {
 
 const std::map<std::string, int>& DictionaryNames() {
   static const std::map<std::string, int> names = {
-      {"DICT_4X4_50", cv::aruco::DICT_4X4_50},       {"DICT_4X4_100", cv::aruco::DICT_4X4_100},
-      {"DICT_4X4_250", cv::aruco::DICT_4X4_250},     {"DICT_4X4_1000", cv::aruco::DICT_4X4_1000},
-      {"DICT_5X5_50", cv::aruco::DICT_5X5_50},       {"DICT_5X5_100", cv::aruco::DICT_5X5_100},
-      {"DICT_5X5_250", cv::aruco::DICT_5X5_250},     {"DICT_5X5_1000", cv::aruco::DICT_5X5_1000},
-      {"DICT_6X6_50", cv::aruco::DICT_6X6_50},       {"DICT_6X6_100", cv::aruco::DICT_6X6_100},
-      {"DICT_6X6_250", cv::aruco::DICT_6X6_250},     {"DICT_6X6_1000", cv::aruco::DICT_6X6_1000},
-      {"DICT_7X7_50", cv::aruco::DICT_7X7_50},       {"DICT_7X7_100", cv::aruco::DICT_7X7_100},
-      {"DICT_7X7_250", cv::aruco::DICT_7X7_250},     {"DICT_7X7_1000", cv::aruco::DICT_7X7_1000},
+      {"DICT_4X4_50", cv::aruco::DICT_4X4_50},
+      {"DICT_4X4_100", cv::aruco::DICT_4X4_100},
+      {"DICT_4X4_250", cv::aruco::DICT_4X4_250},
+      {"DICT_4X4_1000", cv::aruco::DICT_4X4_1000},
+      {"DICT_5X5_50", cv::aruco::DICT_5X5_50},
+      {"DICT_5X5_100", cv::aruco::DICT_5X5_100},
+      {"DICT_5X5_250", cv::aruco::DICT_5X5_250},
+      {"DICT_5X5_1000", cv::aruco::DICT_5X5_1000},
+      {"DICT_6X6_50", cv::aruco::DICT_6X6_50},
+      {"DICT_6X6_100", cv::aruco::DICT_6X6_100},
+      {"DICT_6X6_250", cv::aruco::DICT_6X6_250},
+      {"DICT_6X6_1000", cv::aruco::DICT_6X6_1000},
+      {"DICT_7X7_50", cv::aruco::DICT_7X7_50},
+      {"DICT_7X7_100", cv::aruco::DICT_7X7_100},
+      {"DICT_7X7_250", cv::aruco::DICT_7X7_250},
+      {"DICT_7X7_1000", cv::aruco::DICT_7X7_1000},
       {"DICT_ARUCO_ORIGINAL", cv::aruco::DICT_ARUCO_ORIGINAL}};
   return names;
 }
@@ -84,9 +91,9 @@ int SubPixHalfWindow(double feature_px) {
 
 StatusOr<BoardObservation> DetectChessboard(const cv::Mat& gray, const BoardSpec& spec) {
   std::vector<cv::Point2f> corners;
-  const bool found = cv::findChessboardCorners(
-      gray, cv::Size(spec.cols, spec.rows), corners,
-      cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE);
+  const bool found =
+      cv::findChessboardCorners(gray, cv::Size(spec.cols, spec.rows), corners,
+                                cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE);
   if (!found || static_cast<int>(corners.size()) != spec.corner_count()) {
     return NotFoundError("no " + std::to_string(spec.cols) + "x" + std::to_string(spec.rows) +
                          " chessboard found");
@@ -134,8 +141,8 @@ BoardObservation RejectInconsistentCorners(const BoardSpec& spec, const BoardObs
         board_points.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
         const Eigen::Vector2d& q = in.pixels[other->second];
         image_points.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
-        spacing_px = std::max(spacing_px, (q - in.pixels[i]).norm() /
-                                              std::hypot(double(dr), double(dc)));
+        spacing_px =
+            std::max(spacing_px, (q - in.pixels[i]).norm() / std::hypot(double(dr), double(dc)));
       }
     }
     if (board_points.size() >= 5) {
@@ -145,11 +152,11 @@ BoardObservation RejectInconsistentCorners(const BoardSpec& spec, const BoardObs
       if (!local.empty()) {
         const Eigen::Vector3d p = spec.CornerInBoard(id);
         std::vector<cv::Point2f> predicted;
-        cv::perspectiveTransform(
-            std::vector<cv::Point2f>{cv::Point2f(static_cast<float>(p.x()), static_cast<float>(p.y()))},
-            predicted, local);
-        const double error = std::hypot(predicted[0].x - in.pixels[i].x(),
-                                        predicted[0].y - in.pixels[i].y());
+        cv::perspectiveTransform(std::vector<cv::Point2f>{cv::Point2f(static_cast<float>(p.x()),
+                                                                      static_cast<float>(p.y()))},
+                                 predicted, local);
+        const double error =
+            std::hypot(predicted[0].x - in.pixels[i].x(), predicted[0].y - in.pixels[i].y());
         if (error > std::max(0.5, 0.015 * spacing_px)) continue;
       }
     }
@@ -244,8 +251,7 @@ StatusOr<BoardObservation> DetectCharuco(const cv::Mat& gray, const BoardSpec& s
   if (pairs >= 3 && agreeing < 0.5 * pairs) {
     return FailedPreconditionError(
         "ChArUco marker ids do not fit the " + spec.ToString() + " layout (the markers around " +
-        std::to_string(pairs - agreeing) + " of " + std::to_string(pairs) +
-        " corners disagree)" +
+        std::to_string(pairs - agreeing) + " of " + std::to_string(pairs) + " corners disagree)" +
         (spec.rows % 2 == 0
              ? std::string("; for a board with an even row count printed before OpenCV 4.6 "
                            "add ':legacy' to the spec (or remove it if present)")
@@ -348,8 +354,8 @@ Status BoardSpec::Check() const {
         cv::aruco::getPredefinedDictionary(DictionaryNames().at(dictionary));
     if (dict->bytesList.rows < MarkerCount()) {
       return InvalidArgumentError("dictionary " + dictionary + " has " +
-                                  std::to_string(dict->bytesList.rows) + " markers, the board needs " +
-                                  std::to_string(MarkerCount()));
+                                  std::to_string(dict->bytesList.rows) +
+                                  " markers, the board needs " + std::to_string(MarkerCount()));
     }
   }
   return Status::Ok();

@@ -20,11 +20,10 @@
 // cornerSubPix and keeps it when it agrees with its refined neighbours.
 #pragma once
 
-#include <string>
-#include <vector>
-
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
+#include <string>
+#include <vector>
 
 #include "core/status.h"
 
@@ -37,9 +36,9 @@ struct BoardSpec {
   int cols = 9;
   int rows = 6;
   double square_mm = 1.0;
-  double marker_mm = 0.0;          // ChArUco only: marker side, < square_mm
+  double marker_mm = 0.0;                  // ChArUco only: marker side, < square_mm
   std::string dictionary = "DICT_4X4_50";  // ChArUco only: an OpenCV predefined dictionary
-  bool legacy = false;             // ChArUco only: the pre-4.6 layout (see above)
+  bool legacy = false;                     // ChArUco only: the pre-4.6 layout (see above)
 
   // Parses "chessboard:COLSxROWS:SQUARE_MM" (inner corners) or
   // "charuco:COLSxROWS:SQUARE_MM:MARKER_MM[:DICT][:legacy]" (squares; DICT e.g. DICT_5X5_100).

@@ -1,16 +1,16 @@
 #include "reconstruct/calibration.h"
 
+#include <ceres/ceres.h>
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
-#include <set>
-
-#include <ceres/ceres.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/persistence.hpp>
-#include <spdlog/spdlog.h>
+#include <set>
 
 namespace facedyn::reconstruct {
 namespace {
@@ -29,7 +29,7 @@ struct Obs {
   std::vector<Eigen::Vector2d> pixels;
   std::vector<Eigen::Vector3d> points;  // board points for the ids as detected
   std::vector<bool> inlier;
-  bool flipped = false;    // ids read as the board turned by 180 degrees
+  bool flipped = false;        // ids read as the board turned by 180 degrees
   PoseBlock cam_from_board{};  // per-camera stage, for the ids as detected
 };
 
@@ -118,8 +118,8 @@ void RobustAdjust(const std::vector<Term>& terms, const Rigid3& half_turn,
     std::vector<double> norms;
     for (const Term& term : terms) {
       for (int i = 0; i < static_cast<int>(term.obs->pixels.size()); ++i) {
-        norms.push_back(ResidualNorm(*term.obs, i, half_turn, term.intrinsics,
-                                     term.cam_from_world, term.world_from_board));
+        norms.push_back(ResidualNorm(*term.obs, i, half_turn, term.intrinsics, term.cam_from_world,
+                                     term.world_from_board));
       }
     }
     if (norms.empty()) return;
@@ -298,10 +298,10 @@ StatusOr<RigCalibration> Calibrate(const CalibrationInput& input, const Calibrat
       if (obs.camera == c) mine.push_back(&obs);
     }
     if (static_cast<int>(mine.size()) < options.min_views_per_camera) {
-      return FailedPreconditionError(
-          "camera " + input.cameras[c].name + ": the board was found in " +
-          std::to_string(mine.size()) + " usable images, need at least " +
-          std::to_string(options.min_views_per_camera));
+      return FailedPreconditionError("camera " + input.cameras[c].name +
+                                     ": the board was found in " + std::to_string(mine.size()) +
+                                     " usable images, need at least " +
+                                     std::to_string(options.min_views_per_camera));
     }
     FACEDYN_ASSIGN_OR_RETURN(intrinsics[c], InitialIntrinsics(mine, input.cameras[c]));
     std::vector<Term> terms;
@@ -309,7 +309,8 @@ StatusOr<RigCalibration> Calibrate(const CalibrationInput& input, const Calibrat
     for (Obs* obs : mine) {
       FACEDYN_RETURN_IF_ERROR(
           PnP(intrinsics[c], obs, input.cameras[c].name, input.view_names[obs->view]));
-      terms.push_back({obs, intrinsics[c].data(), camera_identity.data(), obs->cam_from_board.data()});
+      terms.push_back(
+          {obs, intrinsics[c].data(), camera_identity.data(), obs->cam_from_board.data()});
     }
     SolveSettings settings;
     settings.constant.insert(camera_identity.data());
@@ -378,8 +379,8 @@ StatusOr<RigCalibration> Calibrate(const CalibrationInput& input, const Calibrat
           const Obs* other_reference = known_obs_in_view(other->view);
           const Rigid3 world_from_board = cam_from_world[other_reference->camera]->Inverse() *
                                           EffectiveCamFromBoard(*other_reference, half_turn);
-          double rms = ObservationRms(*other, half_turn, intrinsics[c],
-                                      candidate * world_from_board, false);
+          double rms =
+              ObservationRms(*other, half_turn, intrinsics[c], candidate * world_from_board, false);
           if (can_flip) {
             rms = std::min(rms, ObservationRms(*other, half_turn, intrinsics[c],
                                                candidate * world_from_board, true));
@@ -401,10 +402,9 @@ StatusOr<RigCalibration> Calibrate(const CalibrationInput& input, const Calibrat
         if (other_reference->camera == c) continue;
         const Rigid3 world_from_board = cam_from_world[other_reference->camera]->Inverse() *
                                         EffectiveCamFromBoard(*other_reference, half_turn);
-        other->flipped = ObservationRms(*other, half_turn, intrinsics[c],
-                                        best_pose * world_from_board, true) <
-                         ObservationRms(*other, half_turn, intrinsics[c],
-                                        best_pose * world_from_board, false);
+        other->flipped =
+            ObservationRms(*other, half_turn, intrinsics[c], best_pose * world_from_board, true) <
+            ObservationRms(*other, half_turn, intrinsics[c], best_pose * world_from_board, false);
       }
     }
     spdlog::debug("calibration: placed camera {} (median shared-view RMS {:.2f} px)",
@@ -457,8 +457,8 @@ StatusOr<RigCalibration> Calibrate(const CalibrationInput& input, const Calibrat
   double total_sq = 0.0;
   int total = 0;
   for (const Obs& obs : observations) {
-    const double* world_from_board = camera_count > 1 ? board_blocks[obs.view].data()
-                                                      : obs.cam_from_board.data();
+    const double* world_from_board =
+        camera_count > 1 ? board_blocks[obs.view].data() : obs.cam_from_board.data();
     ViewError error;
     error.camera = obs.camera;
     error.view = obs.view;
@@ -468,11 +468,10 @@ StatusOr<RigCalibration> Calibrate(const CalibrationInput& input, const Calibrat
         ++error.outliers;
         continue;
       }
-      const double e = ResidualNorm(obs, static_cast<int>(i), half_turn,
-                                    intrinsics[obs.camera].data(),
-                                    camera_count > 1 ? camera_blocks[obs.camera].data()
-                                                     : identity_block.data(),
-                                    world_from_board);
+      const double e =
+          ResidualNorm(obs, static_cast<int>(i), half_turn, intrinsics[obs.camera].data(),
+                       camera_count > 1 ? camera_blocks[obs.camera].data() : identity_block.data(),
+                       world_from_board);
       sq += e * e;
       ++error.corners;
     }
@@ -500,8 +499,8 @@ StatusOr<RigCalibration> Calibrate(const CalibrationInput& input, const Calibrat
   for (const Camera& camera : result.cameras) {
     const Status check = camera.Check();
     if (!check.ok()) {
-      return InternalError("calibration of camera " + camera.name + " produced invalid values: " +
-                           check.message());
+      return InternalError("calibration of camera " + camera.name +
+                           " produced invalid values: " + check.message());
     }
   }
   return result;
@@ -517,7 +516,8 @@ Status SaveCalibration(const RigCalibration& calibration, const std::string& pat
     if (!fs.isOpened()) return NotFoundError("cannot write calibration file " + path);
     // The camera part is capture/camera_model.h's layout, so ReadCameraModels reads this file.
     fs << "camera_count" << static_cast<int>(calibration.cameras.size());
-    fs << "cameras" << "[";
+    fs << "cameras"
+       << "[";
     for (size_t c = 0; c < calibration.cameras.size(); ++c) {
       const Camera& camera = calibration.cameras[c];
       const cv::Mat k = (cv::Mat_<double>(3, 3) << camera.fx(), 0, camera.cx(), 0, camera.fy(),
@@ -534,16 +534,19 @@ Status SaveCalibration(const RigCalibration& calibration, const std::string& pat
          << camera.height_px << "camera_matrix" << k << "distortion_coefficients" << distortion
          << "cam_from_world" << pose;
       fs << "rms_px" << (c < calibration.camera_rms_px.size() ? calibration.camera_rms_px[c] : 0.0);
-      fs << "corners" << (c < calibration.camera_corners.size() ? calibration.camera_corners[c] : 0);
+      fs << "corners"
+         << (c < calibration.camera_corners.size() ? calibration.camera_corners[c] : 0);
       fs << "}";
     }
     fs << "]";
     fs << "facedyn_calibration_version" << 1;
     fs << "board" << calibration.board;
     fs << "rms_px" << calibration.rms_px;
-    fs << "views" << "[";
+    fs << "views"
+       << "[";
     for (const ViewError& error : calibration.view_errors) {
-      fs << "{" << "view" << calibration.view_names.at(error.view) << "camera"
+      fs << "{"
+         << "view" << calibration.view_names.at(error.view) << "camera"
          << calibration.cameras.at(error.camera).name << "corners" << error.corners << "outliers"
          << error.outliers << "rms_px" << error.rms_px << "}";
     }
@@ -569,8 +572,10 @@ StatusOr<RigCalibration> LoadCalibration(const std::string& path) {
     if (!fs["board"].empty()) fs["board"] >> calibration.board;
     if (!fs["rms_px"].empty()) fs["rms_px"] >> calibration.rms_px;
     for (const cv::FileNode& node : fs["cameras"]) {
-      calibration.camera_rms_px.push_back(node["rms_px"].empty() ? 0.0 : static_cast<double>(node["rms_px"]));
-      calibration.camera_corners.push_back(node["corners"].empty() ? 0 : static_cast<int>(node["corners"]));
+      calibration.camera_rms_px.push_back(
+          node["rms_px"].empty() ? 0.0 : static_cast<double>(node["rms_px"]));
+      calibration.camera_corners.push_back(
+          node["corners"].empty() ? 0 : static_cast<int>(node["corners"]));
     }
   } catch (const cv::Exception& e) {
     return DataLossError("calibration file " + path + " is corrupt: " + e.what());

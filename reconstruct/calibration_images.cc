@@ -5,9 +5,8 @@
 #include <algorithm>
 #include <filesystem>
 #include <map>
-#include <set>
-
 #include <opencv2/imgcodecs.hpp>
+#include <set>
 
 #include "core/progress.h"
 
@@ -56,14 +55,17 @@ StatusOr<CalibrationInput> DetectBoardInImages(const std::vector<std::string>& p
     progress.Advance();
     const std::filesystem::path p(path);
     // The folder names the camera (for one camera: the folder of the first image).
-    std::string camera_name =
-        (by_directory ? p : std::filesystem::path(paths.front()))
-            .parent_path().lexically_normal().filename().string();
+    std::string camera_name = (by_directory ? p : std::filesystem::path(paths.front()))
+                                  .parent_path()
+                                  .lexically_normal()
+                                  .filename()
+                                  .string();
     if (camera_name.empty() || camera_name == "." || camera_name == "..") camera_name = "camera";
     const std::string view_name = by_directory ? p.stem().string() : p.filename().string();
     const cv::Mat gray = cv::imread(path, cv::IMREAD_GRAYSCALE);
     if (gray.empty()) {
-      if (skipped) skipped->push_back({path, "cannot be read as an image (corrupt or unsupported)"});
+      if (skipped)
+        skipped->push_back({path, "cannot be read as an image (corrupt or unsupported)"});
       continue;
     }
     auto [camera_it, new_camera] =
@@ -75,10 +77,10 @@ StatusOr<CalibrationInput> DetectBoardInImages(const std::vector<std::string>& p
     const auto& camera = input.cameras[camera_it->second];
     if (camera.width_px != gray.cols || camera.height_px != gray.rows) {
       return FailedPreconditionError(
-          "images of camera " + camera_name + " differ in size: " +
-          first_image_of_camera[camera_it->second] + " is " + std::to_string(camera.width_px) +
-          "x" + std::to_string(camera.height_px) + ", " + path + " is " +
-          std::to_string(gray.cols) + "x" + std::to_string(gray.rows));
+          "images of camera " + camera_name +
+          " differ in size: " + first_image_of_camera[camera_it->second] + " is " +
+          std::to_string(camera.width_px) + "x" + std::to_string(camera.height_px) + ", " + path +
+          " is " + std::to_string(gray.cols) + "x" + std::to_string(gray.rows));
     }
     const auto corners = DetectBoard(gray, board);
     if (!corners.ok()) {

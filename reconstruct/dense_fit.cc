@@ -1,11 +1,11 @@
 #include "reconstruct/dense_fit.h"
 
+#include <ceres/ceres.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
-
-#include <ceres/ceres.h>
 
 namespace facedyn::reconstruct {
 
@@ -13,8 +13,11 @@ class MarkerFitCost : public ceres::CostFunction {
  public:
   MarkerFitCost(const Eigen::Vector3d& base, const Eigen::Matrix3Xd& blendshapes,
                 std::vector<double> coefficients, const Eigen::Vector3d& target, double scale)
-      : base_(base), blendshapes_(blendshapes), coefficients_(std::move(coefficients)),
-        target_(target), scale_(scale) {
+      : base_(base),
+        blendshapes_(blendshapes),
+        coefficients_(std::move(coefficients)),
+        target_(target),
+        scale_(scale) {
     set_num_residuals(3);
     mutable_parameter_block_sizes()->push_back(static_cast<int>(blendshapes.cols()));
     for (size_t l = 0; l < coefficients_.size(); ++l) mutable_parameter_block_sizes()->push_back(3);
@@ -52,9 +55,10 @@ class MarkerFitCost : public ceres::CostFunction {
   double scale_;
 };
 
-ceres::CostFunction* NewMarkerFitCost(const Eigen::Vector3d& base, const Eigen::Matrix3Xd& blendshapes,
-                                const std::vector<double>& coefficients,
-                                const Eigen::Vector3d& target, double scale) {
+ceres::CostFunction* NewMarkerFitCost(const Eigen::Vector3d& base,
+                                      const Eigen::Matrix3Xd& blendshapes,
+                                      const std::vector<double>& coefficients,
+                                      const Eigen::Vector3d& target, double scale) {
   return new MarkerFitCost(base, blendshapes, coefficients, target, scale);
 }
 
@@ -141,7 +145,8 @@ std::vector<int> FarthestPoints(const Eigen::Matrix3Xd& points, int count) {
   int next = static_cast<int>(first);
   for (int k = 0; k < count; ++k) {
     chosen.push_back(next);
-    distance = distance.cwiseMin((points.colwise() - points.col(next)).colwise().squaredNorm().transpose());
+    distance = distance.cwiseMin(
+        (points.colwise() - points.col(next)).colwise().squaredNorm().transpose());
     Eigen::Index far;
     distance.maxCoeff(&far);
     next = static_cast<int>(far);
@@ -223,7 +228,8 @@ DenseFitter::DenseFitter(const FaceRig& rig, const DenseFitOptions& options)
     std::map<int, double> coefficients;
     for (int c = 0; c < 3; ++c) {
       if (marker.point.weights[c] == 0.0) continue;
-      for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(phi_, marker.point.vertices[c]);
+      for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(phi_,
+                                                                          marker.point.vertices[c]);
            it; ++it) {
         coefficients[static_cast<int>(it.col())] += marker.point.weights[c] * it.value();
       }
@@ -258,7 +264,8 @@ StatusOr<Eigen::Matrix3Xd> DenseFitter::Fit(const TrackedFrame& frame,
   const int m_count = static_cast<int>(rig_.markers.size());
   if (frame.positions_in_world.cols() != m_count ||
       static_cast<int>(frame.states.size()) != m_count) {
-    return InvalidArgumentError("tracked frame has " + std::to_string(frame.positions_in_world.cols()) +
+    return InvalidArgumentError("tracked frame has " +
+                                std::to_string(frame.positions_in_world.cols()) +
                                 " markers, the rig " + std::to_string(m_count));
   }
   const Rigid3 skull_from_world = world_from_skull.Inverse();
@@ -279,7 +286,8 @@ StatusOr<Eigen::Matrix3Xd> DenseFitter::Fit(const TrackedFrame& frame,
       blocks.push_back(node_blocks[node]);
       coefficients.push_back(c);
     }
-    const Eigen::Vector3d target = skull_from_world * Eigen::Vector3d(frame.positions_in_world.col(m));
+    const Eigen::Vector3d target =
+        skull_from_world * Eigen::Vector3d(frame.positions_in_world.col(m));
     problem.AddResidualBlock(
         NewMarkerFitCost(marker_neutral_[m], marker_blendshapes_[m], coefficients, target,
                          std::sqrt(frame.confidence[m]) / options_.marker_noise_mm),
@@ -291,10 +299,9 @@ StatusOr<Eigen::Matrix3Xd> DenseFitter::Fit(const TrackedFrame& frame,
   }
   for (size_t p = 0; p < node_pairs_.size(); ++p) {
     const double scale = std::sqrt(options_.lambda_smooth) / node_pair_distance_mm_[p];
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<DifferenceCost, 3, 3, 3>(
-                                 new DifferenceCost(scale)),
-                             nullptr, node_blocks[node_pairs_[p].first],
-                             node_blocks[node_pairs_[p].second]);
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<DifferenceCost, 3, 3, 3>(new DifferenceCost(scale)),
+        nullptr, node_blocks[node_pairs_[p].first], node_blocks[node_pairs_[p].second]);
   }
   for (double* block : node_blocks) {
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<MagnitudeCost, 3, 3>(
@@ -302,8 +309,9 @@ StatusOr<Eigen::Matrix3Xd> DenseFitter::Fit(const TrackedFrame& frame,
                              nullptr, block);
   }
   if (k_count > 0) {
-    problem.AddResidualBlock(new TemporalCost(previous_weights, std::sqrt(options_.lambda_temporal)),
-                             nullptr, weights_.data());
+    problem.AddResidualBlock(
+        new TemporalCost(previous_weights, std::sqrt(options_.lambda_temporal)), nullptr,
+        weights_.data());
     // [0, 1] as a stiff one-sided penalty rather than Ceres bounds: with a bound active the
     // projected step vanishes and the solver stops short of the constrained optimum.
     problem.AddResidualBlock(new BoundPenaltyCost(k_count, 100.0), nullptr, weights_.data());

@@ -23,12 +23,12 @@
 // membrane and magnitude terms decide what happens between and beyond them.
 #pragma once
 
-#include <string>
-#include <vector>
+#include <ceres/cost_function.h>
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
-#include <ceres/cost_function.h>
+#include <string>
+#include <vector>
 
 #include "core/face_rig.h"
 #include "core/rigid3.h"
@@ -93,8 +93,9 @@ class DenseFitter {
 
 // The marker residual as a Ceres cost function with parameter blocks (w [K], u_n1 [3], ...):
 // r = s (base + Bm w + sum_l c_l u_l - target). Exposed for the gradient test.
-ceres::CostFunction* NewMarkerFitCost(const Eigen::Vector3d& base, const Eigen::Matrix3Xd& blendshapes,
-                                const std::vector<double>& coefficients,
-                                const Eigen::Vector3d& target, double scale);
+ceres::CostFunction* NewMarkerFitCost(const Eigen::Vector3d& base,
+                                      const Eigen::Matrix3Xd& blendshapes,
+                                      const std::vector<double>& coefficients,
+                                      const Eigen::Vector3d& target, double scale);
 
 }  // namespace facedyn::reconstruct

@@ -1,10 +1,11 @@
 #include "reconstruct/marker_detection.h"
 
-#include <algorithm>
-#include <cmath>
-
 #include <Eigen/Dense>
+#include <algorithm>
+#include <atomic>
+#include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <thread>
 
 namespace facedyn::reconstruct {
 namespace {
@@ -34,8 +35,8 @@ struct FitResult {
 };
 
 // Levenberg-Marquardt with IRLS (Tukey) on the window pixels of `image` (CV_32F).
-FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius,
-                  int max_iterations, bool fix_shape = false, bool robust_from_start = false) {
+FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius, int max_iterations,
+                  bool fix_shape = false, bool robust_from_start = false) {
   FitResult result;
   double lambda = 1e-3;
   std::vector<double> residuals, weights;
@@ -46,8 +47,8 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius,
     pixels.clear();
     // The dot plus three blur widths and a margin, at most 1.5 max radii (a diverging shape
     // must not grow the window without bound).
-    const int half = static_cast<int>(std::ceil(
-        std::min(SemiMajorAxis(q) * (1.0 + 3.0 * q[5]), 1.5 * max_radius) + 2.0));
+    const int half = static_cast<int>(
+        std::ceil(std::min(SemiMajorAxis(q) * (1.0 + 3.0 * q[5]), 1.5 * max_radius) + 2.0));
     const int cx = static_cast<int>(std::lround(q[0])), cy = static_cast<int>(std::lround(q[1]));
     for (int y = std::max(0, cy - half); y <= std::min(image.rows - 1, cy + half); ++y) {
       for (int x = std::max(0, cx - half); x <= std::min(image.cols - 1, cx + half); ++x) {
@@ -154,8 +155,7 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius,
 }  // namespace
 
 DiskParameters FitBlurredDisk(const cv::Mat& gray, const DiskParameters& initial, bool fix_shape,
-                              int max_iterations, double* inlier_fraction,
-                              bool robust_from_start) {
+                              int max_iterations, double* inlier_fraction, bool robust_from_start) {
   cv::Mat image;
   gray.convertTo(image, CV_32F);
   const FitResult fit =
@@ -187,11 +187,11 @@ double BlurredDiskIntensity(const DiskParameters& p, double x, double y,
     const double density = kInvSqrt2Pi * std::exp(-0.5 * t * t);
     // dI/drho = -a density / w; drho/du = u / rho (0 at the centre, where the model is flat).
     const double g = rho > 1e-12 ? -a * density / (w * rho) : 0.0;
-    (*gradient)[0] = g * (-l11 * u0);               // du/dx0 = -(l11, 0)
-    (*gradient)[1] = g * (-l12 * u0 - l22 * u1);    // du/dy0 = -(l12, l22)
-    (*gradient)[2] = g * (dx * u0);                 // du/dl11 = (dx, 0)
-    (*gradient)[3] = g * (dy * u0);                 // du/dl12 = (dy, 0)
-    (*gradient)[4] = g * (dy * u1);                 // du/dl22 = (0, dy)
+    (*gradient)[0] = g * (-l11 * u0);             // du/dx0 = -(l11, 0)
+    (*gradient)[1] = g * (-l12 * u0 - l22 * u1);  // du/dy0 = -(l12, l22)
+    (*gradient)[2] = g * (dx * u0);               // du/dl11 = (dx, 0)
+    (*gradient)[3] = g * (dy * u0);               // du/dl12 = (dy, 0)
+    (*gradient)[4] = g * (dy * u1);               // du/dl22 = (0, dy)
     (*gradient)[5] = a * density * (-t / w);
     (*gradient)[6] = phi;
     (*gradient)[7] = 1.0;
@@ -381,8 +381,9 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
     }
   }
   // Several candidates can converge on one dot: keep the best within a radius.
-  std::sort(detections.begin(), detections.end(),
-            [](const MarkerDetection& a, const MarkerDetection& b) { return a.quality > b.quality; });
+  std::sort(
+      detections.begin(), detections.end(),
+      [](const MarkerDetection& a, const MarkerDetection& b) { return a.quality > b.quality; });
   std::vector<MarkerDetection> unique;
   for (const MarkerDetection& d : detections) {
     bool duplicate = false;
@@ -400,6 +401,27 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
   }
   summary.accepted = static_cast<int>(unique.size());
   return unique;
+}
+
+std::vector<StatusOr<std::vector<MarkerDetection>>> DetectMarkersInImages(
+    const std::vector<cv::Mat>& images, const MarkerDetectionOptions& options, int threads) {
+  std::vector<StatusOr<std::vector<MarkerDetection>>> results(
+      images.size(), StatusOr<std::vector<MarkerDetection>>(InternalError("not run")));
+  if (threads <= 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  threads = std::min<int>(threads, static_cast<int>(images.size()));
+  std::atomic<size_t> next{0};
+  auto work = [&] {
+    for (size_t i = next++; i < images.size(); i = next++) {
+      results[i] = images[i].empty()
+                       ? StatusOr<std::vector<MarkerDetection>>(std::vector<MarkerDetection>())
+                       : DetectMarkers(images[i], options);
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& thread : pool) thread.join();
+  return results;
 }
 
 }  // namespace facedyn::reconstruct

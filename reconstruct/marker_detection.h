@@ -26,11 +26,10 @@
 // fit did not converge are dropped (the summary counts why).
 #pragma once
 
-#include <array>
-#include <vector>
-
 #include <Eigen/Core>
+#include <array>
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "core/status.h"
 
@@ -55,16 +54,16 @@ struct MarkerDetection {
   double edge_width_px = 0.0;  // blur width at the edge, pixels
   double contrast = 0.0;       // |a|
   double quality = 0.0;
-  double residual_rms = 0.0;   // robust sigma of the fit residuals, gray levels
+  double residual_rms = 0.0;         // robust sigma of the fit residuals, gray levels
   bool refit_for_occlusion = false;  // radius held at the neighbours' (see above)
   double inlier_fraction = 0.0;      // mean robust weight of the window's pixels
-  std::array<double, 8> fit{};  // (x0, y0, l11, l12, l22, w, a, b)
+  std::array<double, 8> fit{};       // (x0, y0, l11, l12, l22, w, a, b)
 };
 
 struct MarkerDetectionSummary {
   int candidates = 0;
   int accepted = 0;
-  int rejected_fit = 0;       // did not converge, or left its window
+  int rejected_fit = 0;  // did not converge, or left its window
   int rejected_size = 0;
   int rejected_contrast = 0;
   int rejected_quality = 0;
@@ -76,6 +75,11 @@ struct MarkerDetectionSummary {
 StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
                                                      const MarkerDetectionOptions& options,
                                                      MarkerDetectionSummary* summary = nullptr);
+
+// DetectMarkers on several images (one per camera) on up to `threads` threads (0 = the
+// machine's hardware threads); results in image order.
+std::vector<StatusOr<std::vector<MarkerDetection>>> DetectMarkersInImages(
+    const std::vector<cv::Mat>& images, const MarkerDetectionOptions& options, int threads = 0);
 
 // The blurred-ellipse model and its gradient with respect to
 // p = (x0, y0, l11, l12, l22, w, a, b), at pixel (x, y). Exposed for the gradient test.

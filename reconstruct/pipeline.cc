@@ -91,7 +91,8 @@ StatusOr<Reconstruction> ReconstructTake(
     if (has_pose[f]) good.push_back(f);
   }
   if (good.empty()) {
-    return FailedPreconditionError("no frame of the take had enough stable markers for a skull pose");
+    return FailedPreconditionError(
+        "no frame of the take had enough stable markers for a skull pose");
   }
   for (int f = 0; f < frame_count; ++f) {
     if (has_pose[f]) continue;

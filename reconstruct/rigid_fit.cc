@@ -17,7 +17,8 @@ Rigid3 FitRigid(const Eigen::Matrix3Xd& src, const Eigen::Matrix3Xd& dst,
   for (int i = 0; i < src.cols(); ++i) {
     covariance += weights[i] * (dst.col(i) - dst_mean) * (src.col(i) - src_mean).transpose();
   }
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(covariance, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(covariance,
+                                              Eigen::ComputeFullU | Eigen::ComputeFullV);
   Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
   if ((svd.matrixU() * svd.matrixV().transpose()).determinant() < 0) d(2, 2) = -1.0;
   const Eigen::Matrix3d rotation = svd.matrixU() * d * svd.matrixV().transpose();

@@ -4,7 +4,6 @@
 #include <chrono>
 #include <cmath>
 #include <memory>
-
 #include <opencv2/imgproc.hpp>
 
 #include "capture/frame_file.h"
@@ -103,7 +102,8 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
   for (const Camera& c : calibration.cameras) {
     const bool in_take = std::any_of(take->cameras.begin(), take->cameras.end(),
                                      [&](const auto& t) { return t.name == c.name; });
-    if (!in_take) out.take_problems.push_back("calibrated camera " + c.name + " recorded nothing in this take");
+    if (!in_take)
+      out.take_problems.push_back("calibrated camera " + c.name + " recorded nothing in this take");
   }
   if (out.cameras.size() < 2) {
     return FailedPreconditionError("take " + take_name + " has " +
@@ -112,7 +112,8 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
   }
   const int64_t frame_count = std::max<int64_t>(last_trigger + 1, take->triggers_emitted);
   if (frame_count <= 0) return FailedPreconditionError("take " + take_name + " has no frames");
-  out.detections.assign(frame_count, std::vector<std::vector<ImageObservation>>(out.cameras.size()));
+  out.detections.assign(frame_count,
+                        std::vector<std::vector<ImageObservation>>(out.cameras.size()));
   out.frame_problems.assign(frame_count, {});
   const double period_ns = 1e9 / take->fps;
   Progress progress("detect markers", static_cast<long>(frame_count));
@@ -131,11 +132,13 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
         out.frame_problems[t].push_back(out.cameras[c].name + ": " + read.message());
         continue;
       }
-      if (frame.width_px != out.cameras[c].width_px || frame.height_px != out.cameras[c].height_px) {
-        out.frame_problems[t].push_back(
-            out.cameras[c].name + ": frame is " + std::to_string(frame.width_px) + "x" +
-            std::to_string(frame.height_px) + ", calibration says " +
-            std::to_string(out.cameras[c].width_px) + "x" + std::to_string(out.cameras[c].height_px));
+      if (frame.width_px != out.cameras[c].width_px ||
+          frame.height_px != out.cameras[c].height_px) {
+        out.frame_problems[t].push_back(out.cameras[c].name + ": frame is " +
+                                        std::to_string(frame.width_px) + "x" +
+                                        std::to_string(frame.height_px) + ", calibration says " +
+                                        std::to_string(out.cameras[c].width_px) + "x" +
+                                        std::to_string(out.cameras[c].height_px));
         continue;
       }
       images[c] = ToGray(frame);
@@ -154,14 +157,17 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
         out.frame_problems[t].push_back(
             out.cameras[c].name + ": out of sync by " +
             std::to_string(static_cast<int>(std::lround((stamps[c] - median) / 1e6))) + " ms");
+        images[c] = cv::Mat();
+      }
+    }
+    const auto found = DetectMarkersInImages(images, options.detection);
+    for (size_t c = 0; c < out.cameras.size(); ++c) {
+      if (images[c].empty()) continue;
+      if (!found[c].ok()) {
+        out.frame_problems[t].push_back(out.cameras[c].name + ": " + found[c].status().message());
         continue;
       }
-      const auto found = DetectMarkers(images[c], options.detection);
-      if (!found.ok()) {
-        out.frame_problems[t].push_back(out.cameras[c].name + ": " + found.status().message());
-        continue;
-      }
-      for (const MarkerDetection& d : *found) {
+      for (const MarkerDetection& d : *found[c]) {
         ImageObservation o;
         o.camera = static_cast<int>(c);
         o.detection = static_cast<int>(out.detections[t][c].size());

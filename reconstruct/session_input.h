@@ -31,7 +31,7 @@ struct SessionDetections {
   // detections[f][c]: frame f (trigger index f), camera c of `cameras`.
   std::vector<std::vector<std::vector<ImageObservation>>> detections;
   std::vector<std::vector<std::string>> frame_problems;  // per frame
-  std::vector<std::string> take_problems;                 // cameras left out, ...
+  std::vector<std::string> take_problems;                // cameras left out, ...
   double detect_s = 0.0;
 };
 

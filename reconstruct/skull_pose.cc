@@ -34,10 +34,10 @@ SkullPoseEstimator::SkullPoseEstimator(const FaceRig& rig, const SkullPoseOption
     if (stable) stable_markers_.push_back(m);
   }
   if (static_cast<int>(stable_markers_.size()) < options.min_markers) {
-    status_ = FailedPreconditionError(
-        "the face rig has " + std::to_string(stable_markers_.size()) +
-        " markers on its stable regions; the skull pose needs at least " +
-        std::to_string(options.min_markers));
+    status_ =
+        FailedPreconditionError("the face rig has " + std::to_string(stable_markers_.size()) +
+                                " markers on its stable regions; the skull pose needs at least " +
+                                std::to_string(options.min_markers));
     return;
   }
   const int n = static_cast<int>(stable_markers_.size());
@@ -55,7 +55,8 @@ SkullPoseEstimator::SkullPoseEstimator(const FaceRig& rig, const SkullPoseOption
     if (paired) {
       thickness = (skin - p.Evaluate(rig.skull.positions_mm)).norm();
     } else if (rig.skull.vertex_count() > 0) {
-      thickness = std::sqrt((rig.skull.positions_mm.colwise() - skin).colwise().squaredNorm().minCoeff());
+      thickness =
+          std::sqrt((rig.skull.positions_mm.colwise() - skin).colwise().squaredNorm().minCoeff());
     }
     thickness_mm_[k] = std::max(0.5, thickness);
   }
@@ -104,8 +105,8 @@ SkullPoseResult SkullPoseEstimator::Estimate(const Eigen::Matrix3Xd& markers_in_
       Eigen::Vector3d numerator = Eigen::Vector3d::Zero();
       double denominator = 0.0;
       for (int i = 0; i < n; ++i) {
-        numerator += weights[i] * shape[i] *
-                     (skull_from_world * Eigen::Vector3d(dst.col(i)) - src.col(i));
+        numerator +=
+            weights[i] * shape[i] * (skull_from_world * Eigen::Vector3d(dst.col(i)) - src.col(i));
         denominator += weights[i] * shape[i] * shape[i];
       }
       deflection = numerator / denominator;

@@ -22,9 +22,8 @@
 // skin's topology, as sim/face_anatomy.h rigs do; otherwise the nearest skull vertex).
 #pragma once
 
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 #include "core/face_rig.h"
 #include "core/rigid3.h"
@@ -47,7 +46,7 @@ struct SkullPoseResult {
   int markers_used = 0;
   double rms_mm = 0.0;  // weighted residual of the stable markers
   Eigen::Vector3d deflection_mm = Eigen::Vector3d::Zero();  // d (see above), skull frame
-  bool ok = false;      // false: too few stable markers (the pose is the initial one)
+  bool ok = false;  // false: too few stable markers (the pose is the initial one)
 };
 
 class SkullPoseEstimator {

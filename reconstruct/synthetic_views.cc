@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <opencv2/imgproc.hpp>
 
 namespace facedyn::reconstruct {
@@ -15,8 +14,8 @@ std::vector<Camera> MakeCameraRing(const CameraRingOptions& options) {
     const double elevation = (i % 2 == 0 ? 1.0 : -1.0) * options.elevation_deg * M_PI / 180.0;
     const Eigen::Vector3d direction(std::sin(azimuth) * std::cos(elevation), std::sin(elevation),
                                     std::cos(azimuth) * std::cos(elevation));
-    cameras.push_back(Camera::LookAt("cam" + std::to_string(i), options.width_px,
-                                     options.height_px, options.focal_px,
+    cameras.push_back(Camera::LookAt("cam" + std::to_string(i), options.width_px, options.height_px,
+                                     options.focal_px,
                                      options.target_in_world + options.radius_mm * direction,
                                      options.target_in_world, Eigen::Vector3d::UnitY()));
   }

@@ -3,14 +3,13 @@
 // distortion included), and painted dots rendered as a camera would see them.
 #pragma once
 
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
 #include <random>
 #include <vector>
 
-#include <Eigen/Core>
-#include <opencv2/core.hpp>
-
-#include "core/rigid3.h"
 #include "core/face_rig.h"
+#include "core/rigid3.h"
 #include "reconstruct/camera.h"
 #include "reconstruct/triangulation.h"
 
@@ -18,9 +17,9 @@ namespace facedyn::reconstruct {
 
 struct CameraRingOptions {
   int camera_count = 8;
-  double radius_mm = 600.0;       // distance of each centre from the target
-  double arc_deg = 120.0;         // cameras spread over this horizontal arc, centred on +Z
-  double elevation_deg = 15.0;    // alternate cameras sit this much above / below the equator
+  double radius_mm = 600.0;     // distance of each centre from the target
+  double arc_deg = 120.0;       // cameras spread over this horizontal arc, centred on +Z
+  double elevation_deg = 15.0;  // alternate cameras sit this much above / below the equator
   int width_px = 1280;
   int height_px = 1024;
   double focal_px = 2600.0;
@@ -55,8 +54,8 @@ cv::Mat RenderPlanarView(const cv::Mat& texture, double pixels_per_mm, double ma
                          unsigned char background = 128);
 // One-off form (computes the rays).
 cv::Mat RenderPlanarView(const cv::Mat& texture, double pixels_per_mm, double margin_mm,
-                         const Camera& camera, const Rigid3& world_from_board,
-                         int supersample = 2, unsigned char background = 128);
+                         const Camera& camera, const Rigid3& world_from_board, int supersample = 2,
+                         unsigned char background = 128);
 
 // Filled polygons (pixel coordinates, (0,0) = centre of the top-left pixel) of `ink` on
 // `background`, drawn on a canvas `supersample` times finer and area-averaged down, so edges

@@ -1,9 +1,8 @@
 #include "reconstruct/tracking.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
-
-#include <Eigen/Dense>
 
 #include "reconstruct/assignment.h"
 #include "reconstruct/rigid_fit.h"
@@ -49,8 +48,8 @@ std::vector<int> AssignPoints(const Eigen::Matrix3Xd& predicted, const Eigen::Ma
   if (m == 0 || n == 0) return point_of_marker;
   Eigen::MatrixXd cost(m, n);
   for (int i = 0; i < m; ++i) {
-    cost.row(i) = (points.colwise() - predicted.col(i)).colwise().squaredNorm() /
-                  (gates_mm[i] * gates_mm[i]);
+    cost.row(i) =
+        (points.colwise() - predicted.col(i)).colwise().squaredNorm() / (gates_mm[i] * gates_mm[i]);
   }
   const double gate = 1.0;
   if (m <= n) {
@@ -117,8 +116,8 @@ Rigid3 RobustRigid(const Eigen::Matrix3Xd& in_skull, const Eigen::Matrix3Xd& in_
 
 // Up to 6 markers nearest to `marker` at rest (within 30 mm) that are observed at frames a
 // and b.
-std::vector<int> BridgeNeighbours(const std::vector<TrackedFrame>& frames, int marker, int a,
-                                  int b, const Eigen::Matrix3Xd& rest) {
+std::vector<int> BridgeNeighbours(const std::vector<TrackedFrame>& frames, int marker, int a, int b,
+                                  const Eigen::Matrix3Xd& rest) {
   std::vector<std::pair<double, int>> nearest;
   for (int n = 0; n < rest.cols(); ++n) {
     if (n == marker || frames[a].states[n] != MarkerState::kObserved ||
@@ -190,8 +189,8 @@ StatusOr<RigFit> FitRigToPoints(const FaceRig& rig, const Eigen::Matrix3Xd& poin
   fit.blendshape_weights = Eigen::VectorXd::Zero(basis.cols());
   for (int iteration = 0; iteration < 6; ++iteration) {
     const Eigen::Matrix3Xd posed = Posed(rest, basis, fit.blendshape_weights);
-    fit.point_of_marker = AssignPoints(fit.world_from_skull.Apply(posed), points,
-                                       options.first_frame_gate_mm);
+    fit.point_of_marker =
+        AssignPoints(fit.world_from_skull.Apply(posed), points, options.first_frame_gate_mm);
     std::vector<int> markers;
     for (int m = 0; m < static_cast<int>(rest.cols()); ++m) {
       if (fit.point_of_marker[m] >= 0) markers.push_back(m);
@@ -218,7 +217,8 @@ StatusOr<RigFit> FitRigToPoints(const FaceRig& rig, const Eigen::Matrix3Xd& poin
       fit.blendshape_weights = normal.ldlt().solve(a.transpose() * b).cwiseMax(0.0).cwiseMin(1.0);
     }
   }
-  const Eigen::Matrix3Xd posed = fit.world_from_skull.Apply(Posed(rest, basis, fit.blendshape_weights));
+  const Eigen::Matrix3Xd posed =
+      fit.world_from_skull.Apply(Posed(rest, basis, fit.blendshape_weights));
   fit.point_of_marker = AssignPoints(posed, points, options.first_frame_gate_mm);
   double sq = 0.0;
   fit.assigned = 0;
@@ -314,15 +314,14 @@ StatusOr<TrackedFrame> MarkerTracker::AddFrame(const std::vector<TriangulatedPoi
     for (int m : assigned) {
       const int j = frame.point_of_marker[m];
       const Eigen::Vector3d q = skull_from_world * Eigen::Vector3d(world.col(j));
-      velocity_in_skull_.col(m) =
-          last_observed_frame_[m] == t - 1 ? Eigen::Vector3d(q - last_in_skull_.col(m))
-                                           : Eigen::Vector3d::Zero();
+      velocity_in_skull_.col(m) = last_observed_frame_[m] == t - 1
+                                      ? Eigen::Vector3d(q - last_in_skull_.col(m))
+                                      : Eigen::Vector3d::Zero();
       last_in_skull_.col(m) = q;
       last_observed_frame_[m] = t;
       const double innovation_mm = (world.col(j) - predicted.col(m)).norm();
-      innovation_rms_mm_[m] =
-          std::sqrt(0.8 * innovation_rms_mm_[m] * innovation_rms_mm_[m] +
-                    0.2 * innovation_mm * innovation_mm);
+      innovation_rms_mm_[m] = std::sqrt(0.8 * innovation_rms_mm_[m] * innovation_rms_mm_[m] +
+                                        0.2 * innovation_mm * innovation_mm);
       const double innovation = innovation_mm / options_.gate_mm;
       frame.states[m] = MarkerState::kObserved;
       frame.confidence[m] = points[j].confidence * std::max(0.0, 1.0 - innovation * innovation);
@@ -365,14 +364,13 @@ std::vector<TrackedFrame> MarkerTracker::Finish() {
       if (frames[t].states[m] != MarkerState::kObserved) continue;
       const int gap = t - last - 1;
       if (last >= 0 && gap > 0 && gap <= options_.max_bridge_frames) {
-        const Eigen::Vector3d qa =
-            frames[last].world_from_skull_tracking.Inverse() *
-            Eigen::Vector3d(frames[last].positions_in_world.col(m));
+        const Eigen::Vector3d qa = frames[last].world_from_skull_tracking.Inverse() *
+                                   Eigen::Vector3d(frames[last].positions_in_world.col(m));
         const Eigen::Vector3d qb = frames[t].world_from_skull_tracking.Inverse() *
                                    Eigen::Vector3d(frames[t].positions_in_world.col(m));
-        const double confidence =
-            0.5 * std::min(frames[last].confidence[m], frames[t].confidence[m]) *
-            (1.0 - gap / (options_.max_bridge_frames + 1.0));
+        const double confidence = 0.5 *
+                                  std::min(frames[last].confidence[m], frames[t].confidence[m]) *
+                                  (1.0 - gap / (options_.max_bridge_frames + 1.0));
         // Neighbours observed at both ends: the hidden marker moves (in the skull frame) as
         // they do, blended from both ends; with none, linearly.
         const std::vector<int> neighbours = BridgeNeighbours(frames, m, last, t, rest_in_skull_);

@@ -24,14 +24,14 @@
 // Finish() bridges gaps of at most max_bridge_frames: in the skull frame, the hidden marker is
 // moved as its (up to 6, within 30 mm) neighbours seen at both ends and in that frame move,
 // blended linearly from the observations on either side (linear interpolation alone when no
-// neighbour is seen); longer gaps and gaps at the ends stay missing. Confidence: observed = point confidence * (1 - (innovation / gate)^2); bridged
-// = 0.5 * the smaller neighbour confidence * (1 - gap / (max_bridge_frames + 1)); missing 0.
+// neighbour is seen); longer gaps and gaps at the ends stay missing. Confidence: observed = point
+// confidence * (1 - (innovation / gate)^2); bridged = 0.5 * the smaller neighbour confidence * (1 -
+// gap / (max_bridge_frames + 1)); missing 0.
 #pragma once
 
+#include <Eigen/Core>
 #include <optional>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/face_rig.h"
 #include "core/rigid3.h"
@@ -54,7 +54,7 @@ struct RigFit {
   Rigid3 world_from_skull;
   Eigen::VectorXd blendshape_weights;
   std::vector<int> point_of_marker;  // -1 when unassigned
-  double rms_mm = 0.0;                // assigned markers against the posed rig
+  double rms_mm = 0.0;               // assigned markers against the posed rig
   int assigned = 0;
 };
 

@@ -1,11 +1,11 @@
 #include "reconstruct/triangulation.h"
 
+#include <ceres/jet.h>
+
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <unordered_map>
-
-#include <Eigen/Dense>
-#include <ceres/jet.h>
 
 namespace facedyn::reconstruct {
 namespace {
@@ -140,8 +140,8 @@ bool RefinePoint(const std::vector<Camera>& cameras, std::vector<ImageObservatio
   point->rms_px = std::sqrt(sq / observations.size());
   point->max_px = max_px;
   point->observations = std::move(observations);
-  point->confidence = std::min(1.0, point->observations.size() / 4.0) *
-                      std::exp(-std::pow(point->rms_px / 0.5, 2));
+  point->confidence =
+      std::min(1.0, point->observations.size() / 4.0) * std::exp(-std::pow(point->rms_px / 0.5, 2));
   return true;
 }
 
@@ -184,13 +184,16 @@ std::vector<TriangulatedPoint> TriangulateDetections(
   std::vector<Pair> pairs;
   for (int a = 0; a < n; ++a) {
     for (int b = a + 1; b < n; ++b) {
-      const Eigen::Vector3d za = cameras[a].cam_from_world.Inverse().RotateVector(Eigen::Vector3d::UnitZ());
-      const Eigen::Vector3d zb = cameras[b].cam_from_world.Inverse().RotateVector(Eigen::Vector3d::UnitZ());
+      const Eigen::Vector3d za =
+          cameras[a].cam_from_world.Inverse().RotateVector(Eigen::Vector3d::UnitZ());
+      const Eigen::Vector3d zb =
+          cameras[b].cam_from_world.Inverse().RotateVector(Eigen::Vector3d::UnitZ());
       const double angle = std::acos(std::clamp(za.dot(zb), -1.0, 1.0));
       if (angle < 75.0 * M_PI / 180.0) pairs.push_back({a, b, angle});
     }
   }
-  std::sort(pairs.begin(), pairs.end(), [](const Pair& x, const Pair& y) { return x.angle > y.angle; });
+  std::sort(pairs.begin(), pairs.end(),
+            [](const Pair& x, const Pair& y) { return x.angle > y.angle; });
 
   std::vector<TriangulatedPoint> points;
   std::vector<TriangulatedPoint> hypotheses;

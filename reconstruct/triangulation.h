@@ -17,9 +17,8 @@
 // accidental epipolar coincidence, so min_views defaults to 3.
 #pragma once
 
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 #include "core/status.h"
 #include "reconstruct/camera.h"

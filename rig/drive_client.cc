@@ -1,9 +1,9 @@
 #include "rig/drive_client.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <utility>
-
-#include <fmt/format.h>
 
 #include "core/check.h"
 
@@ -11,14 +11,16 @@ namespace facedyn::rig {
 
 Status DriveLimits::Check() const {
   if (!(window_min_hz > 0.0)) {
-    return InvalidArgumentError(fmt::format("limits.window_min_hz: {} must be positive", window_min_hz));
+    return InvalidArgumentError(
+        fmt::format("limits.window_min_hz: {} must be positive", window_min_hz));
   }
   if (!(window_max_hz >= window_min_hz)) {
     return InvalidArgumentError(fmt::format("limits.window_max_hz: {} is below window_min_hz {}",
                                             window_max_hz, window_min_hz));
   }
   if (!(absolute_max_hz > 0.0) || !std::isfinite(absolute_max_hz)) {
-    return InvalidArgumentError(fmt::format("limits.absolute_max_hz: {} must be positive", absolute_max_hz));
+    return InvalidArgumentError(
+        fmt::format("limits.absolute_max_hz: {} must be positive", absolute_max_hz));
   }
   return Status::Ok();
 }
@@ -42,8 +44,10 @@ DriveClient::DriveClient(ModbusTransport* transport, DriveProfile profile, Drive
 Status DriveClient::SetFrequencyHz(double hz) {
   if (!std::isfinite(hz)) return InvalidArgumentError(fmt::format("hz: {} is not a number", hz));
   if (hz > limits_.absolute_max_hz) {
-    return InvalidArgumentError(fmt::format("hz: {} Hz is above the configured maximum {} Hz "
-                                            "(limits.absolute_max_hz)", hz, limits_.absolute_max_hz));
+    return InvalidArgumentError(
+        fmt::format("hz: {} Hz is above the configured maximum {} Hz "
+                    "(limits.absolute_max_hz)",
+                    hz, limits_.absolute_max_hz));
   }
   if (hz < limits_.window_min_hz || hz > limits_.window_max_hz) {
     return InvalidArgumentError(fmt::format("hz: {} Hz is outside the allowed window {}..{} Hz", hz,

@@ -1,11 +1,11 @@
 #include "rig/drive_profile.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-
-#include <fmt/format.h>
 
 namespace facedyn::rig {
 namespace {
@@ -17,7 +17,8 @@ constexpr int kMaxAddress = 0xFFFF;
 StatusOr<long> ParseUnsigned(const ConfigNode& node, long max_value) {
   FACEDYN_ASSIGN_OR_RETURN(const std::string text, node.As<std::string>());
   if (text.empty() || text[0] == '-' || text[0] == '+') {
-    return node.Error(fmt::format("expected a non-negative integer (decimal or 0x hex), got '{}'", text));
+    return node.Error(
+        fmt::format("expected a non-negative integer (decimal or 0x hex), got '{}'", text));
   }
   errno = 0;
   char* end = nullptr;
@@ -59,9 +60,11 @@ StatusOr<FrequencyScaling> ParseScaling(const ConfigNode& root, const std::strin
 
 }  // namespace
 
-StatusOr<uint16_t> FrequencyScaling::HzToRegister(double frequency_hz, const std::string& what) const {
+StatusOr<uint16_t> FrequencyScaling::HzToRegister(double frequency_hz,
+                                                  const std::string& what) const {
   if (!std::isfinite(frequency_hz)) {
-    return InvalidArgumentError(fmt::format("{}: frequency {} Hz is not a number", what, frequency_hz));
+    return InvalidArgumentError(
+        fmt::format("{}: frequency {} Hz is not a number", what, frequency_hz));
   }
   const double counts_value = std::round(frequency_hz * CountsPerHz());
   const double low = is_signed ? -32768.0 : 0.0;
@@ -75,8 +78,8 @@ StatusOr<uint16_t> FrequencyScaling::HzToRegister(double frequency_hz, const std
 }
 
 double FrequencyScaling::RegisterToHz(uint16_t value) const {
-  const double counts_value = is_signed ? static_cast<double>(static_cast<int16_t>(value))
-                                        : static_cast<double>(value);
+  const double counts_value =
+      is_signed ? static_cast<double>(static_cast<int16_t>(value)) : static_cast<double>(value);
   return counts_value / CountsPerHz();
 }
 
@@ -122,7 +125,8 @@ StatusOr<DriveProfile> ParseDriveProfile(const ConfigNode& root) {
   FACEDYN_ASSIGN_OR_RETURN(p.description, root.GetOr<std::string>("description", ""));
   FACEDYN_ASSIGN_OR_RETURN(p.unit_id, root.GetOr<int>("unit_id", 1));
   if (p.unit_id < 0 || p.unit_id > 247) {
-    return root.Error("unit_id", fmt::format("{} is outside the Modbus unit range 0..247", p.unit_id));
+    return root.Error("unit_id",
+                      fmt::format("{} is outside the Modbus unit range 0..247", p.unit_id));
   }
 
   FACEDYN_ASSIGN_OR_RETURN(const ConfigNode registers, root.Child("registers"));
@@ -134,13 +138,14 @@ StatusOr<DriveProfile> ParseDriveProfile(const ConfigNode& root) {
     FACEDYN_ASSIGN_OR_RETURN(p.fault_code_register, GetAddress(registers, "fault_code"));
   }
   if (registers.Has("oscillation_frequency")) {
-    FACEDYN_ASSIGN_OR_RETURN(p.oscillation_register, GetAddress(registers, "oscillation_frequency"));
+    FACEDYN_ASSIGN_OR_RETURN(p.oscillation_register,
+                             GetAddress(registers, "oscillation_frequency"));
     FACEDYN_ASSIGN_OR_RETURN(p.oscillation_scaling, ParseScaling(root, "oscillation_scaling"));
   }
   // Command and setpoint are written; sharing an address would make one overwrite the other.
   if (p.command_register == p.setpoint_register) {
-    return registers.Error("setpoint", fmt::format("address {} is also the command register",
-                                                   p.setpoint_register));
+    return registers.Error(
+        "setpoint", fmt::format("address {} is also the command register", p.setpoint_register));
   }
 
   FACEDYN_ASSIGN_OR_RETURN(p.setpoint_scaling, ParseScaling(root, "setpoint_scaling"));
@@ -172,8 +177,9 @@ StatusOr<DriveProfile> ParseDriveProfile(const ConfigNode& root) {
   FACEDYN_ASSIGN_OR_RETURN(p.fault_mask, GetWordOr(status, "fault_mask", 0));
   if (p.running_mask == 0) return status.Error("running_mask", "must select at least one bit");
   if ((p.running_value & ~p.running_mask) != 0) {
-    return status.Error("running_value", fmt::format("0x{:04X} has bits outside running_mask 0x{:04X}",
-                                                     p.running_value, p.running_mask));
+    return status.Error("running_value",
+                        fmt::format("0x{:04X} has bits outside running_mask 0x{:04X}",
+                                    p.running_value, p.running_mask));
   }
 
   if (root.Has("fault_code")) {
@@ -185,8 +191,9 @@ StatusOr<DriveProfile> ParseDriveProfile(const ConfigNode& root) {
     }
   }
   if (!p.fault_code_register && p.fault_mask == 0) {
-    return root.Error("registers", "a profile needs registers.fault_code or status.fault_mask, "
-                                   "or a trip could never be seen");
+    return root.Error("registers",
+                      "a profile needs registers.fault_code or status.fault_mask, "
+                      "or a trip could never be seen");
   }
   if (root.Has("fault_codes")) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode codes, root.Child("fault_codes"));
@@ -198,7 +205,8 @@ StatusOr<DriveProfile> ParseDriveProfile(const ConfigNode& root) {
       if (key.empty() || *end != '\0' || parsed < 0 || parsed > 0xFFFF) {
         return codes.Error(key, "fault code keys must be integers 0..65535");
       }
-      FACEDYN_ASSIGN_OR_RETURN(p.fault_codes[static_cast<int>(parsed)], text_node.As<std::string>());
+      FACEDYN_ASSIGN_OR_RETURN(p.fault_codes[static_cast<int>(parsed)],
+                               text_node.As<std::string>());
     }
   }
 

@@ -36,7 +36,7 @@ struct FrequencyScaling {
 };
 
 struct CommWatchdog {
-  std::string parameter;          // the drive's parameter name, for messages and docs
+  std::string parameter;                // the drive's parameter name, for messages and docs
   std::optional<int> register_address;  // when the watchdog can be written over Modbus
   double counts_per_s = 1.0;
   double max_s = 0.0;
@@ -63,8 +63,8 @@ struct DriveProfile {
 
   uint16_t run_value = 0;
   uint16_t stop_value = 0;
-  int fault_reset_register = 0;               // defaults to command_register
-  std::vector<uint16_t> fault_reset_values;   // written in order (edge-triggered resets)
+  int fault_reset_register = 0;              // defaults to command_register
+  std::vector<uint16_t> fault_reset_values;  // written in order (edge-triggered resets)
 
   uint16_t running_mask = 0;
   uint16_t running_value = 0;

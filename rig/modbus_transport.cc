@@ -1,5 +1,9 @@
 #include "rig/modbus_transport.h"
 
+#include <fmt/format.h>
+#include <modbus.h>
+#include <spdlog/spdlog.h>
+
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -9,10 +13,6 @@
 #include <future>
 #include <mutex>
 #include <thread>
-
-#include <fmt/format.h>
-#include <modbus.h>
-#include <spdlog/spdlog.h>
 
 namespace facedyn::rig {
 namespace {
@@ -25,9 +25,7 @@ bool IsLinkError(int error) {
 }
 
 // Modbus exception replies: the drive answered, retrying will get the same answer.
-bool IsExceptionReply(int error) {
-  return error >= EMBXILFUN && error <= EMBXGTAR;
-}
+bool IsExceptionReply(int error) { return error >= EMBXILFUN && error <= EMBXGTAR; }
 
 }  // namespace
 
@@ -39,18 +37,21 @@ Status TransportOptions::Check() const {
     }
   } else {
     if (device.empty()) return InvalidArgumentError("transport.device: must name a serial device");
-    if (baud <= 0) return InvalidArgumentError(fmt::format("transport.baud: {} must be positive", baud));
+    if (baud <= 0)
+      return InvalidArgumentError(fmt::format("transport.baud: {} must be positive", baud));
     if (parity != 'N' && parity != 'E' && parity != 'O') {
       return InvalidArgumentError(fmt::format("transport.parity: '{}' is not N, E or O", parity));
     }
     if (data_bits < 5 || data_bits > 8) {
-      return InvalidArgumentError(fmt::format("transport.data_bits: {} is outside 5..8", data_bits));
+      return InvalidArgumentError(
+          fmt::format("transport.data_bits: {} is outside 5..8", data_bits));
     }
     if (stop_bits != 1 && stop_bits != 2) {
       return InvalidArgumentError(fmt::format("transport.stop_bits: {} is not 1 or 2", stop_bits));
     }
     if (!(rtu_gap_s >= 0.0 && rtu_gap_s <= 1.0)) {
-      return InvalidArgumentError(fmt::format("transport.rtu_gap_s: {} is outside 0..1 s", rtu_gap_s));
+      return InvalidArgumentError(
+          fmt::format("transport.rtu_gap_s: {} is outside 0..1 s", rtu_gap_s));
     }
   }
   if (unit_id < 0 || unit_id > 247) {
@@ -64,7 +65,8 @@ Status TransportOptions::Check() const {
     return InvalidArgumentError(fmt::format("transport.retries: {} is outside 0..20", retries));
   }
   if (healthy_after < 1) {
-    return InvalidArgumentError(fmt::format("transport.healthy_after: {} must be at least 1", healthy_after));
+    return InvalidArgumentError(
+        fmt::format("transport.healthy_after: {} must be at least 1", healthy_after));
   }
   return Status::Ok();
 }
@@ -83,7 +85,8 @@ Status ParseTcpEndpoint(const std::string& text, TransportOptions* options) {
   char* end = nullptr;
   const long port = std::strtol(port_text.c_str(), &end, 10);
   if (*end != '\0' || port < 0 || port > 65535) {
-    return InvalidArgumentError(fmt::format("--tcp: port '{}' is not a number in 0..65535", port_text));
+    return InvalidArgumentError(
+        fmt::format("--tcp: port '{}' is not a number in 0..65535", port_text));
   }
   options->kind = TransportOptions::Kind::kTcp;
   options->host = text.substr(0, colon);
@@ -134,12 +137,13 @@ class ModbusTransport::Owner {
       }
       modbus_set_slave(ctx_, options_.unit_id);
       const double whole_s = std::floor(options_.response_timeout_s);
-      modbus_set_response_timeout(ctx_, static_cast<uint32_t>(whole_s),
-                                  static_cast<uint32_t>((options_.response_timeout_s - whole_s) * 1e6));
+      modbus_set_response_timeout(
+          ctx_, static_cast<uint32_t>(whole_s),
+          static_cast<uint32_t>((options_.response_timeout_s - whole_s) * 1e6));
     }
     if (modbus_connect(ctx_) == -1) {
-      return UnavailableError(fmt::format("{}: cannot connect: {}", options_.Describe(),
-                                          modbus_strerror(errno)));
+      return UnavailableError(
+          fmt::format("{}: cannot connect: {}", options_.Describe(), modbus_strerror(errno)));
     }
     connected_ = true;
     return Status::Ok();
@@ -176,8 +180,8 @@ class ModbusTransport::Owner {
       last_error = modbus_strerror(error);
       if (IsExceptionReply(error)) {
         Fail();
-        return FailedPreconditionError(fmt::format("{}: {}: the drive refused: {}",
-                                                   options_.Describe(), what, last_error));
+        return FailedPreconditionError(
+            fmt::format("{}: {}: the drive refused: {}", options_.Describe(), what, last_error));
       }
       if (IsLinkError(error)) {
         modbus_close(ctx_);
@@ -190,8 +194,9 @@ class ModbusTransport::Owner {
       }
     }
     Fail();
-    return UnavailableError(fmt::format("{}: {}: failed after {} attempt(s): {}", options_.Describe(),
-                                        what, options_.retries + 1, last_error));
+    return UnavailableError(fmt::format("{}: {}: failed after {} attempt(s): {}",
+                                        options_.Describe(), what, options_.retries + 1,
+                                        last_error));
   }
 
   TransportStats stats() const {
@@ -263,16 +268,16 @@ ModbusTransport::~ModbusTransport() = default;
 StatusOr<std::unique_ptr<ModbusTransport>> ModbusTransport::Open(const TransportOptions& options) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   std::unique_ptr<ModbusTransport> transport(new ModbusTransport(options));
-  FACEDYN_RETURN_IF_ERROR(transport->owner_->Post([](Owner& owner) {
-    return owner.EnsureConnected();
-  }));
+  FACEDYN_RETURN_IF_ERROR(
+      transport->owner_->Post([](Owner& owner) { return owner.EnsureConnected(); }));
   return transport;
 }
 
 Status ModbusTransport::WriteRegister(int address, uint16_t value) {
   return owner_->Post([address, value](Owner& owner) {
-    return owner.Transact(fmt::format("write register {} (0x{:04X}) = {}", address, address, value),
-                          [&](modbus_t* ctx) { return modbus_write_register(ctx, address, value); });
+    return owner.Transact(
+        fmt::format("write register {} (0x{:04X}) = {}", address, address, value),
+        [&](modbus_t* ctx) { return modbus_write_register(ctx, address, value); });
   });
 }
 
@@ -281,7 +286,8 @@ Status ModbusTransport::WriteRegisters(int address, const std::vector<uint16_t>&
     return owner.Transact(
         fmt::format("write {} registers from {} (0x{:04X})", values.size(), address, address),
         [&](modbus_t* ctx) {
-          return modbus_write_registers(ctx, address, static_cast<int>(values.size()), values.data());
+          return modbus_write_registers(ctx, address, static_cast<int>(values.size()),
+                                        values.data());
         });
   });
 }
@@ -290,15 +296,16 @@ StatusOr<std::vector<uint16_t>> ModbusTransport::ReadRegisters(int address, int 
   FACEDYN_CHECK(count > 0 && count <= MODBUS_MAX_READ_REGISTERS, "bad register count");
   std::vector<uint16_t> values(static_cast<size_t>(count));
   FACEDYN_RETURN_IF_ERROR(owner_->Post([address, count, &values](Owner& owner) {
-    return owner.Transact(fmt::format("read {} register(s) from {} (0x{:04X})", count, address, address),
-                          [&](modbus_t* ctx) {
-                            const int rc = modbus_read_registers(ctx, address, count, values.data());
-                            if (rc != -1 && rc != count) {
-                              errno = EMBBADDATA;
-                              return -1;
-                            }
-                            return rc;
-                          });
+    return owner.Transact(
+        fmt::format("read {} register(s) from {} (0x{:04X})", count, address, address),
+        [&](modbus_t* ctx) {
+          const int rc = modbus_read_registers(ctx, address, count, values.data());
+          if (rc != -1 && rc != count) {
+            errno = EMBBADDATA;
+            return -1;
+          }
+          return rc;
+        });
   }));
   return values;
 }

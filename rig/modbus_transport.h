@@ -33,7 +33,7 @@ struct TransportOptions {
   // RTU
   std::string device;  // e.g. /dev/ttyUSB0
   int baud = 19200;
-  char parity = 'N';   // 'N', 'E' or 'O'
+  char parity = 'N';  // 'N', 'E' or 'O'
   int data_bits = 8;
   int stop_bits = 1;
   double rtu_gap_s = 0.005;  // silence kept between the end of one transaction and the next

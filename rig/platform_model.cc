@@ -1,9 +1,9 @@
 #include "rig/platform_model.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
-
-#include <fmt/format.h>
 
 namespace facedyn::rig {
 
@@ -27,14 +27,16 @@ double PlatformModel::MotorHzFor(double platform_hz) const {
 
 Status TrimOptions::Check() const {
   if (!(gain_per_s >= 0.0 && gain_per_s <= 20.0)) {
-    return InvalidArgumentError(fmt::format("platform.trim.gain_per_s: {} is outside [0, 20]", gain_per_s));
+    return InvalidArgumentError(
+        fmt::format("platform.trim.gain_per_s: {} is outside [0, 20]", gain_per_s));
   }
   if (!(max_correction_hz >= 0.0 && max_correction_hz <= 5.0)) {
     return InvalidArgumentError(
         fmt::format("platform.trim.max_correction_hz: {} is outside [0, 5] Hz", max_correction_hz));
   }
   if (!(delay_s >= 0.0 && delay_s <= 30.0)) {
-    return InvalidArgumentError(fmt::format("platform.trim.delay_s: {} is outside [0, 30] s", delay_s));
+    return InvalidArgumentError(
+        fmt::format("platform.trim.delay_s: {} is outside [0, 30] s", delay_s));
   }
   return Status::Ok();
 }
@@ -42,13 +44,14 @@ Status TrimOptions::Check() const {
 void FrequencyTrim::Update(double target_hz, double measured_hz, double dt_s) {
   if (!options_.enabled || !(dt_s > 0.0) || !std::isfinite(measured_hz)) return;
   correction_hz_ += options_.gain_per_s * (target_hz - measured_hz) * dt_s;
-  correction_hz_ = std::clamp(correction_hz_, -options_.max_correction_hz, options_.max_correction_hz);
+  correction_hz_ =
+      std::clamp(correction_hz_, -options_.max_correction_hz, options_.max_correction_hz);
 }
 
 void FrequencyTrim::Jump(double target_hz, double measured_hz) {
   if (!options_.enabled || !std::isfinite(measured_hz)) return;
-  correction_hz_ = std::clamp(correction_hz_ + (target_hz - measured_hz), -options_.max_correction_hz,
-                              options_.max_correction_hz);
+  correction_hz_ = std::clamp(correction_hz_ + (target_hz - measured_hz),
+                              -options_.max_correction_hz, options_.max_correction_hz);
 }
 
 bool FrequencyTrim::saturated() const {
@@ -58,10 +61,12 @@ bool FrequencyTrim::saturated() const {
 
 Status SettleOptions::Check() const {
   if (!(tolerance_hz > 0.0 && tolerance_hz <= 2.0)) {
-    return InvalidArgumentError(fmt::format("platform.settle.tolerance_hz: {} is outside (0, 2] Hz", tolerance_hz));
+    return InvalidArgumentError(
+        fmt::format("platform.settle.tolerance_hz: {} is outside (0, 2] Hz", tolerance_hz));
   }
   if (!(time_s >= 0.0 && time_s <= 120.0)) {
-    return InvalidArgumentError(fmt::format("platform.settle.time_s: {} is outside [0, 120] s", time_s));
+    return InvalidArgumentError(
+        fmt::format("platform.settle.time_s: {} is outside [0, 120] s", time_s));
   }
   return Status::Ok();
 }

@@ -18,11 +18,11 @@ namespace facedyn::rig {
 
 // Platform-side frequency limits (oscillation Hz) and drive-side ceiling (motor Hz).
 struct RigLimits {
-  double min_hz = 6.0;              // requests below are refused
-  double max_hz = 11.0;             // requests above are refused
-  double absolute_max_hz = 11.0;    // never exceeded, whatever max_hz says
-  double motor_max_hz = 13.0;       // the drive setpoint never exceeds this (motor Hz)
-  double max_ramp_hz_per_s = 1.0;   // platform frequency changes no faster than this
+  double min_hz = 6.0;               // requests below are refused
+  double max_hz = 11.0;              // requests above are refused
+  double absolute_max_hz = 11.0;     // never exceeded, whatever max_hz says
+  double motor_max_hz = 13.0;        // the drive setpoint never exceeds this (motor Hz)
+  double max_ramp_hz_per_s = 1.0;    // platform frequency changes no faster than this
   double overspeed_margin_hz = 0.3;  // measured > absolute_max_hz + margin: stop
 
   Status Check() const;
@@ -34,7 +34,7 @@ struct SafetyOptions {
   // (0: leave the drive's setting alone). The drive stops on its own when facedyn goes silent
   // for this long. Must be at least 3 control periods.
   double comm_watchdog_s = 1.0;
-  double stop_timeout_s = 20.0;   // how long a ramp to stop may take before it is an error
+  double stop_timeout_s = 20.0;  // how long a ramp to stop may take before it is an error
 
   Status Check() const;
 };

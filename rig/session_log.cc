@@ -1,14 +1,13 @@
 #include "rig/session_log.h"
 
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
 #include <ctime>
 #include <memory>
-
-#include <fmt/format.h>
 
 #include "core/file_util.h"
 
@@ -30,12 +29,17 @@ std::string WallClockUtc() {
 }  // namespace
 
 SessionLog::SessionLog(std::string path, int fd, int64_t start_t_ns)
-    : path_(std::move(path)), fd_(fd), start_t_ns_(start_t_ns), opened_(std::chrono::steady_clock::now()) {}
+    : path_(std::move(path)),
+      fd_(fd),
+      start_t_ns_(start_t_ns),
+      opened_(std::chrono::steady_clock::now()) {}
 
-StatusOr<std::unique_ptr<SessionLog>> SessionLog::Open(const std::string& path, int64_t start_t_ns) {
+StatusOr<std::unique_ptr<SessionLog>> SessionLog::Open(const std::string& path,
+                                                       int64_t start_t_ns) {
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
   if (fd < 0) {
-    return UnavailableError(fmt::format("{}: cannot open the session log: {}", path, std::strerror(errno)));
+    return UnavailableError(
+        fmt::format("{}: cannot open the session log: {}", path, std::strerror(errno)));
   }
   return std::unique_ptr<SessionLog>(new SessionLog(path, fd, start_t_ns));
 }
@@ -46,7 +50,8 @@ SessionLog::~SessionLog() {
 
 int64_t SessionLog::NowNs() const {
   return start_t_ns_ + std::chrono::duration_cast<std::chrono::nanoseconds>(
-                           std::chrono::steady_clock::now() - opened_).count();
+                           std::chrono::steady_clock::now() - opened_)
+                           .count();
 }
 
 void SessionLog::Write(const std::string& event, Json fields) {
@@ -63,8 +68,8 @@ void SessionLog::Write(const std::string& event, Json fields) {
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
       if (status_.ok()) {
-        status_ = UnavailableError(fmt::format("{}: cannot append to the session log: {}", path_,
-                                               std::strerror(errno)));
+        status_ = UnavailableError(
+            fmt::format("{}: cannot append to the session log: {}", path_, std::strerror(errno)));
       }
       return;
     }

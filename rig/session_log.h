@@ -24,7 +24,8 @@ namespace facedyn::rig {
 class SessionLog {
  public:
   // Opens (creating or appending to) `path`. `start_t_ns` continues an earlier session clock.
-  static StatusOr<std::unique_ptr<SessionLog>> Open(const std::string& path, int64_t start_t_ns = 0);
+  static StatusOr<std::unique_ptr<SessionLog>> Open(const std::string& path,
+                                                    int64_t start_t_ns = 0);
   ~SessionLog();
   SessionLog(const SessionLog&) = delete;
   SessionLog& operator=(const SessionLog&) = delete;

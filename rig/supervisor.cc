@@ -1,19 +1,18 @@
 #include "rig/supervisor.h"
 
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <cmath>
 #include <thread>
-
-#include <fmt/format.h>
-#include <spdlog/spdlog.h>
 
 namespace facedyn::rig {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
-constexpr double kStartGraceS = 1.5;      // a drive may take this long to report "running"
-constexpr double kStoppedBelowHz = 0.05;  // output frequency counted as standstill
+constexpr double kStartGraceS = 1.5;  // a drive may take this long to report "running"
 
 Json StatusJson(const Status& status) {
   if (status.ok()) return "ok";
@@ -24,14 +23,22 @@ Json StatusJson(const Status& status) {
 
 const char* RigStateName(RigState state) {
   switch (state) {
-    case RigState::kIdle: return "idle";
-    case RigState::kRamping: return "ramping";
-    case RigState::kSettling: return "settling";
-    case RigState::kSettled: return "settled";
-    case RigState::kStopping: return "stopping";
-    case RigState::kStopped: return "stopped";
-    case RigState::kFaulted: return "faulted";
-    case RigState::kLinkLost: return "link_lost";
+    case RigState::kIdle:
+      return "idle";
+    case RigState::kRamping:
+      return "ramping";
+    case RigState::kSettling:
+      return "settling";
+    case RigState::kSettled:
+      return "settled";
+    case RigState::kStopping:
+      return "stopping";
+    case RigState::kStopped:
+      return "stopped";
+    case RigState::kFaulted:
+      return "faulted";
+    case RigState::kLinkLost:
+      return "link_lost";
   }
   return "?";
 }
@@ -76,13 +83,14 @@ RigSupervisor::RigSupervisor(const RigConfig& config, SessionLog* log,
       start_(Clock::now()),
       last_tick_(start_) {}
 
-StatusOr<std::unique_ptr<RigSupervisor>> RigSupervisor::Connect(const RigConfig& config, SessionLog* log,
-                                                                const std::atomic<bool>* stop_requested) {
+StatusOr<std::unique_ptr<RigSupervisor>> RigSupervisor::Connect(
+    const RigConfig& config, SessionLog* log, const std::atomic<bool>* stop_requested) {
   FACEDYN_RETURN_IF_ERROR(config.Check());
   std::unique_ptr<RigSupervisor> supervisor(new RigSupervisor(config, log, stop_requested));
   auto transport = ModbusTransport::Open(config.transport);
   if (!transport.ok()) {
-    if (log) log->Write("connect", {{"rig", config.name}, {"result", transport.status().message()}});
+    if (log)
+      log->Write("connect", {{"rig", config.name}, {"result", transport.status().message()}});
     return transport.status().WithContext(fmt::format("rig {}", config.name));
   }
   supervisor->transport_ = std::move(transport).value();
@@ -109,8 +117,11 @@ double RigSupervisor::ElapsedS() const {
 
 void RigSupervisor::SetState(RigState state, const std::string& reason) {
   if (state == state_) return;
-  if (log_) log_->Write("state", {{"from", RigStateName(state_)}, {"to", RigStateName(state)}, {"reason", reason}});
-  spdlog::debug("rig {}: {} -> {} ({})", config_.name, RigStateName(state_), RigStateName(state), reason);
+  if (log_)
+    log_->Write("state",
+                {{"from", RigStateName(state_)}, {"to", RigStateName(state)}, {"reason", reason}});
+  spdlog::debug("rig {}: {} -> {} ({})", config_.name, RigStateName(state_), RigStateName(state),
+                reason);
   state_ = state;
 }
 
@@ -126,12 +137,18 @@ Status RigSupervisor::WriteWatchdog(double seconds) {
   if (!watchdog || !watchdog->register_address) return Status::Ok();
   const double counts = std::round(seconds * watchdog->counts_per_s);
   if (counts < 0 || counts > 65535 || (watchdog->max_s > 0.0 && seconds > watchdog->max_s)) {
-    return InvalidArgumentError(fmt::format("safety.comm_watchdog_s: {} s does not fit {} (max {} s)",
-                                            seconds, watchdog->parameter, watchdog->max_s));
+    return InvalidArgumentError(
+        fmt::format("safety.comm_watchdog_s: {} s does not fit {} (max {} s)", seconds,
+                    watchdog->parameter, watchdog->max_s));
   }
-  const Status written = transport_->WriteRegister(*watchdog->register_address, static_cast<uint16_t>(counts));
-  LogCommand("comm_watchdog", {{"register", *watchdog->register_address}, {"value", counts}, {"seconds", seconds},
-                               {"parameter", watchdog->parameter}}, written);
+  const Status written =
+      transport_->WriteRegister(*watchdog->register_address, static_cast<uint16_t>(counts));
+  LogCommand("comm_watchdog",
+             {{"register", *watchdog->register_address},
+              {"value", counts},
+              {"seconds", seconds},
+              {"parameter", watchdog->parameter}},
+             written);
   return written.WithContext(fmt::format("drive {} {}", config_.profile.name, watchdog->parameter));
 }
 
@@ -144,7 +161,8 @@ Status RigSupervisor::Arm() {
     SetState(RigState::kFaulted, reading.fault_text);
     return FailedPreconditionError(fmt::format(
         "rig {}: the drive is tripped: fault {}; check the platform, then acknowledge with "
-        "`facedyn rig reset --config {}`", config_.name, reading.fault_text, config_.source_path));
+        "`facedyn rig reset --config {}`",
+        config_.name, reading.fault_text, config_.source_path));
   }
   const double watchdog_s = config_.safety.comm_watchdog_s;
   const auto& watchdog = config_.profile.comm_watchdog;
@@ -153,10 +171,15 @@ Status RigSupervisor::Arm() {
       FACEDYN_RETURN_IF_ERROR(WriteWatchdog(watchdog_s));
       watchdog_armed_ = true;
     } else {
-      const std::string where = watchdog ? watchdog->parameter : std::string("its comm-loss parameter");
-      spdlog::warn("rig {}: drive profile {} cannot set the comm watchdog over Modbus: set {} on the "
-                   "drive to {} s", config_.name, config_.profile.name, where, watchdog_s);
-      if (log_) log_->Write("warning", {{"message", fmt::format("comm watchdog not set over Modbus; set {}", where)}});
+      const std::string where =
+          watchdog ? watchdog->parameter : std::string("its comm-loss parameter");
+      spdlog::warn(
+          "rig {}: drive profile {} cannot set the comm watchdog over Modbus: set {} on the "
+          "drive to {} s",
+          config_.name, config_.profile.name, where, watchdog_s);
+      if (log_)
+        log_->Write("warning",
+                    {{"message", fmt::format("comm watchdog not set over Modbus; set {}", where)}});
     }
   }
   if (log_) log_->Write("armed", {{"comm_watchdog_s", watchdog_armed_ ? watchdog_s : 0.0}});
@@ -174,7 +197,9 @@ Status RigSupervisor::ReadPlatform(PlatformReading* reading) {
   reading->output_hz = status->output_hz;
   if (config_.feedback == "sensor") {
     auto words = transport_->ReadRegisters(*config_.profile.oscillation_register, 1);
-    if (!words.ok()) return words.status().WithContext(fmt::format("drive {} oscillation sensor", config_.profile.name));
+    if (!words.ok())
+      return words.status().WithContext(
+          fmt::format("drive {} oscillation sensor", config_.profile.name));
     reading->measured_hz = config_.profile.oscillation_scaling.RegisterToHz((*words)[0]);
   } else {
     reading->measured_hz = model_.PlatformHzFor(status->output_hz);
@@ -202,8 +227,11 @@ StatusOr<PlatformReading> RigSupervisor::ReadOnce() {
 
 Status RigSupervisor::WriteMotorSetpoint(double motor_hz) {
   const Status written = client_->SetFrequencyHz(motor_hz);
-  LogCommand("setpoint", {{"register", config_.profile.setpoint_register}, {"motor_hz", motor_hz},
-                          {"platform_hz", commanded_hz_ + trim_.correction_hz()}}, written);
+  LogCommand("setpoint",
+             {{"register", config_.profile.setpoint_register},
+              {"motor_hz", motor_hz},
+              {"platform_hz", commanded_hz_ + trim_.correction_hz()}},
+             written);
   if (written.ok()) written_motor_hz_ = motor_hz;
   return written;
 }
@@ -214,18 +242,23 @@ Status RigSupervisor::SetTargetHz(double hz) {
   if (!std::isfinite(hz)) {
     refused = InvalidArgumentError(fmt::format("hz: {} is not a number", hz));
   } else if (hz > limits.absolute_max_hz) {
-    refused = InvalidArgumentError(fmt::format("hz: {} Hz is above limits.absolute_max_hz {} Hz of rig {}", hz,
-                                               limits.absolute_max_hz, config_.name));
+    refused = InvalidArgumentError(
+        fmt::format("hz: {} Hz is above limits.absolute_max_hz {} Hz of rig {}", hz,
+                    limits.absolute_max_hz, config_.name));
   } else if (hz < limits.min_hz || hz > limits.max_hz) {
-    refused = InvalidArgumentError(fmt::format("hz: {} Hz is outside limits.min_hz..max_hz {}..{} Hz of rig {}", hz,
-                                               limits.min_hz, limits.max_hz, config_.name));
+    refused = InvalidArgumentError(
+        fmt::format("hz: {} Hz is outside limits.min_hz..max_hz {}..{} Hz of rig {}", hz,
+                    limits.min_hz, limits.max_hz, config_.name));
   }
   if (!refused.ok()) {
-    if (log_) log_->Write("refused", {{"hz", std::isfinite(hz) ? Json(hz) : Json(nullptr)}, {"reason", refused.message()}});
+    if (log_)
+      log_->Write("refused", {{"hz", std::isfinite(hz) ? Json(hz) : Json(nullptr)},
+                              {"reason", refused.message()}});
     return refused;
   }
   if (log_) log_->Write("target", {{"hz", hz}});
-  const bool was_moving = state_ == RigState::kRamping || state_ == RigState::kSettling || state_ == RigState::kSettled;
+  const bool was_moving =
+      state_ == RigState::kRamping || state_ == RigState::kSettling || state_ == RigState::kSettled;
   target_hz_ = hz;
   settle_.Restart();
   jumped_for_target_ = false;
@@ -233,11 +266,15 @@ Status RigSupervisor::SetTargetHz(double hz) {
   if (!was_moving) {
     // From standstill the drive's own acceleration ramp takes the motor up to the first
     // setpoint; from there the supervisor's ramp-rate limit governs every change.
-    commanded_hz_ = std::min(hz, std::max(limits.min_hz, std::min(last_.measured_hz, limits.max_hz)));
+    commanded_hz_ =
+        std::min(hz, std::max(limits.min_hz, std::min(last_.measured_hz, limits.max_hz)));
     trim_.Reset();
     FACEDYN_RETURN_IF_ERROR(FailAndStop(WriteMotorSetpoint(model_.MotorHzFor(commanded_hz_))));
     const Status started = client_->Start();
-    LogCommand("run", {{"register", config_.profile.command_register}, {"value", config_.profile.run_value}}, started);
+    LogCommand(
+        "run",
+        {{"register", config_.profile.command_register}, {"value", config_.profile.run_value}},
+        started);
     FACEDYN_RETURN_IF_ERROR(FailAndStop(started));
     run_commanded_at_s_ = ElapsedS();
   }
@@ -251,17 +288,21 @@ Status RigSupervisor::LinkLost(const Status& error) {
   const auto& watchdog = config_.profile.comm_watchdog;
   std::string fallback;
   if (watchdog_armed_) {
-    fallback = fmt::format("the drive's own comm watchdog ({}, {} s) stops the motor", watchdog->parameter,
-                           config_.safety.comm_watchdog_s);
+    fallback = fmt::format("the drive's own comm watchdog ({}, {} s) stops the motor",
+                           watchdog->parameter, config_.safety.comm_watchdog_s);
   } else if (watchdog) {
-    fallback = fmt::format("the drive stops only if its {} is set on the drive: check the platform", watchdog->parameter);
+    fallback = fmt::format("the drive stops only if its {} is set on the drive: check the platform",
+                           watchdog->parameter);
   } else {
     fallback = "the drive has no comm watchdog known to facedyn: STOP THE PLATFORM BY HAND";
   }
   // One stop attempt: the link may come back for it.
   const Status stop = client_->Stop();
-  LogCommand("stop", {{"register", config_.profile.command_register}, {"value", config_.profile.stop_value},
-                      {"reason", "link lost"}}, stop);
+  LogCommand("stop",
+             {{"register", config_.profile.command_register},
+              {"value", config_.profile.stop_value},
+              {"reason", "link lost"}},
+             stop);
   if (stop.ok()) fallback = "a stop command got through after it";
   if (log_) log_->Write("link_lost", {{"error", error.message()}, {"fallback", fallback}});
   return UnavailableError(fmt::format("rig {}: link to the drive lost ({}); {}", config_.name,
@@ -272,17 +313,20 @@ Status RigSupervisor::FailAndStop(const Status& error) {
   if (error.ok()) return error;
   if (state_ == RigState::kLinkLost || state_ == RigState::kStopping) return error;
   const Status stopped = RampToStop(error.message());
-  if (!stopped.ok()) return error.WithContext(fmt::format("also, ramp to stop failed: {}", stopped.message()));
+  if (!stopped.ok())
+    return error.WithContext(fmt::format("also, ramp to stop failed: {}", stopped.message()));
   return error;
 }
 
 Status RigSupervisor::Tick() {
-  if (StopRequested()) return AbortedError(fmt::format("rig {}: stop requested (signal)", config_.name));
+  if (StopRequested())
+    return AbortedError(fmt::format("rig {}: stop requested (signal)", config_.name));
   const auto period = std::chrono::duration_cast<Clock::duration>(
       std::chrono::duration<double>(config_.safety.control_period_s));
   const auto next = last_tick_ + period;
   while (Clock::now() < next) {
-    if (StopRequested()) return AbortedError(fmt::format("rig {}: stop requested (signal)", config_.name));
+    if (StopRequested())
+      return AbortedError(fmt::format("rig {}: stop requested (signal)", config_.name));
     std::this_thread::sleep_until(std::min(next, Clock::now() + std::chrono::milliseconds(10)));
   }
   const auto now = Clock::now();
@@ -295,8 +339,10 @@ Status RigSupervisor::Tick() {
   if (log_ && (stats.retries != logged_stats_.retries || stats.failures != logged_stats_.failures ||
                stats.reconnects != logged_stats_.reconnects)) {
     // Retried timeouts and corrupt replies (CRC errors) are visible in the journal.
-    log_->Write("link", {{"retries", stats.retries}, {"failures", stats.failures},
-                         {"reconnects", stats.reconnects}, {"transactions", stats.transactions}});
+    log_->Write("link", {{"retries", stats.retries},
+                         {"failures", stats.failures},
+                         {"reconnects", stats.reconnects},
+                         {"transactions", stats.transactions}});
   }
   logged_stats_ = stats;
   if (!read.ok()) {
@@ -309,28 +355,35 @@ Status RigSupervisor::Tick() {
     if (log_) log_->Write("reply", reading.ToJson());
     // Drop the run command so that acknowledging the trip later cannot restart the motor.
     const Status stop = client_->Stop();
-    LogCommand("stop", {{"register", config_.profile.command_register}, {"value", config_.profile.stop_value},
-                        {"reason", "drive tripped"}}, stop);
+    LogCommand("stop",
+               {{"register", config_.profile.command_register},
+                {"value", config_.profile.stop_value},
+                {"reason", "drive tripped"}},
+               stop);
     run_commanded_at_s_ = -1.0;
     target_hz_ = 0.0;
     return FailedPreconditionError(fmt::format(
         "rig {}: the drive tripped: fault {}; check the platform, then acknowledge with "
-        "`facedyn rig reset --config {}`", config_.name, reading.fault_text, config_.source_path));
+        "`facedyn rig reset --config {}`",
+        config_.name, reading.fault_text, config_.source_path));
   }
   if (reading.measured_hz > config_.limits.absolute_max_hz + config_.limits.overspeed_margin_hz) {
     if (log_) log_->Write("reply", reading.ToJson());
     return FailAndStop(FailedPreconditionError(fmt::format(
         "rig {}: overspeed: the platform measures {:.3f} Hz, above limits.absolute_max_hz {} Hz + "
-        "overspeed_margin_hz {} Hz", config_.name, reading.measured_hz, config_.limits.absolute_max_hz,
+        "overspeed_margin_hz {} Hz",
+        config_.name, reading.measured_hz, config_.limits.absolute_max_hz,
         config_.limits.overspeed_margin_hz)));
   }
-  const bool moving_state = state_ == RigState::kRamping || state_ == RigState::kSettling || state_ == RigState::kSettled;
+  const bool moving_state =
+      state_ == RigState::kRamping || state_ == RigState::kSettling || state_ == RigState::kSettled;
   if (moving_state && !reading.running && run_commanded_at_s_ >= 0.0 &&
       reading.time_s - run_commanded_at_s_ > kStartGraceS) {
     if (log_) log_->Write("reply", reading.ToJson());
     return FailAndStop(FailedPreconditionError(fmt::format(
         "rig {}: the drive stopped on its own (not running, output {:.2f} Hz) while facedyn held "
-        "{} Hz: a local stop, its comm watchdog, or an interlock", config_.name, reading.output_hz, target_hz_)));
+        "{} Hz: a local stop, its comm watchdog, or an interlock",
+        config_.name, reading.output_hz, target_hz_)));
   }
   exposure_.Add(reading.measured_hz, dt_s);
 
@@ -348,7 +401,8 @@ Status RigSupervisor::Tick() {
     } else {
       at_speed_since_s_ = -1.0;
     }
-    const bool trim_ready = at_speed_since_s_ >= 0.0 && reading.time_s - at_speed_since_s_ >= config_.trim.delay_s;
+    const bool trim_ready =
+        at_speed_since_s_ >= 0.0 && reading.time_s - at_speed_since_s_ >= config_.trim.delay_s;
     if (trim_ready) {
       if (!jumped_for_target_) {
         trim_.Jump(target_hz_, reading.measured_hz);
@@ -358,12 +412,15 @@ Status RigSupervisor::Tick() {
         trim_.Update(target_hz_, reading.measured_hz, dt_s);
       }
     }
-    settle_.Update(reading.time_s, target_hz_, reading.measured_hz, trim_ready && jumped_for_target_);
+    settle_.Update(reading.time_s, target_hz_, reading.measured_hz,
+                   trim_ready && jumped_for_target_);
     if (ramp_done && state_ == RigState::kRamping) SetState(RigState::kSettling, "ramp done");
     if (settle_.settled() && state_ == RigState::kSettling) {
-      SetState(RigState::kSettled, fmt::format("within {} Hz for {} s", config_.settle.tolerance_hz, config_.settle.time_s));
+      SetState(RigState::kSettled, fmt::format("within {} Hz for {} s", config_.settle.tolerance_hz,
+                                               config_.settle.time_s));
     }
-    if (!settle_.settled() && state_ == RigState::kSettled) SetState(RigState::kSettling, "left the tolerance");
+    if (!settle_.settled() && state_ == RigState::kSettled)
+      SetState(RigState::kSettling, "left the tolerance");
 
     const double motor_hz = model_.MotorHzFor(commanded_hz_ + trim_.correction_hz());
     if (std::abs(motor_hz - written_motor_hz_) >= 0.5 * count_hz) {
@@ -382,6 +439,8 @@ Status RigSupervisor::Tick() {
   if (log_) {
     Json fields = reading.ToJson();
     fields["state"] = RigStateName(state_);
+    fields["tick_s"] =
+        std::chrono::duration<double>(now - start_).count();  // the clock the ramp used
     fields["vibrating_s"] = exposure_.vibrating_s();
     fields["dose_m2_s3"] = exposure_.dose_m2_s3();
     log_->Write("reply", std::move(fields));
@@ -396,14 +455,17 @@ Status RigSupervisor::WaitSettled(double timeout_s) {
     const Status ticked = Tick();
     if (!ticked.ok()) return FailAndStop(ticked);
     if (ElapsedS() > deadline_s) {
-      return FailAndStop(FailedPreconditionError(fmt::format(
-          "rig {}: the platform did not settle at {} Hz within {} s (measured {:.3f} Hz, trim {:+.3f} Hz{})",
-          config_.name, target_hz_, timeout_s, last_.measured_hz, trim_.correction_hz(),
-          trim_.saturated() ? ", at its limit platform.trim.max_correction_hz" : "")));
+      return FailAndStop(FailedPreconditionError(
+          fmt::format("rig {}: the platform did not settle at {} Hz within {} s (measured {:.3f} "
+                      "Hz, trim {:+.3f} Hz{})",
+                      config_.name, target_hz_, timeout_s, last_.measured_hz, trim_.correction_hz(),
+                      trim_.saturated() ? ", at its limit platform.trim.max_correction_hz" : "")));
     }
   }
-  if (log_) log_->Write("settled", {{"target_hz", target_hz_}, {"measured_hz", last_.measured_hz},
-                                    {"correction_hz", trim_.correction_hz()}});
+  if (log_)
+    log_->Write("settled", {{"target_hz", target_hz_},
+                            {"measured_hz", last_.measured_hz},
+                            {"correction_hz", trim_.correction_hz()}});
   return Status::Ok();
 }
 
@@ -436,8 +498,11 @@ Status RigSupervisor::RampToStop(const std::string& reason) {
   target_hz_ = 0.0;
   run_commanded_at_s_ = -1.0;
   const Status stop = client_->Stop();
-  LogCommand("stop", {{"register", config_.profile.command_register}, {"value", config_.profile.stop_value},
-                      {"reason", reason}}, stop);
+  LogCommand("stop",
+             {{"register", config_.profile.command_register},
+              {"value", config_.profile.stop_value},
+              {"reason", reason}},
+             stop);
   if (!stop.ok()) {
     if (stop.code() == StatusCode::kUnavailable) return LinkLost(stop);
     return stop;
@@ -459,11 +524,13 @@ Status RigSupervisor::RampToStop(const std::string& reason) {
       fields["dose_m2_s3"] = exposure_.dose_m2_s3();
       log_->Write("reply", std::move(fields));
     }
-    if (reading.output_hz < kStoppedBelowHz) break;
+    // Standstill is the drive reporting exactly 0 Hz output (register 0), not "nearly stopped".
+    if (reading.output_hz == 0.0 && !reading.running) break;
     if (ElapsedS() > deadline_s) {
-      return FailedPreconditionError(fmt::format("rig {}: still at {:.2f} Hz {} s after the stop command "
-                                                 "(safety.stop_timeout_s)", config_.name, reading.output_hz,
-                                                 config_.safety.stop_timeout_s));
+      return FailedPreconditionError(
+          fmt::format("rig {}: still at {:.2f} Hz {} s after the stop command "
+                      "(safety.stop_timeout_s)",
+                      config_.name, reading.output_hz, config_.safety.stop_timeout_s));
     }
   }
   commanded_hz_ = 0.0;
@@ -485,8 +552,8 @@ Status RigSupervisor::Close() {
   if (closed_ || !client_) return Status::Ok();
   closed_ = true;
   Status result;
-  const bool maybe_moving = state_ == RigState::kRamping || state_ == RigState::kSettling ||
-                            state_ == RigState::kSettled;
+  const bool maybe_moving =
+      state_ == RigState::kRamping || state_ == RigState::kSettling || state_ == RigState::kSettled;
   if (maybe_moving) result = RampToStop("session closed");
   if (watchdog_armed_ && state_ != RigState::kLinkLost) {
     // A stopped drive with an armed comm watchdog would trip once facedyn goes quiet.
@@ -494,7 +561,8 @@ Status RigSupervisor::Close() {
     if (result.ok()) result = disarmed;
     watchdog_armed_ = false;
   }
-  if (log_) log_->Write("close", {{"state", RigStateName(state_)}, {"exposure", exposure_.ToJson()}});
+  if (log_)
+    log_->Write("close", {{"state", RigStateName(state_)}, {"exposure", exposure_.ToJson()}});
   return result;
 }
 
@@ -503,7 +571,8 @@ Status RigSupervisor::Detach() {
     FACEDYN_RETURN_IF_ERROR(WriteWatchdog(0.0));
     watchdog_armed_ = false;
   }
-  if (log_) log_->Write("detach", {{"target_hz", target_hz_}, {"motor_setpoint_hz", written_motor_hz_}});
+  if (log_)
+    log_->Write("detach", {{"target_hz", target_hz_}, {"motor_setpoint_hz", written_motor_hz_}});
   closed_ = true;
   return Status::Ok();
 }

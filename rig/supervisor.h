@@ -35,21 +35,30 @@
 
 namespace facedyn::rig {
 
-enum class RigState { kIdle, kRamping, kSettling, kSettled, kStopping, kStopped, kFaulted, kLinkLost };
+enum class RigState {
+  kIdle,
+  kRamping,
+  kSettling,
+  kSettled,
+  kStopping,
+  kStopped,
+  kFaulted,
+  kLinkLost
+};
 const char* RigStateName(RigState state);
 
 // One control period's view of the platform.
 struct PlatformReading {
-  double time_s = 0.0;          // since the supervisor connected
+  double time_s = 0.0;  // since the supervisor connected
   bool running = false;
   bool faulted = false;
   int fault_code = 0;
   std::string fault_text;
-  double output_hz = 0.0;       // drive output (motor electrical Hz)
-  double measured_hz = 0.0;     // platform oscillation Hz (sensor, or estimated from output)
-  double target_hz = 0.0;       // requested platform Hz (0 when stopping)
-  double commanded_hz = 0.0;    // ramp-limited platform Hz being commanded
-  double correction_hz = 0.0;   // trim
+  double output_hz = 0.0;      // drive output (motor electrical Hz)
+  double measured_hz = 0.0;    // platform oscillation Hz (sensor, or estimated from output)
+  double target_hz = 0.0;      // requested platform Hz (0 when stopping)
+  double commanded_hz = 0.0;   // ramp-limited platform Hz being commanded
+  double correction_hz = 0.0;  // trim
   double motor_setpoint_hz = 0.0;
   bool settled = false;
 

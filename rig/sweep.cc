@@ -1,5 +1,7 @@
 #include "rig/sweep.h"
 
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <sys/stat.h>
 
 #include <algorithm>
@@ -7,9 +9,6 @@
 #include <cstdio>
 #include <map>
 #include <set>
-
-#include <fmt/format.h>
-#include <spdlog/spdlog.h>
 
 #include "core/file_util.h"
 #include "rig/session_log.h"
@@ -46,7 +45,8 @@ Status ReadStepFields(const ConfigNode& node, bool hz_required, SweepStep* step)
     FACEDYN_ASSIGN_OR_RETURN(step->hz, node.Get<double>("hz"));
   }
   if (node.Has("settle_timeout_s")) {
-    FACEDYN_ASSIGN_OR_RETURN(step->settle_timeout_s, node.GetInRange("settle_timeout_s", 0.1, 3600.0));
+    FACEDYN_ASSIGN_OR_RETURN(step->settle_timeout_s,
+                             node.GetInRange("settle_timeout_s", 0.1, 3600.0));
   }
   if (node.Has("settle_s")) {
     FACEDYN_ASSIGN_OR_RETURN(step->settle_s, node.GetInRange("settle_s", 0.0, 3600.0));
@@ -70,7 +70,8 @@ Status ReadStepFields(const ConfigNode& node, bool hz_required, SweepStep* step)
   return Status::Ok();
 }
 
-const std::vector<std::string> kStepFields = {"hz", "settle_timeout_s", "settle_s", "hold_s", "prompt", "repeats"};
+const std::vector<std::string> kStepFields = {"hz",     "settle_timeout_s", "settle_s",
+                                              "hold_s", "prompt",           "repeats"};
 
 }  // namespace
 
@@ -90,10 +91,13 @@ Status SweepScript::CheckAgainst(const RigConfig& rig) const {
   for (size_t i = 0; i < steps.size(); ++i) {
     const SweepStep& step = steps[i];
     const RigLimits& l = rig.limits;
-    if (!std::isfinite(step.hz) || step.hz < l.min_hz || step.hz > l.max_hz || step.hz > l.absolute_max_hz) {
-      return InvalidArgumentError(fmt::format(
-          "{}:{}: field 'steps[{}].hz': {} Hz is outside the rig {}'s limits.min_hz..max_hz {}..{} Hz",
-          source_path, step.line, i, step.hz, rig.name, l.min_hz, std::min(l.max_hz, l.absolute_max_hz)));
+    if (!std::isfinite(step.hz) || step.hz < l.min_hz || step.hz > l.max_hz ||
+        step.hz > l.absolute_max_hz) {
+      return InvalidArgumentError(
+          fmt::format("{}:{}: field 'steps[{}].hz': {} Hz is outside the rig {}'s "
+                      "limits.min_hz..max_hz {}..{} Hz",
+                      source_path, step.line, i, step.hz, rig.name, l.min_hz,
+                      std::min(l.max_hz, l.absolute_max_hz)));
     }
   }
   return Status::Ok();
@@ -105,9 +109,11 @@ StatusOr<SweepScript> LoadSweepScript(const std::string& path) {
   return ParseSweepScript(root, DirectoryOf(path), Fnv1a64(text));
 }
 
-StatusOr<SweepScript> ParseSweepScript(const ConfigNode& root, const std::string& base_dir, uint64_t text_hash) {
+StatusOr<SweepScript> ParseSweepScript(const ConfigNode& root, const std::string& base_dir,
+                                       uint64_t text_hash) {
   if (!root.IsMap()) return root.Error("a sweep script must be a map");
-  FACEDYN_RETURN_IF_ERROR(CheckKnownFields(root, {"name", "description", "rig", "defaults", "steps", "grid"}));
+  FACEDYN_RETURN_IF_ERROR(
+      CheckKnownFields(root, {"name", "description", "rig", "defaults", "steps", "grid"}));
   SweepScript script;
   script.source_path = root.source();
   script.text_hash = text_hash;
@@ -129,7 +135,8 @@ StatusOr<SweepScript> ParseSweepScript(const ConfigNode& root, const std::string
   }
   if (root.Has("steps")) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode steps, root.Child("steps"));
-    if (!steps.IsSequence() || steps.size() == 0) return steps.Error("expected a non-empty list of steps");
+    if (!steps.IsSequence() || steps.size() == 0)
+      return steps.Error("expected a non-empty list of steps");
     for (size_t i = 0; i < steps.size(); ++i) {
       FACEDYN_ASSIGN_OR_RETURN(const ConfigNode node, steps.At(i));
       FACEDYN_RETURN_IF_ERROR(CheckKnownFields(node, kStepFields));
@@ -146,14 +153,18 @@ StatusOr<SweepScript> ParseSweepScript(const ConfigNode& root, const std::string
     FACEDYN_RETURN_IF_ERROR(CheckKnownFields(grid, allowed));
     SweepStep cell = defaults;
     FACEDYN_RETURN_IF_ERROR(ReadStepFields(grid, /*hz_required=*/false, &cell));
-    FACEDYN_ASSIGN_OR_RETURN(const std::vector<double> frequencies, grid.Get<std::vector<double>>("frequencies_hz"));
-    if (frequencies.empty()) return grid.Error("frequencies_hz", "must list at least one frequency");
+    FACEDYN_ASSIGN_OR_RETURN(const std::vector<double> frequencies,
+                             grid.Get<std::vector<double>>("frequencies_hz"));
+    if (frequencies.empty())
+      return grid.Error("frequencies_hz", "must list at least one frequency");
     std::vector<std::string> prompts = {""};
     if (grid.Has("prompts")) {
       FACEDYN_ASSIGN_OR_RETURN(prompts, grid.Get<std::vector<std::string>>("prompts"));
-      if (prompts.empty()) return grid.Error("prompts", "must list at least one prompt (or leave it out)");
+      if (prompts.empty())
+        return grid.Error("prompts", "must list at least one prompt (or leave it out)");
     }
-    FACEDYN_ASSIGN_OR_RETURN(const std::string order, grid.GetOr<std::string>("order", "prompt_major"));
+    FACEDYN_ASSIGN_OR_RETURN(const std::string order,
+                             grid.GetOr<std::string>("order", "prompt_major"));
     if (order != "prompt_major" && order != "frequency_major") {
       return grid.Error("order", fmt::format("'{}' is not prompt_major or frequency_major", order));
     }
@@ -177,8 +188,9 @@ StatusOr<SweepScript> ParseSweepScript(const ConfigNode& root, const std::string
   // applies the rig's limits.
   for (size_t i = 0; i < script.steps.size(); ++i) {
     if (!(script.steps[i].hz > 0.0) || !std::isfinite(script.steps[i].hz)) {
-      return InvalidArgumentError(fmt::format("{}:{}: field 'steps[{}].hz': {} is not a positive frequency",
-                                              script.source_path, script.steps[i].line, i, script.steps[i].hz));
+      return InvalidArgumentError(
+          fmt::format("{}:{}: field 'steps[{}].hz': {} is not a positive frequency",
+                      script.source_path, script.steps[i].line, i, script.steps[i].hz));
     }
   }
   return script;
@@ -253,7 +265,8 @@ StatusOr<PriorSession> ReadPrior(const std::string& log_path, const SweepScript&
   PriorSession prior;
   bool truncated = false;
   FACEDYN_ASSIGN_OR_RETURN(const std::vector<Json> records, ReadSessionLog(log_path, &truncated));
-  if (truncated) spdlog::warn("{}: the last line was cut off (crash mid-write); ignoring it", log_path);
+  if (truncated)
+    spdlog::warn("{}: the last line was cut off (crash mid-write); ignoring it", log_path);
   const std::string hash = fmt::format("{:016x}", script.text_hash);
   for (const Json& r : records) {
     const std::string event = r["event"].get<std::string>();
@@ -266,8 +279,9 @@ StatusOr<PriorSession> ReadPrior(const std::string& log_path, const SweepScript&
       if (r.value("script_hash", std::string()) != hash) {
         return FailedPreconditionError(fmt::format(
             "{}: this session was started with a different sweep script ({} hash {}, now {}); "
-            "resume with the original file or start a new --session", log_path, r.value("script", std::string("?")),
-            r.value("script_hash", std::string("?")), hash));
+            "resume with the original file or start a new --session",
+            log_path, r.value("script", std::string("?")), r.value("script_hash", std::string("?")),
+            hash));
       }
       prior.started = true;
     } else if (event == "step_start") {
@@ -275,7 +289,8 @@ StatusOr<PriorSession> ReadPrior(const std::string& log_path, const SweepScript&
     } else if (event == "step_done") {
       const int instance = r["instance"].get<int>();
       if (prior.done.count(instance)) {
-        return DataLossError(fmt::format("{}: step instance {} is marked done twice", log_path, instance));
+        return DataLossError(
+            fmt::format("{}: step instance {} is marked done twice", log_path, instance));
       }
       SweepStepResult result;
       result.instance = instance;
@@ -289,14 +304,16 @@ StatusOr<PriorSession> ReadPrior(const std::string& log_path, const SweepScript&
     }
   }
   if (!prior.started) {
-    return FailedPreconditionError(fmt::format("{}: no sweep_start record: not a sweep session log", log_path));
+    return FailedPreconditionError(
+        fmt::format("{}: no sweep_start record: not a sweep session log", log_path));
   }
   return prior;
 }
 
 }  // namespace
 
-StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig, const SweepOptions& options) {
+StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig,
+                               const SweepOptions& options) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   FACEDYN_RETURN_IF_ERROR(script.CheckAgainst(rig));  // before anything moves
   FACEDYN_RETURN_IF_ERROR(MakeDirectories(options.session_dir));
@@ -309,7 +326,8 @@ StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig, 
   const bool has_log = FileExists(result.log_path);
   if (options.resume) {
     if (!has_log) {
-      return NotFoundError(fmt::format("--resume: {} does not exist; start the sweep without --resume", result.log_path));
+      return NotFoundError(fmt::format(
+          "--resume: {} does not exist; start the sweep without --resume", result.log_path));
     }
     FACEDYN_ASSIGN_OR_RETURN(prior, ReadPrior(result.log_path, script));
     for (const auto& [instance, done] : prior.done) {
@@ -320,27 +338,33 @@ StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig, 
     }
   } else if (has_log) {
     return FailedPreconditionError(fmt::format(
-        "{} already exists: continue that session with --resume, or choose a new --session", result.log_path));
+        "{} already exists: continue that session with --resume, or choose a new --session",
+        result.log_path));
   }
 
   FACEDYN_ASSIGN_OR_RETURN(auto log, SessionLog::Open(result.log_path, prior.last_t_ns));
   if (options.resume) {
-    log->Write("resume", {{"done", prior.done.size()}, {"interrupted_instance", prior.interrupted},
+    log->Write("resume", {{"done", prior.done.size()},
+                          {"interrupted_instance", prior.interrupted},
                           {"finished", prior.finished}});
   } else {
-    log->Write("sweep_start", {{"script", script.source_path}, {"name", script.name},
+    log->Write("sweep_start", {{"script", script.source_path},
+                               {"name", script.name},
                                {"script_hash", fmt::format("{:016x}", script.text_hash)},
-                               {"instances", instances.size()}, {"rig", rig.name}});
+                               {"instances", instances.size()},
+                               {"rig", rig.name}});
   }
   result.skipped = static_cast<int>(prior.done.size());
 
   const bool all_done = prior.done.size() == instances.size();
   if (!all_done) {
-    FACEDYN_ASSIGN_OR_RETURN(auto supervisor, RigSupervisor::Connect(rig, log.get(), options.stop_requested));
+    FACEDYN_ASSIGN_OR_RETURN(auto supervisor,
+                             RigSupervisor::Connect(rig, log.get(), options.stop_requested));
     supervisor->exposure().Restore(prior.vibrating_s, prior.dose_m2_s3);
     // A failure anywhere below ramps to stop inside the supervisor; the step stays undone.
     auto fail = [&](const SweepStepInfo* info, const Status& error) {
-      log->Write("sweep_aborted", {{"instance", info ? info->instance : -1}, {"reason", error.message()}});
+      log->Write("sweep_aborted",
+                 {{"instance", info ? info->instance : -1}, {"reason", error.message()}});
       return error;
     };
     const Status armed = supervisor->Arm();
@@ -348,8 +372,12 @@ StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig, 
     for (const SweepStepInfo& info : instances) {
       if (prior.done.count(info.instance)) continue;
       const SweepStep& spec = info.spec;
-      log->Write("step_start", {{"instance", info.instance}, {"step", info.step}, {"repeat", info.repeat},
-                                {"hz", spec.hz}, {"prompt", spec.prompt}, {"hold_s", spec.hold_s}});
+      log->Write("step_start", {{"instance", info.instance},
+                                {"step", info.step},
+                                {"repeat", info.repeat},
+                                {"hz", spec.hz},
+                                {"prompt", spec.prompt},
+                                {"hold_s", spec.hold_s}});
       if (options.print_prompts) {
         std::printf("[%d/%d] %.2f Hz%s%s\n", info.instance + 1, info.instance_count, spec.hz,
                     spec.prompt.empty() ? "" : "  hold: ", spec.prompt.c_str());
@@ -359,22 +387,30 @@ StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig, 
       if (status.ok()) status = supervisor->WaitSettled(spec.settle_timeout_s);
       if (status.ok() && spec.settle_s > 0.0) status = supervisor->Hold(spec.settle_s).status();
       if (status.ok() && options.hooks.on_hold_start) {
-        status = options.hooks.on_hold_start(info).WithContext(fmt::format("step {} hook", info.instance));
+        status = options.hooks.on_hold_start(info).WithContext(
+            fmt::format("step {} hook", info.instance));
       }
-      StatusOr<HoldSummary> hold = status.ok() ? supervisor->Hold(spec.hold_s) : StatusOr<HoldSummary>(status);
+      StatusOr<HoldSummary> hold =
+          status.ok() ? supervisor->Hold(spec.hold_s) : StatusOr<HoldSummary>(status);
       if (hold.ok() && options.hooks.on_hold_end) {
-        status = options.hooks.on_hold_end(info, *hold).WithContext(fmt::format("step {} hook", info.instance));
+        status = options.hooks.on_hold_end(info, *hold)
+                     .WithContext(fmt::format("step {} hook", info.instance));
         if (!status.ok()) hold = status;
       }
       if (!hold.ok()) {
-        if (supervisor->state() != RigState::kStopped && supervisor->state() != RigState::kLinkLost &&
+        if (supervisor->state() != RigState::kStopped &&
+            supervisor->state() != RigState::kLinkLost &&
             supervisor->state() != RigState::kFaulted) {
           (void)supervisor->RampToStop(hold.status().message());
         }
         return fail(&info, hold.status());
       }
-      log->Write("step_done", {{"instance", info.instance}, {"step", info.step}, {"repeat", info.repeat},
-                               {"hz", spec.hz}, {"prompt", spec.prompt}, {"hold", hold->ToJson()},
+      log->Write("step_done", {{"instance", info.instance},
+                               {"step", info.step},
+                               {"repeat", info.repeat},
+                               {"hz", spec.hz},
+                               {"prompt", spec.prompt},
+                               {"hold", hold->ToJson()},
                                {"exposure", supervisor->exposure().ToJson()}});
       SweepStepResult step_result;
       step_result.instance = info.instance;
@@ -393,7 +429,8 @@ StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig, 
     result.exposure = exposure.ToJson();
   }
   for (const auto& [instance, step] : prior.done) result.steps.push_back(step);
-  if (!prior.finished) log->Write("sweep_done", {{"instances", instances.size()}, {"exposure", result.exposure}});
+  if (!prior.finished)
+    log->Write("sweep_done", {{"instances", instances.size()}, {"exposure", result.exposure}});
   FACEDYN_RETURN_IF_ERROR(log->status());
   Json summary = result.ToJson();
   summary["sweep"] = script.name;

@@ -52,7 +52,7 @@ struct SweepScript {
   std::string name;
   std::string description;
   std::string source_path;
-  std::string rig_path;  // resolved against the script's folder; "" when not given
+  std::string rig_path;          // resolved against the script's folder; "" when not given
   std::vector<SweepStep> steps;  // grid already expanded, in run order
   uint64_t text_hash = 0;        // FNV-1a of the file's bytes
 
@@ -65,14 +65,15 @@ struct SweepScript {
 };
 
 StatusOr<SweepScript> LoadSweepScript(const std::string& path);
-StatusOr<SweepScript> ParseSweepScript(const ConfigNode& root, const std::string& base_dir, uint64_t text_hash);
+StatusOr<SweepScript> ParseSweepScript(const ConfigNode& root, const std::string& base_dir,
+                                       uint64_t text_hash);
 
 // One step instance as the runner and its hooks see it.
 struct SweepStepInfo {
   int instance = 0;  // 0-based position in the expanded sweep
   int instance_count = 0;
-  int step = 0;      // index into SweepScript::steps
-  int repeat = 0;    // 0-based
+  int step = 0;    // index into SweepScript::steps
+  int repeat = 0;  // 0-based
   SweepStep spec;
 };
 
@@ -90,7 +91,7 @@ struct SweepOptions {
   bool resume = false;
   SweepHooks hooks;
   const std::atomic<bool>* stop_requested = nullptr;  // SIGINT/SIGTERM flag
-  bool print_prompts = true;  // "[3/12] 8.00 Hz  hold: smile" on stdout
+  bool print_prompts = true;                          // "[3/12] 8.00 Hz  hold: smile" on stdout
 
   Status Check() const;
 };
@@ -106,7 +107,7 @@ struct SweepStepResult {
 struct SweepResult {
   std::string log_path;
   std::string summary_path;
-  int skipped = 0;  // instances already done before --resume
+  int skipped = 0;                     // instances already done before --resume
   std::vector<SweepStepResult> steps;  // every completed instance, in order
   Json exposure;
 
@@ -116,6 +117,7 @@ struct SweepResult {
 // Runs (or resumes) the sweep in options.session_dir: rig_log.jsonl is the journal,
 // sweep_summary.json the result. The script is validated against the rig before anything
 // moves. Ends with the platform stopped, whatever happens.
-StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig, const SweepOptions& options);
+StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig,
+                               const SweepOptions& options);
 
 }  // namespace facedyn::rig

@@ -115,7 +115,8 @@ class UsbPlatformController {
   const UsbControllerOptions& options() const { return options_; }
 
  private:
-  UsbPlatformController(const UsbControllerOptions& options, libusb_context* context, libusb_device_handle* handle);
+  UsbPlatformController(const UsbControllerOptions& options, libusb_context* context,
+                        libusb_device_handle* handle);
   Status Out(UsbRequest request, uint16_t value, uint16_t index, const char* name);
   StatusOr<std::vector<uint8_t>> In(UsbRequest request, uint16_t length, const char* name);
 

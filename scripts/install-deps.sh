@@ -26,6 +26,8 @@ packages=(
   python3-pymodbus python3-serial python3-serial-asyncio socat umockdev
   # Aravis's fake GigE Vision camera (arv-fake-gv-camera-0.8; aravis-tools-cli has only arv-tool)
   aravis-tools
+  # GStreamer's videotestsrc/appsink, for the OpenCV backend's GStreamer-pipeline test
+  gstreamer1.0-plugins-base
   # the demo report is checked by a screenshot in headless Chromium (tests/app/report_test)
   chromium
 )

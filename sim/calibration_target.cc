@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
 #include <opencv2/aruco/charuco.hpp>
 #include <opencv2/core.hpp>
 
@@ -13,12 +12,14 @@ Status CalibrationBoard::Check() const {
   if (squares_x < 3 || squares_x > 64 || squares_y < 3 || squares_y > 64) {
     return InvalidArgumentError("board squares_x and squares_y must be in 3..64");
   }
-  if (!(square_mm > 0 && square_mm < 1000)) return InvalidArgumentError("board square_mm must be in (0, 1000)");
+  if (!(square_mm > 0 && square_mm < 1000))
+    return InvalidArgumentError("board square_mm must be in (0, 1000)");
   if (kind == BoardKind::kCharuco && !(marker_mm > 0 && marker_mm < square_mm)) {
     return InvalidArgumentError("board marker_mm must be in (0, square_mm)");
   }
   if (!(margin_mm >= 0)) return InvalidArgumentError("board margin_mm must be >= 0");
-  if (aruco_dictionary < 0 || aruco_dictionary > 20) return InvalidArgumentError("board aruco_dictionary must be 0..20");
+  if (aruco_dictionary < 0 || aruco_dictionary > 20)
+    return InvalidArgumentError("board aruco_dictionary must be 0..20");
   return Status::Ok();
 }
 
@@ -36,12 +37,15 @@ BoardRenderer::BoardRenderer(const CalibrationBoard& board, const RenderOptions&
   FACEDYN_CHECK(options.Check().ok(), "BoardRenderer: " + options.Check().message());
   if (board.kind == BoardKind::kCharuco) {
     texture_px_per_mm_ = 8.0;
-    texture_width_ = static_cast<int>(std::lround(board.squares_x * board.square_mm * texture_px_per_mm_));
-    texture_height_ = static_cast<int>(std::lround(board.squares_y * board.square_mm * texture_px_per_mm_));
-    cv::Ptr<cv::aruco::Dictionary> dictionary = cv::aruco::getPredefinedDictionary(board.aruco_dictionary);
+    texture_width_ =
+        static_cast<int>(std::lround(board.squares_x * board.square_mm * texture_px_per_mm_));
+    texture_height_ =
+        static_cast<int>(std::lround(board.squares_y * board.square_mm * texture_px_per_mm_));
+    cv::Ptr<cv::aruco::Dictionary> dictionary =
+        cv::aruco::getPredefinedDictionary(board.aruco_dictionary);
     cv::Ptr<cv::aruco::CharucoBoard> charuco = cv::aruco::CharucoBoard::create(
-        board.squares_x, board.squares_y, static_cast<float>(board.square_mm), static_cast<float>(board.marker_mm),
-        dictionary);
+        board.squares_x, board.squares_y, static_cast<float>(board.square_mm),
+        static_cast<float>(board.marker_mm), dictionary);
     cv::Mat image;
     charuco->draw(cv::Size(texture_width_, texture_height_), image, 0, 1);
     texture_.assign(image.datastart, image.dataend);
@@ -49,10 +53,13 @@ BoardRenderer::BoardRenderer(const CalibrationBoard& board, const RenderOptions&
 }
 
 float BoardRenderer::Albedo(double u, double v) const {
-  const double width = board_.squares_x * board_.square_mm, height = board_.squares_y * board_.square_mm;
-  if (u < 0 || v < 0 || u >= width || v >= height) return static_cast<float>(board_.white_albedo);  // margin
+  const double width = board_.squares_x * board_.square_mm,
+               height = board_.squares_y * board_.square_mm;
+  if (u < 0 || v < 0 || u >= width || v >= height)
+    return static_cast<float>(board_.white_albedo);  // margin
   if (board_.kind == BoardKind::kChessboard) {
-    const int i = static_cast<int>(u / board_.square_mm), j = static_cast<int>(v / board_.square_mm);
+    const int i = static_cast<int>(u / board_.square_mm),
+              j = static_cast<int>(v / board_.square_mm);
     return static_cast<float>(((i + j) % 2 == 0) ? board_.black_albedo : board_.white_albedo);
   }
   const int tx = std::min(texture_width_ - 1, static_cast<int>(u * texture_px_per_mm_));
@@ -61,8 +68,8 @@ float BoardRenderer::Albedo(double u, double v) const {
   return static_cast<float>(board_.black_albedo + (board_.white_albedo - board_.black_albedo) * t);
 }
 
-std::vector<Eigen::Vector2d> BoardRenderer::ProjectInnerCorners(const capture::CameraModel& camera,
-                                                                const Rigid3& world_from_board) const {
+std::vector<Eigen::Vector2d> BoardRenderer::ProjectInnerCorners(
+    const capture::CameraModel& camera, const Rigid3& world_from_board) const {
   std::vector<Eigen::Vector2d> pixels;
   for (const Eigen::Vector3d& corner : board_.InnerCornersInBoard()) {
     Eigen::Vector2d pixel;
@@ -74,16 +81,18 @@ std::vector<Eigen::Vector2d> BoardRenderer::ProjectInnerCorners(const capture::C
   return pixels;
 }
 
-void BoardRenderer::Render(const capture::CameraModel& camera, const Rigid3& world_from_board, uint64_t noise_key,
-                           uint8_t* out) const {
+void BoardRenderer::Render(const capture::CameraModel& camera, const Rigid3& world_from_board,
+                           uint64_t noise_key, uint8_t* out) const {
   const int width = camera.width_px, height = camera.height_px, s = options_.supersample;
-  std::vector<float> radiance(static_cast<size_t>(width) * height * s * s, static_cast<float>(options_.background));
+  std::vector<float> radiance(static_cast<size_t>(width) * height * s * s,
+                              static_cast<float>(options_.background));
   const Rigid3 board_from_cam = (camera.cam_from_world * world_from_board).Inverse();
   const Eigen::Vector3d origin = board_from_cam.translation();  // camera centre in the board frame
   const Eigen::Matrix3d rotation = board_from_cam.RotationMatrix();
   const Eigen::Vector3d normal_in_cam = board_from_cam.Inverse().RotationMatrix().col(2);
   // Pixels the board can cover: the projected outline (sampled edges, distortion included).
-  const double w_mm = board_.squares_x * board_.square_mm, h_mm = board_.squares_y * board_.square_mm;
+  const double w_mm = board_.squares_x * board_.square_mm,
+               h_mm = board_.squares_y * board_.square_mm;
   double min_x = 1e30, min_y = 1e30, max_x = -1e30, max_y = -1e30;
   bool any_behind = false;
   for (int i = 0; i <= 32; ++i) {
@@ -126,8 +135,8 @@ void BoardRenderer::Render(const capture::CameraModel& camera, const Rigid3& wor
           const double lambda = -origin.z() / direction.z();
           if (lambda <= 0) continue;
           const Eigen::Vector3d hit = origin + lambda * direction;
-          if (hit.x() < -board_.margin_mm || hit.y() < -board_.margin_mm || hit.x() > w_mm + board_.margin_mm ||
-              hit.y() > h_mm + board_.margin_mm) {
+          if (hit.x() < -board_.margin_mm || hit.y() < -board_.margin_mm ||
+              hit.x() > w_mm + board_.margin_mm || hit.y() > h_mm + board_.margin_mm) {
             continue;
           }
           const double ndl = std::abs(normal_in_cam.dot(ray_in_cam.normalized()));

@@ -14,10 +14,9 @@
 // is the face renderer's (sim/virtual_camera.h FinishRadiance).
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "capture/camera_model.h"
 #include "core/rigid3.h"
@@ -33,9 +32,9 @@ struct CalibrationBoard {
   int squares_x = 10;  // squares along X (inner corners: squares_x - 1)
   int squares_y = 7;
   double square_mm = 20.0;
-  double marker_mm = 14.0;      // ChArUco marker side
-  int aruco_dictionary = 0;     // cv::aruco::PREDEFINED_DICTIONARY_NAME, 0 = DICT_4X4_50
-  double margin_mm = 15.0;      // white border around the squares
+  double marker_mm = 14.0;   // ChArUco marker side
+  int aruco_dictionary = 0;  // cv::aruco::PREDEFINED_DICTIONARY_NAME, 0 = DICT_4X4_50
+  double margin_mm = 15.0;   // white border around the squares
   double white_albedo = 0.85;
   double black_albedo = 0.04;
 
@@ -50,8 +49,8 @@ class BoardRenderer {
   BoardRenderer(const CalibrationBoard& board, const RenderOptions& options);
 
   // Renders the board at `world_from_board` into `out` (camera size, mono8).
-  void Render(const capture::CameraModel& camera, const Rigid3& world_from_board, uint64_t noise_key,
-              uint8_t* out) const;
+  void Render(const capture::CameraModel& camera, const Rigid3& world_from_board,
+              uint64_t noise_key, uint8_t* out) const;
   // Ground truth: the inner corners' pixels (NaN when behind the camera or off the image).
   std::vector<Eigen::Vector2d> ProjectInnerCorners(const capture::CameraModel& camera,
                                                    const Rigid3& world_from_board) const;

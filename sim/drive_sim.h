@@ -9,7 +9,8 @@
 //   request arrived for watchdog_s seconds while running. The platform (an eccentric mass on
 //   an induction motor) oscillates at
 //
-//       platform_hz = output_hz * platform_ratio * (1 - s),   s = slip_base + slip_load * (output_hz / slip_reference_hz)^2
+//       platform_hz = output_hz * platform_ratio * (1 - s),
+//       s = slip_base + slip_load * (output_hz / slip_reference_hz)^2
 //
 //   i.e. the rotor lags the drive's electrical frequency by a slip that grows with the load the
 //   mass puts on it. The oscillation sensor integrates the platform's phase and reports the
@@ -20,14 +21,17 @@
 // - DriveSim: a server thread that owns a libmodbus context — TCP on host:port (port 0 picks
 //   a free port) serving any number of clients, or RTU on a serial device (e.g. one end of a
 //   socat pty pair) — answering with modbus_receive/modbus_reply over a modbus_mapping_t laid
-//   out by a DriveProfile, stepping the model on steady_clock. Writes to the profile's command
-//   register are interpreted as run/stop/fault-reset; the setpoint register is scaled to Hz;
-//   status, output frequency, oscillation frequency and fault code are refreshed before every
-//   reply. Fault injection: drop the next N requests unanswered, delay replies, garble the
-//   next N replies (random bytes: CRC errors on RTU, a bad header on TCP), answer the next N
+//   out by a DriveProfile, stepping the model on steady_clock (at most 50 ms per server loop, so
+//   a starved server thread slows the model instead of tripping its watchdog). Writes to the
+//   profile's command register are interpreted as run/stop/fault-reset; the setpoint register is
+//   scaled to Hz; status, output frequency, oscillation frequency and fault code are refreshed
+//   before every reply. Fault injection: drop the next N requests unanswered, delay replies, garble
+//   the next N replies (random bytes: CRC errors on RTU, a bad header on TCP), answer the next N
 //   requests with a Modbus exception, cut the link (requests vanish, as on a cut cable), and
 //   trip on command or after a given running time.
 #pragma once
+
+#include <modbus.h>
 
 #include <atomic>
 #include <cstdint>
@@ -39,8 +43,6 @@
 #include <thread>
 #include <utility>
 
-#include <modbus.h>
-
 #include "core/config_node.h"
 #include "core/status.h"
 #include "rig/drive_profile.h"
@@ -48,13 +50,13 @@
 namespace facedyn::sim {
 
 struct DriveModelOptions {
-  double accel_hz_per_s = 5.0;   // ramp rate up and down
-  double max_hz = 50.0;          // setpoints above are clamped, like a drive's Pr. max frequency
-  double watchdog_s = 0.0;       // 0 = off
-  int watchdog_fault_code = 0;   // latched when the watchdog fires (0 = stop without a trip)
+  double accel_hz_per_s = 5.0;  // ramp rate up and down
+  double max_hz = 50.0;         // setpoints above are clamped, like a drive's Pr. max frequency
+  double watchdog_s = 0.0;      // 0 = off
+  int watchdog_fault_code = 0;  // latched when the watchdog fires (0 = stop without a trip)
 
   // Platform (see the header comment).
-  double platform_ratio = 1.0;      // platform cycles per electrical cycle at zero slip
+  double platform_ratio = 1.0;  // platform cycles per electrical cycle at zero slip
   double slip_base = 0.015;
   double slip_load = 0.03;
   double slip_reference_hz = 11.0;
@@ -74,7 +76,8 @@ struct DriveSimOptions;
 
 // The simulated drive a RIG.yaml describes: its drive profile, its endpoint (TCP host:port, or
 // the RTU device and line settings) and its `sim:` physics.
-Status LoadDriveSimFromRig(const std::string& rig_path, rig::DriveProfile* profile, DriveSimOptions* options);
+Status LoadDriveSimFromRig(const std::string& rig_path, rig::DriveProfile* profile,
+                           DriveSimOptions* options);
 
 struct DriveModelState {
   bool run_commanded = false;
@@ -118,7 +121,7 @@ class DriveModel {
   double silent_s_ = 0.0;
   double phase_cycles_ = 0.0;
   std::deque<std::pair<double, double>> phase_history_;  // (time_s, phase_cycles)
-  double trip_after_s_ = -1.0;  // < 0: none scheduled
+  double trip_after_s_ = -1.0;                           // < 0: none scheduled
   int trip_code_ = 0;
   std::mt19937_64 random_;
   std::normal_distribution<double> noise_{0.0, 1.0};
@@ -147,7 +150,7 @@ class DriveSim {
   // Binds (TCP) or opens the device (RTU) and starts the server thread; errors name the
   // address or device.
   static StatusOr<std::unique_ptr<DriveSim>> Start(const rig::DriveProfile& profile,
-                                                    const DriveSimOptions& options);
+                                                   const DriveSimOptions& options);
   ~DriveSim();  // stops the thread and closes every socket
   DriveSim(const DriveSim&) = delete;
   DriveSim& operator=(const DriveSim&) = delete;
@@ -189,7 +192,7 @@ class DriveSim {
   rig::DriveProfile profile_;
   DriveSimOptions options_;
   int port_ = 0;
-  modbus_t* ctx_ = nullptr;             // server thread only after Start()
+  modbus_t* ctx_ = nullptr;              // server thread only after Start()
   modbus_mapping_t* mapping_ = nullptr;  // server thread only after Start()
   int listen_socket_ = -1;
   int header_length_ = 0;

@@ -24,11 +24,16 @@ Status CheckFields(const ConfigNode& node, const std::vector<std::string>& allow
 }
 
 Json RenderOptionsToJson(const RenderOptions& r) {
-  return Json{{"skin_albedo", r.skin_albedo},   {"marker_albedo", r.marker_albedo},
-              {"background", r.background},     {"ambient", r.ambient},
-              {"gain", r.gain},                 {"read_noise_dn", r.read_noise_dn},
-              {"shot_noise_gain", r.shot_noise_gain}, {"blur_sigma_px", r.blur_sigma_px},
-              {"motion_blur_samples", r.motion_blur_samples}, {"supersample", r.supersample},
+  return Json{{"skin_albedo", r.skin_albedo},
+              {"marker_albedo", r.marker_albedo},
+              {"background", r.background},
+              {"ambient", r.ambient},
+              {"gain", r.gain},
+              {"read_noise_dn", r.read_noise_dn},
+              {"shot_noise_gain", r.shot_noise_gain},
+              {"blur_sigma_px", r.blur_sigma_px},
+              {"motion_blur_samples", r.motion_blur_samples},
+              {"supersample", r.supersample},
               {"seed", r.seed}};
 }
 
@@ -38,26 +43,32 @@ Status SimCaptureOptions::Check() const {
   FACEDYN_RETURN_IF_ERROR(performance.motion.Check());
   FACEDYN_RETURN_IF_ERROR(render.Check());
   if (!(lead_in_s >= performance.motion.ramp_in_s && lead_in_s <= 10)) {
-    return InvalidArgumentError("sim.lead_in_s must be in [motion ramp-in " + std::to_string(performance.motion.ramp_in_s) + " s, 10 s]");
+    return InvalidArgumentError("sim.lead_in_s must be in [motion ramp-in " +
+                                std::to_string(performance.motion.ramp_in_s) + " s, 10 s]");
   }
   return Status::Ok();
 }
 
-StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node, const std::string& base_dir) {
-  FACEDYN_RETURN_IF_ERROR(CheckFields(node, {"face", "expression", "motion", "platform_hz", "amplitude_mm", "lead_in_s",
-                                             "seed", "render", "faults"}));
+StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node,
+                                                   const std::string& base_dir) {
+  FACEDYN_RETURN_IF_ERROR(
+      CheckFields(node, {"face", "expression", "motion", "platform_hz", "amplitude_mm", "lead_in_s",
+                         "seed", "render", "faults"}));
   SimCaptureOptions options;
   FACEDYN_ASSIGN_OR_RETURN(options.face, node.GetOr<std::string>("face", "procedural"));
   if (options.face != "procedural" && !options.face.empty() && options.face[0] != '/') {
     options.face = (std::filesystem::path(base_dir) / options.face).lexically_normal().string();
   }
-  FACEDYN_ASSIGN_OR_RETURN(options.performance.expression, node.GetOr<std::string>("expression", "neutral"));
+  FACEDYN_ASSIGN_OR_RETURN(options.performance.expression,
+                           node.GetOr<std::string>("expression", "neutral"));
   FACEDYN_ASSIGN_OR_RETURN(const std::string motion, node.GetOr<std::string>("motion", "platform"));
   auto kind = ParseMotionKind(motion, &options.performance.motion.file);
   if (!kind.ok()) return node.Error("motion", kind.status().message());
   options.performance.motion.kind = *kind;
-  FACEDYN_ASSIGN_OR_RETURN(options.performance.motion.platform_hz, node.GetOr<double>("platform_hz", 8.0));
-  FACEDYN_ASSIGN_OR_RETURN(options.performance.motion.amplitude_mm, node.GetOr<double>("amplitude_mm", 2.0));
+  FACEDYN_ASSIGN_OR_RETURN(options.performance.motion.platform_hz,
+                           node.GetOr<double>("platform_hz", 8.0));
+  FACEDYN_ASSIGN_OR_RETURN(options.performance.motion.amplitude_mm,
+                           node.GetOr<double>("amplitude_mm", 2.0));
   FACEDYN_ASSIGN_OR_RETURN(options.lead_in_s, node.GetOr<double>("lead_in_s", 0.5));
   FACEDYN_ASSIGN_OR_RETURN(const int seed, node.GetOr<int>("seed", 1));
   options.performance.seed = static_cast<uint64_t>(seed);
@@ -65,19 +76,24 @@ StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node, const
   options.render.seed = static_cast<uint64_t>(seed);
   if (node.Has("render")) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode render, node.Child("render"));
-    FACEDYN_RETURN_IF_ERROR(CheckFields(render, {"skin_albedo", "marker_albedo", "background", "ambient", "gain",
-                                                 "read_noise_dn", "shot_noise_gain", "blur_sigma_px",
-                                                 "motion_blur_samples", "supersample"}));
+    FACEDYN_RETURN_IF_ERROR(CheckFields(
+        render, {"skin_albedo", "marker_albedo", "background", "ambient", "gain", "read_noise_dn",
+                 "shot_noise_gain", "blur_sigma_px", "motion_blur_samples", "supersample"}));
     RenderOptions& r = options.render;
     FACEDYN_ASSIGN_OR_RETURN(r.skin_albedo, render.GetOr<double>("skin_albedo", r.skin_albedo));
-    FACEDYN_ASSIGN_OR_RETURN(r.marker_albedo, render.GetOr<double>("marker_albedo", r.marker_albedo));
+    FACEDYN_ASSIGN_OR_RETURN(r.marker_albedo,
+                             render.GetOr<double>("marker_albedo", r.marker_albedo));
     FACEDYN_ASSIGN_OR_RETURN(r.background, render.GetOr<double>("background", r.background));
     FACEDYN_ASSIGN_OR_RETURN(r.ambient, render.GetOr<double>("ambient", r.ambient));
     FACEDYN_ASSIGN_OR_RETURN(r.gain, render.GetOr<double>("gain", r.gain));
-    FACEDYN_ASSIGN_OR_RETURN(r.read_noise_dn, render.GetOr<double>("read_noise_dn", r.read_noise_dn));
-    FACEDYN_ASSIGN_OR_RETURN(r.shot_noise_gain, render.GetOr<double>("shot_noise_gain", r.shot_noise_gain));
-    FACEDYN_ASSIGN_OR_RETURN(r.blur_sigma_px, render.GetOr<double>("blur_sigma_px", r.blur_sigma_px));
-    FACEDYN_ASSIGN_OR_RETURN(r.motion_blur_samples, render.GetOr<int>("motion_blur_samples", r.motion_blur_samples));
+    FACEDYN_ASSIGN_OR_RETURN(r.read_noise_dn,
+                             render.GetOr<double>("read_noise_dn", r.read_noise_dn));
+    FACEDYN_ASSIGN_OR_RETURN(r.shot_noise_gain,
+                             render.GetOr<double>("shot_noise_gain", r.shot_noise_gain));
+    FACEDYN_ASSIGN_OR_RETURN(r.blur_sigma_px,
+                             render.GetOr<double>("blur_sigma_px", r.blur_sigma_px));
+    FACEDYN_ASSIGN_OR_RETURN(r.motion_blur_samples,
+                             render.GetOr<int>("motion_blur_samples", r.motion_blur_samples));
     FACEDYN_ASSIGN_OR_RETURN(r.supersample, render.GetOr<int>("supersample", r.supersample));
     Status status = r.Check();
     if (!status.ok()) return render.Error(status.message());
@@ -86,12 +102,15 @@ StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node, const
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode faults, node.Child("faults"));
     for (const std::string& camera : faults.Keys()) {
       FACEDYN_ASSIGN_OR_RETURN(const ConfigNode entry, faults.Child(camera));
-      FACEDYN_RETURN_IF_ERROR(CheckFields(entry, {"drop", "duplicate", "late", "timestamp_offset_ns"}));
+      FACEDYN_RETURN_IF_ERROR(
+          CheckFields(entry, {"drop", "duplicate", "late", "timestamp_offset_ns"}));
       SimCameraFaults f;
       for (const char* key : {"drop", "duplicate", "late"}) {
-        FACEDYN_ASSIGN_OR_RETURN(const std::vector<int> list, entry.GetOr<std::vector<int>>(key, {}));
-        std::set<int64_t>& target = std::string(key) == "drop" ? f.drop_triggers
-                                    : std::string(key) == "duplicate" ? f.duplicate_triggers : f.late_triggers;
+        FACEDYN_ASSIGN_OR_RETURN(const std::vector<int> list,
+                                 entry.GetOr<std::vector<int>>(key, {}));
+        std::set<int64_t>& target = std::string(key) == "drop"        ? f.drop_triggers
+                                    : std::string(key) == "duplicate" ? f.duplicate_triggers
+                                                                      : f.late_triggers;
         target.insert(list.begin(), list.end());
       }
       FACEDYN_ASSIGN_OR_RETURN(const int offset, entry.GetOr<int>("timestamp_offset_ns", 0));
@@ -105,7 +124,8 @@ StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node, const
 }
 
 Take TrimTake(const Take& take, int first_frame) {
-  FACEDYN_CHECK(first_frame >= 0 && first_frame < take.frame_count(), "TrimTake: first_frame out of range");
+  FACEDYN_CHECK(first_frame >= 0 && first_frame < take.frame_count(),
+                "TrimTake: first_frame out of range");
   const int frames = take.frame_count() - first_frame;
   Take out;
   out.info = take.info;
@@ -117,15 +137,17 @@ Take TrimTake(const Take& take, int first_frame) {
     trimmed.positions = cache.positions.rightCols(frames);
     out.channels[name] = trimmed;
   }
-  out.world_from_skull.assign(take.world_from_skull.begin() + first_frame, take.world_from_skull.end());
-  if (!take.skull_from_jaw.empty()) out.skull_from_jaw.assign(take.skull_from_jaw.begin() + first_frame, take.skull_from_jaw.end());
+  out.world_from_skull.assign(take.world_from_skull.begin() + first_frame,
+                              take.world_from_skull.end());
+  if (!take.skull_from_jaw.empty())
+    out.skull_from_jaw.assign(take.skull_from_jaw.begin() + first_frame, take.skull_from_jaw.end());
   out.SetUniformTimes();
   return out;
 }
 
 StatusOr<SimulatedStage> PrepareSimulatedStage(const SimCaptureOptions& options,
-                                               const std::vector<capture::CameraModel>& cameras, double fps,
-                                               int64_t triggers, double platform_hz) {
+                                               const std::vector<capture::CameraModel>& cameras,
+                                               double fps, int64_t triggers, double platform_hz) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   SimulatedStage stage;
   if (options.face == "procedural") {
@@ -142,10 +164,12 @@ StatusOr<SimulatedStage> PrepareSimulatedStage(const SimCaptureOptions& options,
   performance.seconds = (lead_frames + triggers + 1) / fps;
   const auto start = std::chrono::steady_clock::now();
   FACEDYN_ASSIGN_OR_RETURN(Take simulated, SimulatePerformance(stage.rig, performance));
-  stage.simulate_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  stage.simulate_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (simulated.frame_count() < lead_frames + triggers) {
-    return InternalError("the simulated take has " + std::to_string(simulated.frame_count()) + " frames, fewer than the " +
-                         std::to_string(lead_frames + triggers) + " needed");
+    return InternalError("the simulated take has " + std::to_string(simulated.frame_count()) +
+                         " frames, fewer than the " + std::to_string(lead_frames + triggers) +
+                         " needed");
   }
   Take trimmed = TrimTake(simulated, lead_frames);
   trimmed.info.metadata["capture_lead_in_frames"] = lead_frames;
@@ -153,14 +177,17 @@ StatusOr<SimulatedStage> PrepareSimulatedStage(const SimCaptureOptions& options,
   stage.renderer = std::make_shared<const FaceRenderer>(stage.rig, options.render);
   for (size_t k = 0; k < cameras.size(); ++k) {
     SimCameraFaults faults;
-    if (auto it = options.faults.find(cameras[k].name); it != options.faults.end()) faults = it->second;
-    stage.cameras.push_back(std::make_unique<SimCamera>(static_cast<int>(k), cameras[k], stage.renderer, stage.take, faults));
+    if (auto it = options.faults.find(cameras[k].name); it != options.faults.end())
+      faults = it->second;
+    stage.cameras.push_back(std::make_unique<SimCamera>(static_cast<int>(k), cameras[k],
+                                                        stage.renderer, stage.take, faults));
   }
   return stage;
 }
 
 Status WriteGroundTruth(const SimulatedStage& stage, const SimCaptureOptions& options,
-                        const std::vector<capture::CameraModel>& cameras, const std::string& take_dir) {
+                        const std::vector<capture::CameraModel>& cameras,
+                        const std::string& take_dir) {
   const std::string dir = JoinPath(take_dir, "ground_truth");
   FACEDYN_RETURN_IF_ERROR(MakeDirectories(dir));
   FACEDYN_RETURN_IF_ERROR(SaveTake(*stage.take, JoinPath(dir, "take")));
@@ -168,10 +195,12 @@ Status WriteGroundTruth(const SimulatedStage& stage, const SimCaptureOptions& op
   FACEDYN_RETURN_IF_ERROR(SaveFaceRig(stage.rig, JoinPath(dir, "face")));
   Json faults = Json::object();
   for (const auto& [camera, f] : options.faults) {
-    faults[camera] = {{"drop", std::vector<int64_t>(f.drop_triggers.begin(), f.drop_triggers.end())},
-                      {"duplicate", std::vector<int64_t>(f.duplicate_triggers.begin(), f.duplicate_triggers.end())},
-                      {"late", std::vector<int64_t>(f.late_triggers.begin(), f.late_triggers.end())},
-                      {"timestamp_offset_ns", f.timestamp_offset_ns}};
+    faults[camera] = {
+        {"drop", std::vector<int64_t>(f.drop_triggers.begin(), f.drop_triggers.end())},
+        {"duplicate",
+         std::vector<int64_t>(f.duplicate_triggers.begin(), f.duplicate_triggers.end())},
+        {"late", std::vector<int64_t>(f.late_triggers.begin(), f.late_triggers.end())},
+        {"timestamp_offset_ns", f.timestamp_offset_ns}};
   }
   const Json info{{"render", RenderOptionsToJson(options.render)},
                   {"platform_hz", stage.platform_hz},
@@ -181,7 +210,9 @@ Status WriteGroundTruth(const SimulatedStage& stage, const SimCaptureOptions& op
                   {"lead_in_s", options.lead_in_s},
                   {"seed", options.performance.seed},
                   {"faults", faults},
-                  {"note", "trigger k shows take frame k (t = k / fps); marker centres: face/markers.csv on take positions"}};
+                  {"note",
+                   "trigger k shows take frame k (t = k / fps); marker centres: face/markers.csv "
+                   "on take positions"}};
   return WriteJsonFile(JoinPath(dir, "render.json"), info);
 }
 

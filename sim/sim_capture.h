@@ -52,7 +52,8 @@ struct SimCaptureOptions {
   Status Check() const;
 };
 
-StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node, const std::string& base_dir);
+StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node,
+                                                   const std::string& base_dir);
 
 struct SimulatedStage {
   FaceRig rig;
@@ -66,11 +67,12 @@ struct SimulatedStage {
 // Simulates `triggers` frames at `fps` (plus the lead-in) with the platform at `platform_hz`
 // (<= 0: the options' own), and builds the cameras.
 StatusOr<SimulatedStage> PrepareSimulatedStage(const SimCaptureOptions& options,
-                                               const std::vector<capture::CameraModel>& cameras, double fps,
-                                               int64_t triggers, double platform_hz);
+                                               const std::vector<capture::CameraModel>& cameras,
+                                               double fps, int64_t triggers, double platform_hz);
 
 Status WriteGroundTruth(const SimulatedStage& stage, const SimCaptureOptions& options,
-                        const std::vector<capture::CameraModel>& cameras, const std::string& take_dir);
+                        const std::vector<capture::CameraModel>& cameras,
+                        const std::string& take_dir);
 
 // Drops the first `first_frame` frames of a take (positions, channels, skull, jaw) and
 // re-times it so the new frame 0 is at t = 0.

@@ -4,10 +4,9 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <random>
-
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
 
 namespace facedyn::sim {
 namespace {
@@ -53,11 +52,16 @@ Status RenderOptions::Check() const {
   if (!in01(background)) return InvalidArgumentError("render.background must be in [0, 1]");
   if (!in01(ambient)) return InvalidArgumentError("render.ambient must be in [0, 1]");
   if (!(gain > 0 && gain < 100)) return InvalidArgumentError("render.gain must be in (0, 100)");
-  if (!(read_noise_dn >= 0 && read_noise_dn < 100)) return InvalidArgumentError("render.read_noise_dn must be in [0, 100)");
-  if (!(shot_noise_gain >= 0 && shot_noise_gain < 100)) return InvalidArgumentError("render.shot_noise_gain must be in [0, 100)");
-  if (!(blur_sigma_px >= 0 && blur_sigma_px <= 10)) return InvalidArgumentError("render.blur_sigma_px must be in [0, 10]");
-  if (motion_blur_samples < 1 || motion_blur_samples > 64) return InvalidArgumentError("render.motion_blur_samples must be in 1..64");
-  if (supersample < 1 || supersample > 4) return InvalidArgumentError("render.supersample must be in 1..4");
+  if (!(read_noise_dn >= 0 && read_noise_dn < 100))
+    return InvalidArgumentError("render.read_noise_dn must be in [0, 100)");
+  if (!(shot_noise_gain >= 0 && shot_noise_gain < 100))
+    return InvalidArgumentError("render.shot_noise_gain must be in [0, 100)");
+  if (!(blur_sigma_px >= 0 && blur_sigma_px <= 10))
+    return InvalidArgumentError("render.blur_sigma_px must be in [0, 10]");
+  if (motion_blur_samples < 1 || motion_blur_samples > 64)
+    return InvalidArgumentError("render.motion_blur_samples must be in 1..64");
+  if (supersample < 1 || supersample > 4)
+    return InvalidArgumentError("render.supersample must be in 1..4");
   return Status::Ok();
 }
 
@@ -88,10 +92,12 @@ FaceRenderer::FaceRenderer(const FaceRig& rig, const RenderOptions& options) : o
   Eigen::Matrix3Xd centroids(3, triangle_count);
   std::vector<double> bound_radius(triangle_count);
   for (int t = 0; t < triangle_count; ++t) {
-    const Eigen::Vector3d a = rest_.col(triangles_(0, t)), b = rest_.col(triangles_(1, t)), c = rest_.col(triangles_(2, t));
+    const Eigen::Vector3d a = rest_.col(triangles_(0, t)), b = rest_.col(triangles_(1, t)),
+                          c = rest_.col(triangles_(2, t));
     centroids.col(t) = (a + b + c) / 3.0;
     outward += ((b - a).cross(c - a)).dot(centroids.col(t) - centre);
-    bound_radius[t] = std::max({(a - centroids.col(t)).norm(), (b - centroids.col(t)).norm(), (c - centroids.col(t)).norm()});
+    bound_radius[t] = std::max({(a - centroids.col(t)).norm(), (b - centroids.col(t)).norm(),
+                                (c - centroids.col(t)).norm()});
   }
   outward_ccw_ = outward >= 0.0;
   marker_rest_.resize(3, rig.markers.size());
@@ -102,7 +108,8 @@ FaceRenderer::FaceRenderer(const FaceRig& rig, const RenderOptions& options) : o
   std::vector<std::vector<int>> lists(triangle_count);
   for (int m = 0; m < static_cast<int>(marker_radius_mm_.size()); ++m) {
     for (int t = 0; t < triangle_count; ++t) {
-      if ((marker_rest_.col(m) - centroids.col(t)).norm() <= bound_radius[t] + marker_radius_mm_[m] + 0.5) {
+      if ((marker_rest_.col(m) - centroids.col(t)).norm() <=
+          bound_radius[t] + marker_radius_mm_[m] + 0.5) {
         lists[t].push_back(m);
       }
     }
@@ -120,8 +127,9 @@ void FaceRenderer::BeginFrame(const capture::CameraModel& camera, RenderWorkspac
   std::fill(ws->radiance.begin(), ws->radiance.end(), 0.0f);
 }
 
-void FaceRenderer::AccumulateInstant(const capture::CameraModel& camera, const Eigen::Matrix3Xd& positions,
-                                     float weight, RenderWorkspace* ws) const {
+void FaceRenderer::AccumulateInstant(const capture::CameraModel& camera,
+                                     const Eigen::Matrix3Xd& positions, float weight,
+                                     RenderWorkspace* ws) const {
   FACEDYN_CHECK(positions.cols() == vertex_count(), "FaceRenderer: vertex count mismatch");
   const int width = ws->width_px, height = ws->height_px;
   const capture::Intrinsics k = SupersampledIntrinsics(camera, options_.supersample);
@@ -149,7 +157,9 @@ void FaceRenderer::AccumulateInstant(const capture::CameraModel& camera, const E
   const double orientation = outward_ccw_ ? 1.0 : -1.0;
   for (int f = 0; f < triangle_count; ++f) {
     const int a = triangles_(0, f), b = triangles_(1, f), c = triangles_(2, f);
-    const Eigen::Vector3d n = orientation * (positions.col(b) - positions.col(a)).cross(positions.col(c) - positions.col(a));
+    const Eigen::Vector3d n =
+        orientation *
+        (positions.col(b) - positions.col(a)).cross(positions.col(c) - positions.col(a));
     ws->normals.col(a) += n;
     ws->normals.col(b) += n;
     ws->normals.col(c) += n;
@@ -157,7 +167,8 @@ void FaceRenderer::AccumulateInstant(const capture::CameraModel& camera, const E
   const double ambient = options_.ambient;
   for (int v = 0; v < v_count; ++v) {
     const double norm = ws->normals.col(v).norm();
-    const Eigen::Vector3d to_light = (centre - positions.col(v)).normalized();  // ring light at the camera
+    const Eigen::Vector3d to_light =
+        (centre - positions.col(v)).normalized();  // ring light at the camera
     const double ndl = norm > 0 ? std::max(0.0, ws->normals.col(v).dot(to_light) / norm) : 0.0;
     ws->shade[v] = static_cast<float>(ambient + (1.0 - ambient) * ndl);
   }
@@ -175,7 +186,9 @@ void FaceRenderer::AccumulateInstant(const capture::CameraModel& camera, const E
     const float za = projected[3 * ia + 2], zb = projected[3 * ib + 2], zc = projected[3 * ic + 2];
     if (za <= 0 || zb <= 0 || zc <= 0) continue;
     // Back-face culling in 3D (robust to distortion): the front side faces the camera.
-    const Eigen::Vector3d n = orientation * (positions.col(ib) - positions.col(ia)).cross(positions.col(ic) - positions.col(ia));
+    const Eigen::Vector3d n =
+        orientation *
+        (positions.col(ib) - positions.col(ia)).cross(positions.col(ic) - positions.col(ia));
     if (n.dot(centre - positions.col(ia)) <= 0) continue;
     const float ax = projected[3 * ia], ay = projected[3 * ia + 1];
     const float bx = projected[3 * ib], by = projected[3 * ib + 1];
@@ -195,7 +208,8 @@ void FaceRenderer::AccumulateInstant(const capture::CameraModel& camera, const E
     const float l1c = ((cx - x0) * (ay - y0) - (cy - y0) * (ax - x0)) * inv_area;
     const float iza = 1.0f / za, izb = 1.0f / zb, izc = 1.0f / zc;
     const float sa = ws->shade[ia] * iza, sb = ws->shade[ib] * izb, sc = ws->shade[ic] * izc;
-    const int marker_begin = triangle_marker_offsets_[f], marker_end = triangle_marker_offsets_[f + 1];
+    const int marker_begin = triangle_marker_offsets_[f],
+              marker_end = triangle_marker_offsets_[f + 1];
     for (int y = y0; y <= y1; ++y) {
       float l0 = l0c + l0dy * (y - y0);
       float l1 = l1c + l1dy * (y - y0);
@@ -213,13 +227,15 @@ void FaceRenderer::AccumulateInstant(const capture::CameraModel& camera, const E
         if (marker_begin != marker_end) {
           // Perspective-correct barycentrics, then the paint's rest-pose coordinates.
           const float w0 = l0 * iza * z, w1 = l1 * izb * z, w2 = 1.0f - w0 - w1;
-          const Eigen::Vector3d point = w0 * rest_.col(ia) + w1 * rest_.col(ib) + w2 * rest_.col(ic);
+          const Eigen::Vector3d point =
+              w0 * rest_.col(ia) + w1 * rest_.col(ib) + w2 * rest_.col(ic);
           const float footprint_mm = z * inv_focal;
           float coverage = 0.0f;
           for (int i = marker_begin; i < marker_end; ++i) {
             const int m = triangle_markers_[i];
             const float d = static_cast<float>((point - marker_rest_.col(m)).norm());
-            const float c = std::clamp((static_cast<float>(marker_radius_mm_[m]) - d) / footprint_mm + 0.5f, 0.0f, 1.0f);
+            const float c = std::clamp(
+                (static_cast<float>(marker_radius_mm_[m]) - d) / footprint_mm + 0.5f, 0.0f, 1.0f);
             coverage = std::max(coverage, c);
           }
           albedo = skin + (paint - skin) * coverage;
@@ -252,7 +268,8 @@ void FinishRadiance(const RenderOptions& options, int width, int height, int s, 
   }
   if (options.blur_sigma_px > 0) {
     cv::Mat image(height, width, CV_32F, data);
-    cv::GaussianBlur(image, image, cv::Size(0, 0), options.blur_sigma_px, options.blur_sigma_px, cv::BORDER_REPLICATE);
+    cv::GaussianBlur(image, image, cv::Size(0, 0), options.blur_sigma_px, options.blur_sigma_px,
+                     cv::BORDER_REPLICATE);
   }
   const std::vector<float>& noise = NoiseTable();
   const float scale = static_cast<float>(255.0 * options.gain);
@@ -269,9 +286,10 @@ void FinishRadiance(const RenderOptions& options, int width, int height, int s, 
   }
 }
 
-void FaceRenderer::FinishFrame(const capture::CameraModel& camera, uint64_t noise_key, RenderWorkspace* ws,
-                               uint8_t* out) const {
-  FinishRadiance(options_, camera.width_px, camera.height_px, options_.supersample, noise_key, &ws->radiance, out);
+void FaceRenderer::FinishFrame(const capture::CameraModel& camera, uint64_t noise_key,
+                               RenderWorkspace* ws, uint8_t* out) const {
+  FinishRadiance(options_, camera.width_px, camera.height_px, options_.supersample, noise_key,
+                 &ws->radiance, out);
 }
 
 void FaceRenderer::Render(const capture::CameraModel& camera, const Eigen::Matrix3Xd& positions,
@@ -283,8 +301,9 @@ void FaceRenderer::Render(const capture::CameraModel& camera, const Eigen::Matri
 
 // ------------------------------------------------------------------------------- SimCamera
 
-SimCamera::SimCamera(int camera_index, capture::CameraModel model, std::shared_ptr<const FaceRenderer> renderer,
-                     std::shared_ptr<const Take> take, SimCameraFaults faults)
+SimCamera::SimCamera(int camera_index, capture::CameraModel model,
+                     std::shared_ptr<const FaceRenderer> renderer, std::shared_ptr<const Take> take,
+                     SimCameraFaults faults)
     : camera_index_(camera_index),
       model_(std::move(model)),
       renderer_(std::move(renderer)),
@@ -296,19 +315,22 @@ SimCamera::SimCamera(int camera_index, capture::CameraModel model, std::shared_p
 Status SimCamera::Configure(const capture::CameraSettings& settings) {
   FACEDYN_RETURN_IF_ERROR(settings.Check());
   if (settings.width_px != model_.width_px || settings.height_px != model_.height_px) {
-    return InvalidArgumentError("camera " + model_.name + ": requested " + std::to_string(settings.width_px) + "x" +
-                                std::to_string(settings.height_px) + " but its calibration is " +
-                                std::to_string(model_.width_px) + "x" + std::to_string(model_.height_px));
+    return InvalidArgumentError(
+        "camera " + model_.name + ": requested " + std::to_string(settings.width_px) + "x" +
+        std::to_string(settings.height_px) + " but its calibration is " +
+        std::to_string(model_.width_px) + "x" + std::to_string(model_.height_px));
   }
   if (settings.format != capture::PixelFormat::kMono8) {
     return InvalidArgumentError("camera " + model_.name + ": the simulated camera is mono8 only");
   }
   if (std::abs(settings.fps - take_->info.fps) > 1e-6) {
-    return InvalidArgumentError("camera " + model_.name + ": trigger rate " + std::to_string(settings.fps) +
-                                " fps differs from the simulated take's " + std::to_string(take_->info.fps) + " fps");
+    return InvalidArgumentError(
+        "camera " + model_.name + ": trigger rate " + std::to_string(settings.fps) +
+        " fps differs from the simulated take's " + std::to_string(take_->info.fps) + " fps");
   }
   if (renderer_->vertex_count() != take_->vertex_count()) {
-    return FailedPreconditionError("camera " + model_.name + ": the take's vertex count differs from the face rig's");
+    return FailedPreconditionError("camera " + model_.name +
+                                   ": the take's vertex count differs from the face rig's");
   }
   settings_ = settings;
   configured_ = true;
@@ -316,7 +338,8 @@ Status SimCamera::Configure(const capture::CameraSettings& settings) {
 }
 
 Status SimCamera::Arm() {
-  if (!configured_) return FailedPreconditionError("camera " + model_.name + ": Arm before Configure");
+  if (!configured_)
+    return FailedPreconditionError("camera " + model_.name + ": Arm before Configure");
   std::lock_guard<std::mutex> lock(mutex_);
   pending_.clear();
   disarmed_ = false;
@@ -327,7 +350,8 @@ Status SimCamera::Arm() {
 
 Status SimCamera::OnTrigger(const capture::TriggerEvent& trigger) {
   std::unique_lock<std::mutex> lock(mutex_);
-  if (!armed_) return FailedPreconditionError("camera " + model_.name + ": trigger while not armed");
+  if (!armed_)
+    return FailedPreconditionError("camera " + model_.name + ": trigger while not armed");
   changed_.wait(lock, [&] { return pending_.size() < 8 || disarmed_; });
   if (disarmed_) return Status::Ok();
   pending_.push_back(trigger);
@@ -345,8 +369,9 @@ Status SimCamera::Disarm() {
 Status SimCamera::RenderTrigger(const capture::TriggerEvent& trigger, capture::Frame* frame) {
   const int frame_count = take_->frame_count();
   if (trigger.index >= frame_count) {
-    return FailedPreconditionError("camera " + model_.name + ": trigger " + std::to_string(trigger.index) +
-                                   " is beyond the simulated take's " + std::to_string(frame_count) + " frames");
+    return FailedPreconditionError(
+        "camera " + model_.name + ": trigger " + std::to_string(trigger.index) +
+        " is beyond the simulated take's " + std::to_string(frame_count) + " frames");
   }
   const auto start = std::chrono::steady_clock::now();
   frame->camera_index = camera_index_;
@@ -374,17 +399,20 @@ Status SimCamera::RenderTrigger(const capture::TriggerEvent& trigger, capture::F
       renderer_->AccumulateInstant(model_, positions_, 1.0f / samples, &workspace_);
     }
   }
-  renderer_->FinishFrame(model_, (static_cast<uint64_t>(camera_index_) << 40) ^ static_cast<uint64_t>(trigger.index),
-                         &workspace_, frame->pixels.data());
+  renderer_->FinishFrame(
+      model_, (static_cast<uint64_t>(camera_index_) << 40) ^ static_cast<uint64_t>(trigger.index),
+      &workspace_, frame->pixels.data());
   render_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return Status::Ok();
 }
 
-Status SimCamera::NextFrame(double timeout_s, capture::Frame* frame) {
+Status SimCamera::NextFrame(double timeout_s, capture::Frame* frame, bool* got_frame) {
+  *got_frame = false;
   for (;;) {
     if (has_repeat_) {  // a duplicated frame, delivered right after its original
       has_repeat_ = false;
       *frame = repeat_frame_;
+      *got_frame = true;
       return Status::Ok();
     }
     capture::TriggerEvent trigger;
@@ -396,10 +424,11 @@ Status SimCamera::NextFrame(double timeout_s, capture::Frame* frame) {
         if (has_late_) {  // the late frame had nothing after it: deliver it now
           has_late_ = false;
           *frame = std::move(late_frame_);
+          *got_frame = true;
           return Status::Ok();
         }
         if (disarmed_) return AbortedError("camera " + model_.name + ": disarmed");
-        if (!ready) return UnavailableError("camera " + model_.name + ": no trigger within " + std::to_string(timeout_s) + " s");
+        if (!ready) return Status::Ok();  // nothing within the timeout
         continue;
       }
       trigger = pending_.front();
@@ -422,6 +451,7 @@ Status SimCamera::NextFrame(double timeout_s, capture::Frame* frame) {
       has_late_ = false;
       has_repeat_ = true;
     }
+    *got_frame = true;
     return Status::Ok();
   }
 }

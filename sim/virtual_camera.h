@@ -26,16 +26,15 @@
 // FaceRenderer's per-thread Workspace).
 #pragma once
 
+#include <Eigen/Core>
+#include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <memory>
 #include <mutex>
-#include <condition_variable>
 #include <set>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "capture/camera.h"
 #include "capture/camera_model.h"
@@ -47,15 +46,15 @@ namespace facedyn::sim {
 
 struct RenderOptions {
   double skin_albedo = 0.72;
-  double marker_albedo = 0.06;  // painted dots are dark
-  double background = 0.04;     // radiance of everything that is not skin
-  double ambient = 0.22;        // fraction of the light that is ambient
-  double gain = 1.0;            // exposure gain on radiance before quantisation
-  double read_noise_dn = 1.2;   // sigma of the additive read noise, DN (8-bit)
+  double marker_albedo = 0.06;    // painted dots are dark
+  double background = 0.04;       // radiance of everything that is not skin
+  double ambient = 0.22;          // fraction of the light that is ambient
+  double gain = 1.0;              // exposure gain on radiance before quantisation
+  double read_noise_dn = 1.2;     // sigma of the additive read noise, DN (8-bit)
   double shot_noise_gain = 0.25;  // shot-noise variance per DN of signal (DN)
-  double blur_sigma_px = 0.6;   // Gaussian PSF sigma in pixels (0 = none)
-  int motion_blur_samples = 1;  // instants averaged over the exposure (1 = no motion blur)
-  int supersample = 1;          // render at N x N the resolution and box-filter down (1..4)
+  double blur_sigma_px = 0.6;     // Gaussian PSF sigma in pixels (0 = none)
+  int motion_blur_samples = 1;    // instants averaged over the exposure (1 = no motion blur)
+  int supersample = 1;            // render at N x N the resolution and box-filter down (1..4)
   uint64_t seed = 1;
 
   Status Check() const;  // names the field
@@ -65,9 +64,9 @@ struct RenderOptions {
 struct RenderWorkspace {
   int width_px = 0;
   int height_px = 0;
-  std::vector<float> radiance;  // accumulated radiance
-  std::vector<float> sample;    // one instant's radiance
-  std::vector<float> depth_mm;  // z-buffer of the last instant rendered (inf = nothing)
+  std::vector<float> radiance;   // accumulated radiance
+  std::vector<float> sample;     // one instant's radiance
+  std::vector<float> depth_mm;   // z-buffer of the last instant rendered (inf = nothing)
   std::vector<float> projected;  // 3 x V: u, v, Z per vertex
   std::vector<float> shade;      // per-vertex shading
   Eigen::Matrix3Xd normals;
@@ -87,12 +86,13 @@ class FaceRenderer {
   // seen by `camera` into workspace->radiance (sized by camera and supersample; call
   // BeginFrame first). Leaves that instant's z-buffer in workspace->depth_mm.
   void BeginFrame(const capture::CameraModel& camera, RenderWorkspace* workspace) const;
-  void AccumulateInstant(const capture::CameraModel& camera, const Eigen::Matrix3Xd& positions_in_world,
-                         float weight, RenderWorkspace* workspace) const;
+  void AccumulateInstant(const capture::CameraModel& camera,
+                         const Eigen::Matrix3Xd& positions_in_world, float weight,
+                         RenderWorkspace* workspace) const;
   // PSF, noise and quantisation into `out` (camera.width_px x height_px, mono8).
   // `noise_key` makes the noise differ between cameras and triggers.
-  void FinishFrame(const capture::CameraModel& camera, uint64_t noise_key, RenderWorkspace* workspace,
-                   uint8_t* out) const;
+  void FinishFrame(const capture::CameraModel& camera, uint64_t noise_key,
+                   RenderWorkspace* workspace, uint8_t* out) const;
 
   // Convenience: one instant, the whole pipeline.
   void Render(const capture::CameraModel& camera, const Eigen::Matrix3Xd& positions_in_world,
@@ -132,8 +132,9 @@ struct SimCameraFaults {
 // on the calling thread.
 class SimCamera : public capture::Camera {
  public:
-  SimCamera(int camera_index, capture::CameraModel model, std::shared_ptr<const FaceRenderer> renderer,
-            std::shared_ptr<const Take> take, SimCameraFaults faults = {});
+  SimCamera(int camera_index, capture::CameraModel model,
+            std::shared_ptr<const FaceRenderer> renderer, std::shared_ptr<const Take> take,
+            SimCameraFaults faults = {});
 
   const std::string& name() const override { return model_.name; }
   std::string backend() const override { return "sim"; }
@@ -141,7 +142,7 @@ class SimCamera : public capture::Camera {
   const capture::CameraSettings& settings() const override { return settings_; }
   Status Arm() override;
   Status OnTrigger(const capture::TriggerEvent& trigger) override;
-  Status NextFrame(double timeout_s, capture::Frame* frame) override;
+  Status NextFrame(double timeout_s, capture::Frame* frame, bool* got_frame) override;
   Status Disarm() override;
 
   const capture::CameraModel& model() const { return model_; }

@@ -1,10 +1,10 @@
 #include "capture/camera_model.h"
 
-#include <random>
-
 #include <gtest/gtest.h>
+
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
+#include <random>
 
 #include "tests/support/test_support.h"
 
@@ -23,7 +23,8 @@ TEST(CameraModel, ProjectionMatchesOpenCvProjectPoints) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> coordinate(-90.0, 90.0);
   std::vector<cv::Point3d> points;
-  for (int i = 0; i < 50; ++i) points.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
+  for (int i = 0; i < 50; ++i)
+    points.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
   const Eigen::Matrix3d r = camera.cam_from_world.RotationMatrix();
   cv::Mat rmat(3, 3, CV_64F), rvec, tvec(3, 1, CV_64F);
   for (int i = 0; i < 3; ++i) {
@@ -31,9 +32,10 @@ TEST(CameraModel, ProjectionMatchesOpenCvProjectPoints) {
     tvec.at<double>(i) = camera.cam_from_world.translation()[i];
   }
   cv::Rodrigues(rmat, rvec);
-  cv::Mat k = (cv::Mat_<double>(3, 3) << camera.fx(), 0, camera.cx(), 0, camera.fy(), camera.cy(), 0, 0, 1);
-  cv::Mat dist = (cv::Mat_<double>(1, 5) << camera.intrinsics[4], camera.intrinsics[5], camera.intrinsics[6],
-                  camera.intrinsics[7], camera.intrinsics[8]);
+  cv::Mat k =
+      (cv::Mat_<double>(3, 3) << camera.fx(), 0, camera.cx(), 0, camera.fy(), camera.cy(), 0, 0, 1);
+  cv::Mat dist = (cv::Mat_<double>(1, 5) << camera.intrinsics[4], camera.intrinsics[5],
+                  camera.intrinsics[6], camera.intrinsics[7], camera.intrinsics[8]);
   std::vector<cv::Point2d> expected;
   cv::projectPoints(points, rvec, tvec, k, dist, expected);
   for (size_t i = 0; i < points.size(); ++i) {
@@ -64,7 +66,8 @@ TEST(CameraModel, UndistortInvertsDistortion) {
     for (double v : {0.0, 500.0, 1023.0}) {
       const Eigen::Vector2d normalised = camera.Undistort(Eigen::Vector2d(u, v));
       Eigen::Vector2d back;
-      ASSERT_TRUE(camera.ProjectFromCam(Eigen::Vector3d(normalised.x(), normalised.y(), 1.0), &back));
+      ASSERT_TRUE(
+          camera.ProjectFromCam(Eigen::Vector3d(normalised.x(), normalised.y(), 1.0), &back));
       EXPECT_NEAR(back.x(), u, 1e-8);
       EXPECT_NEAR(back.y(), v, 1e-8);
     }
@@ -88,7 +91,8 @@ TEST(CameraModels, RoundTripThroughOpenCvYaml) {
     EXPECT_EQ((*read)[i].name, cameras[i].name);
     EXPECT_EQ((*read)[i].width_px, 1280);
     EXPECT_EQ((*read)[i].height_px, 1024);
-    for (int p = 0; p < kIntrinsicCount; ++p) EXPECT_DOUBLE_EQ((*read)[i].intrinsics[p], cameras[i].intrinsics[p]);
+    for (int p = 0; p < kIntrinsicCount; ++p)
+      EXPECT_DOUBLE_EQ((*read)[i].intrinsics[p], cameras[i].intrinsics[p]);
     EXPECT_TRUE((*read)[i].cam_from_world.IsApprox(cameras[i].cam_from_world, 1e-9));
   }
 }
@@ -98,7 +102,8 @@ TEST(CameraModels, TruncatedAndCorruptFilesNameTheProblem) {
   ASSERT_TRUE(WriteCameraModels(dir.Join("cameras.yaml"), {DistortedCamera()}).ok());
   const std::string text = testing::ReadBytes(dir.Join("cameras.yaml"));
   // Truncated in the middle of the distortion matrix.
-  testing::WriteBytes(dir.Join("truncated.yaml"), text.substr(0, text.find("distortion_coefficients") + 30));
+  testing::WriteBytes(dir.Join("truncated.yaml"),
+                      text.substr(0, text.find("distortion_coefficients") + 30));
   auto truncated = ReadCameraModels(dir.Join("truncated.yaml"));
   ASSERT_FALSE(truncated.ok());
   EXPECT_NE(truncated.status().message().find("truncated.yaml"), std::string::npos);
@@ -110,7 +115,8 @@ TEST(CameraModels, TruncatedAndCorruptFilesNameTheProblem) {
   testing::WriteBytes(dir.Join("corrupt.yaml"), corrupt);
   auto bad_pose = ReadCameraModels(dir.Join("corrupt.yaml"));
   ASSERT_FALSE(bad_pose.ok());
-  EXPECT_NE(bad_pose.status().message().find("cam_from_world"), std::string::npos) << bad_pose.status().message();
+  EXPECT_NE(bad_pose.status().message().find("cam_from_world"), std::string::npos)
+      << bad_pose.status().message();
   // A missing field.
   std::string missing = text;
   missing.replace(missing.find("image_width"), 11, "image_wodth");

@@ -1,4 +1,5 @@
 // End-to-end tests of `facedyn capture` and `facedyn session check` on the simulated stage.
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/mount.h>
 #include <sys/wait.h>
@@ -7,10 +8,8 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
-#include <thread>
-
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <thread>
 
 #include "capture/frame_file.h"
 #include "capture/session.h"
@@ -25,8 +24,11 @@ TEST(CaptureCli, Sim3TakeIsCompleteWithGroundTruth) {
   testing::TempDir dir;
   const std::string session = dir.Join("session");
   std::string output;
-  ASSERT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " + Sim3Config(dir.path()) + " --session " + session +
-                                    " --take t1 --json", &output), 0) << output;
+  ASSERT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " + Sim3Config(dir.path()) +
+                                    " --session " + session + " --take t1 --json",
+                                &output),
+            0)
+      << output;
   const json report = json::parse(output);
   EXPECT_EQ(report["status"], "complete");
   EXPECT_EQ(report["triggers_emitted"], 32);
@@ -51,8 +53,10 @@ TEST(CaptureCli, Sim3TakeIsCompleteWithGroundTruth) {
   EXPECT_TRUE(std::filesystem::exists(session + "/takes/t1/ground_truth/cameras.yaml"));
   EXPECT_TRUE(std::filesystem::exists(session + "/calibration.yaml"));
   // A second take with the same name is refused; the first stays intact.
-  EXPECT_NE(testing::RunCommand(Facedyn() + " -q capture --config " + Sim3Config(dir.path()) + " --session " + session +
-                                    " --take t1", &output), 0);
+  EXPECT_NE(testing::RunCommand(Facedyn() + " -q capture --config " + Sim3Config(dir.path()) +
+                                    " --session " + session + " --take t1",
+                                &output),
+            0);
   EXPECT_NE(output.find("already exists"), std::string::npos) << output;
   ASSERT_EQ(testing::RunCommand(Facedyn() + " session check " + session, &output), 0) << output;
 }
@@ -60,9 +64,13 @@ TEST(CaptureCli, Sim3TakeIsCompleteWithGroundTruth) {
 TEST(CaptureCli, InjectedFaultsMakeAnIncompleteTakeWithEvents) {
   testing::TempDir dir;
   const std::string session = dir.Join("session");
-  const std::string config = Sim3Config(dir.path(), "  faults: {cam1: {drop: [3], duplicate: [5], late: [7]}}\n");
+  const std::string config =
+      Sim3Config(dir.path(), "  faults: {cam1: {drop: [3], duplicate: [5], late: [7]}}\n");
   std::string output;
-  EXPECT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " + config + " --session " + session + " --take f", &output), 1)
+  EXPECT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " + config + " --session " +
+                                    session + " --take f",
+                                &output),
+            1)
       << output;
   EXPECT_NE(output.find("incomplete"), std::string::npos) << output;
   const json manifest = ReadJson(session + "/takes/f/capture.json");
@@ -74,10 +82,12 @@ TEST(CaptureCli, InjectedFaultsMakeAnIncompleteTakeWithEvents) {
   EXPECT_EQ(manifest["cameras"][0]["frames_written"], 32);
   int anomalies = 0;
   std::ifstream events(session + "/events.jsonl");
-  for (std::string line; std::getline(events, line);) anomalies += json::parse(line)["event"] == "frame_anomaly";
+  for (std::string line; std::getline(events, line);)
+    anomalies += json::parse(line)["event"] == "frame_anomaly";
   EXPECT_EQ(anomalies, 4);  // gap before 4, the duplicate of 5, gap before 8, 7 out of order
   EXPECT_EQ(testing::RunCommand(Facedyn() + " session check " + session + " --json", &output), 1);
-  const json check = json::parse(output.substr(output.find('{'), output.rfind('}') - output.find('{') + 1));
+  const json check =
+      json::parse(output.substr(output.find('{'), output.rfind('}') - output.find('{') + 1));
   EXPECT_FALSE(check["complete"].get<bool>());
   EXPECT_EQ(check["takes"][0]["cameras"][1]["missing"], 1);
 }
@@ -86,10 +96,16 @@ TEST(CaptureCli, BadConfigNamesTheField) {
   testing::TempDir dir;
   const std::string config = Sim3Config(dir.path(), "", "colour: blue\n");
   std::string output;
-  EXPECT_EQ(testing::RunCommand(Facedyn() + " capture --config " + config + " --session " + dir.Join("s") + " --take t", &output), 1);
+  EXPECT_EQ(testing::RunCommand(Facedyn() + " capture --config " + config + " --session " +
+                                    dir.Join("s") + " --take t",
+                                &output),
+            1);
   EXPECT_NE(output.find("colour"), std::string::npos) << output;
   EXPECT_FALSE(std::filesystem::exists(dir.Join("s")));
-  EXPECT_EQ(testing::RunCommand(Facedyn() + " capture --config " + Sim3Config(dir.path()) + " --session " + dir.Join("s"), &output), 1);
+  EXPECT_EQ(testing::RunCommand(Facedyn() + " capture --config " + Sim3Config(dir.path()) +
+                                    " --session " + dir.Join("s"),
+                                &output),
+            1);
   EXPECT_NE(output.find("exactly one of --take"), std::string::npos) << output;
 }
 
@@ -110,7 +126,10 @@ TEST(CaptureCli, TooSmallFilesystemStopsCleanly) {
   // Ground truth (~25 MB) fits; 3 x 128 frames of 640x512 (126 MB) do not.
   const std::string config = Sim3Config(dir.path(), "", "", 1.0, 640, 512);
   std::string output;
-  EXPECT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " + config + " --session " + session + " --take full", &output), 1)
+  EXPECT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " + config + " --session " +
+                                    session + " --take full",
+                                &output),
+            1)
       << output;
   EXPECT_NE(output.find("disk full"), std::string::npos) << output;
   const json manifest = ReadJson(session + "/takes/full/capture.json");
@@ -118,7 +137,8 @@ TEST(CaptureCli, TooSmallFilesystemStopsCleanly) {
   EXPECT_NE(manifest["reason"].get<std::string>().find("no space"), std::string::npos);
   int64_t written = 0;
   for (int k = 0; k < 3; ++k) {
-    auto reader = FrameFileReader::Open(session + "/takes/full/cam" + std::to_string(k) + "/frames.fdr");
+    auto reader =
+        FrameFileReader::Open(session + "/takes/full/cam" + std::to_string(k) + "/frames.fdr");
     ASSERT_TRUE(reader.ok());
     EXPECT_TRUE((*reader)->scan().tail_problem.empty()) << (*reader)->scan().tail_problem;
     EXPECT_EQ((*reader)->frame_count(), manifest["cameras"][k]["frames_written"].get<int64_t>());
@@ -137,15 +157,16 @@ TEST(CaptureCli, KillNineMidTakeLeavesACheckableSession) {
   const pid_t child = ::fork();
   ASSERT_GE(child, 0);
   if (child == 0) {
-    ::execl(Facedyn().c_str(), "facedyn", "-q", "capture", "--config", config.c_str(), "--session", session.c_str(), "--take",
-            "killed", static_cast<char*>(nullptr));
+    ::execl(Facedyn().c_str(), "facedyn", "-q", "capture", "--config", config.c_str(), "--session",
+            session.c_str(), "--take", "killed", static_cast<char*>(nullptr));
     ::_exit(127);
   }
   const std::string frames = session + "/takes/killed/cam2/frames.fdr";
   bool started = false;
   for (int i = 0; i < 3000 && !started; ++i) {
     std::error_code ec;
-    started = std::filesystem::exists(frames, ec) && std::filesystem::file_size(frames, ec) > 3 * 640 * 512;
+    started = std::filesystem::exists(frames, ec) &&
+              std::filesystem::file_size(frames, ec) > 3 * 640 * 512;
     if (!started) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   ::kill(child, SIGKILL);

@@ -1,9 +1,9 @@
 // `facedyn capture` with the simulated platform: set, settle, record with telemetry, stop; and
 // the capture step of a sweep.
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <fstream>
-
-#include <gtest/gtest.h>
 
 #include "tests/capture/cli_helpers.h"
 #include "tests/support/test_support.h"
@@ -15,11 +15,16 @@ namespace {
 TEST(CaptureCli, SimulatedPlatformSettlesAndTelemetryIsRecorded) {
   testing::TempDir dir;
   const std::string session = dir.Join("session");
-  const std::string platform = "platform: {rig: " + kSource + "/config/rigs/sim-tcp.yaml, start_simulated_drive: true, hz: 9, "
+  const std::string platform = "platform: {rig: " + kSource +
+                               "/config/rigs/sim-tcp.yaml, start_simulated_drive: true, hz: 9, "
                                "settle_timeout_s: 30, telemetry_period_s: 0.02}\n";
   std::string output;
-  ASSERT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " + Sim3Config(dir.path(), "", platform, 0.5) + " --session " +
-                                    session + " --take p9 --json", &output), 0) << output;
+  ASSERT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " +
+                                    Sim3Config(dir.path(), "", platform, 0.5) + " --session " +
+                                    session + " --take p9 --json",
+                                &output),
+            0)
+      << output;
   const json report = json::parse(output);
   EXPECT_EQ(report["status"], "complete");
   EXPECT_NEAR(report["platform"]["measured_hz_at_start"].get<double>(), 9.0, 0.06);
@@ -45,12 +50,22 @@ TEST(CaptureCli, SimulatedPlatformSettlesAndTelemetryIsRecorded) {
 TEST(CaptureCli, SweepRecordsOneCompleteTakePerStep) {
   testing::TempDir dir;
   const std::string session = dir.Join("session");
-  const std::string platform = "platform: {rig: " + kSource + "/config/rigs/sim-tcp.yaml, start_simulated_drive: true, hz: 8}\n";
+  const std::string platform = "platform: {rig: " + kSource +
+                               "/config/rigs/sim-tcp.yaml, start_simulated_drive: true, hz: 8}\n";
+  // Two steps (config/sweeps/demo.yaml has three; two keep the test short).
+  std::ofstream(dir.Join("sweep.yaml"))
+      << "name: two-step\nrig: " << kSource << "/config/rigs/sim-tcp.yaml\n"
+      << "defaults: {settle_timeout_s: 20, settle_s: 0, hold_s: 0.2}\n"
+      << "steps:\n  - {hz: 7, prompt: neutral}\n  - {hz: 9.5, prompt: smile}\n";
   std::string output;
-  ASSERT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " + Sim3Config(dir.path(), "", platform, 0.25) + " --session " +
-                                    session + " --sweep " + kSource + "/config/sweeps/demo.yaml --json", &output), 0) << output;
+  ASSERT_EQ(testing::RunCommand(Facedyn() + " -q capture --config " +
+                                    Sim3Config(dir.path(), "", platform, 0.25) + " --session " +
+                                    session + " --sweep " + dir.Join("sweep.yaml") + " --json",
+                                &output),
+            0)
+      << output;
   const json report = json::parse(output.substr(output.find('{')));
-  ASSERT_EQ(report["takes"].size(), 3u);
+  ASSERT_EQ(report["takes"].size(), 2u);
   for (const auto& take : report["takes"]) {
     EXPECT_EQ(take["status"], "complete");
     for (const auto& camera : take["cameras"]) {
@@ -58,7 +73,10 @@ TEST(CaptureCli, SweepRecordsOneCompleteTakePerStep) {
       EXPECT_EQ(camera["sync"]["max_timestamp_error_ns"], 0);
     }
   }
-  EXPECT_NEAR(report["takes"][1]["platform_hz_true"].get<double>(), 8.5, 0.06);
+  EXPECT_NEAR(report["takes"][0]["platform_hz_true"].get<double>(), 7.0, 0.06);
+  EXPECT_NEAR(report["takes"][1]["platform_hz_true"].get<double>(), 9.5, 0.06);
+  EXPECT_EQ(report["takes"][1]["sweep"]["prompt"], "smile");
+  EXPECT_EQ(report["takes"][1]["name"], "step02_9.50hz_smile");
   ASSERT_EQ(testing::RunCommand(Facedyn() + " session check " + session, &output), 0) << output;
 }
 

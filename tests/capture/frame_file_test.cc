@@ -1,9 +1,8 @@
 #include "capture/frame_file.h"
 
+#include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <unistd.h>
-
-#include <gtest/gtest.h>
 
 #include "tests/support/test_support.h"
 
@@ -19,7 +18,8 @@ Frame MakeFrame(int64_t trigger, int width = 32, int height = 16) {
   frame.width_px = width;
   frame.height_px = height;
   frame.pixels.resize(frame.ExpectedBytes());
-  for (size_t i = 0; i < frame.pixels.size(); ++i) frame.pixels[i] = static_cast<uint8_t>(i * 7 + trigger);
+  for (size_t i = 0; i < frame.pixels.size(); ++i)
+    frame.pixels[i] = static_cast<uint8_t>(i * 7 + trigger);
   return frame;
 }
 
@@ -92,7 +92,8 @@ TEST(FrameFile, CorruptHeaderStopsTheScanThere) {
   auto reader = FrameFileReader::Open(path);
   ASSERT_TRUE(reader.ok());
   EXPECT_EQ((*reader)->frame_count(), 1);
-  EXPECT_NE((*reader)->scan().tail_problem.find("checksum"), std::string::npos) << (*reader)->scan().tail_problem;
+  EXPECT_NE((*reader)->scan().tail_problem.find("checksum"), std::string::npos)
+      << (*reader)->scan().tail_problem;
 }
 
 TEST(FrameFile, MissingFileIsNotFound) {

@@ -12,7 +12,8 @@ int64_t T(int64_t k) { return VirtualTrigger::PulseTimeNs(k, kRate); }
 
 TEST(FrameSyncChecker, CleanSequence) {
   FrameSyncChecker checker(1000);
-  for (int k = 0; k < 10; ++k) EXPECT_EQ(checker.Observe(k, T(k), T(k), 10).verdict, SyncVerdict::kOk);
+  for (int k = 0; k < 10; ++k)
+    EXPECT_EQ(checker.Observe(k, T(k), T(k), 10).verdict, SyncVerdict::kOk);
   checker.Finish(10);
   EXPECT_TRUE(checker.counts().Clean());
   EXPECT_EQ(checker.counts().unique, 10);
@@ -50,10 +51,13 @@ TEST(FrameSyncChecker, CountsMissingDuplicateOutOfOrderAndUnknown) {
 TEST(VirtualTrigger, EmitsExactTimesAndStops) {
   VirtualTrigger trigger({128.0, 0.0});
   std::vector<TriggerEvent> events;
-  ASSERT_TRUE(trigger.Run(256, [&](const TriggerEvent& e) {
-                events.push_back(e);
-                return Status::Ok();
-              }).ok());
+  ASSERT_TRUE(trigger
+                  .Run(256,
+                       [&](const TriggerEvent& e) {
+                         events.push_back(e);
+                         return Status::Ok();
+                       })
+                  .ok());
   ASSERT_EQ(events.size(), 256u);
   EXPECT_EQ(events[128].time_ns, 1000000000);
   EXPECT_EQ(events[1].time_ns, 7812500);

@@ -1,12 +1,11 @@
 #include "capture/recorder.h"
 
+#include <gtest/gtest.h>
 #include <sys/mount.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <thread>
-
-#include <gtest/gtest.h>
 
 #include "capture/frame_file.h"
 #include "tests/support/test_support.h"
@@ -45,7 +44,8 @@ TEST(Recorder, BlockPolicyWritesEveryFrameInOrder) {
   std::vector<std::thread> producers;
   for (int camera = 0; camera < 3; ++camera) {
     producers.emplace_back([&, camera] {
-      for (int k = 0; k < 50; ++k) EXPECT_EQ((*recorder)->Push(camera, MakeFrame(camera, k, 64, 48)), PushResult::kQueued);
+      for (int k = 0; k < 50; ++k)
+        EXPECT_EQ((*recorder)->Push(camera, MakeFrame(camera, k, 64, 48)), PushResult::kQueued);
     });
   }
   for (auto& t : producers) t.join();
@@ -55,7 +55,8 @@ TEST(Recorder, BlockPolicyWritesEveryFrameInOrder) {
     EXPECT_EQ(stats[camera].frames_written, 50);
     EXPECT_EQ(stats[camera].dropped_queue_full, 0);
     EXPECT_LE(stats[camera].max_queue_depth, 2);
-    auto reader = FrameFileReader::Open(dir.path() + "/cam" + std::to_string(camera) + "/" + kFrameFileName);
+    auto reader =
+        FrameFileReader::Open(dir.path() + "/cam" + std::to_string(camera) + "/" + kFrameFileName);
     ASSERT_TRUE(reader.ok());
     ASSERT_EQ((*reader)->frame_count(), 50);
     for (int k = 0; k < 50; ++k) EXPECT_EQ((*reader)->scan().records[k].trigger_index, k);
@@ -117,7 +118,8 @@ TEST(Recorder, DiskFullStopsCleanly) {
   int64_t pushed = 0;
   for (int k = 0; k < 100 && !(*recorder)->failed(); ++k) {
     for (int camera = 0; camera < 3; ++camera) {
-      if ((*recorder)->Push(camera, MakeFrame(camera, k, 320, 256)) == PushResult::kQueued) ++pushed;
+      if ((*recorder)->Push(camera, MakeFrame(camera, k, 320, 256)) == PushResult::kQueued)
+        ++pushed;
     }
   }
   const Status status = (*recorder)->Finish();
@@ -127,7 +129,8 @@ TEST(Recorder, DiskFullStopsCleanly) {
   const auto stats = (*recorder)->stats();
   int64_t accounted = 0;
   for (int camera = 0; camera < 3; ++camera) {
-    auto reader = FrameFileReader::Open(mount_point + "/cam" + std::to_string(camera) + "/" + kFrameFileName);
+    auto reader =
+        FrameFileReader::Open(mount_point + "/cam" + std::to_string(camera) + "/" + kFrameFileName);
     ASSERT_TRUE(reader.ok());
     EXPECT_TRUE((*reader)->scan().tail_problem.empty()) << (*reader)->scan().tail_problem;
     EXPECT_EQ((*reader)->frame_count(), stats[camera].frames_written);

@@ -1,5 +1,6 @@
 #include "capture/session.h"
 
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -7,8 +8,6 @@
 #include <chrono>
 #include <filesystem>
 #include <thread>
-
-#include <gtest/gtest.h>
 
 #include "capture/frame_file.h"
 #include "capture/recorder.h"
@@ -20,7 +19,8 @@ namespace {
 
 std::vector<SessionCameraInfo> Cameras(int count) {
   std::vector<SessionCameraInfo> cameras;
-  for (int k = 0; k < count; ++k) cameras.push_back({"cam" + std::to_string(k), "sim", 32, 16, "mono8"});
+  for (int k = 0; k < count; ++k)
+    cameras.push_back({"cam" + std::to_string(k), "sim", 32, 16, "mono8"});
   return cameras;
 }
 
@@ -35,11 +35,13 @@ Frame MakeFrame(int camera, int64_t trigger) {
 }
 
 // Records `frames` triggers on every camera into a new take and ends it.
-void RecordTake(SessionWriter* session, const std::string& name, int cameras, int frames, int skip_trigger = -1) {
+void RecordTake(SessionWriter* session, const std::string& name, int cameras, int frames,
+                int skip_trigger = -1) {
   auto take_dir = session->BeginTake(name, 128.0, frames);
   ASSERT_TRUE(take_dir.ok()) << take_dir.status().message();
   std::vector<std::string> paths;
-  for (int k = 0; k < cameras; ++k) paths.push_back(*take_dir + "/cam" + std::to_string(k) + "/" + kFrameFileName);
+  for (int k = 0; k < cameras; ++k)
+    paths.push_back(*take_dir + "/cam" + std::to_string(k) + "/" + kFrameFileName);
   auto recorder = Recorder::Start(RecorderOptions(), paths);
   ASSERT_TRUE(recorder.ok());
   TakeResult result;
@@ -55,7 +57,8 @@ void RecordTake(SessionWriter* session, const std::string& name, int cameras, in
       ASSERT_EQ((*recorder)->Push(k, MakeFrame(k, t)), PushResult::kQueued);
     }
     checker.Finish(frames);
-    result.cameras.push_back({"cam" + std::to_string(k), "cam" + std::to_string(k), checker.counts(), {}});
+    result.cameras.push_back(
+        {"cam" + std::to_string(k), "cam" + std::to_string(k), checker.counts(), {}});
   }
   ASSERT_TRUE((*recorder)->Finish().ok());
   const auto stats = (*recorder)->stats();
@@ -152,7 +155,8 @@ TEST(Session, KillNineMidTakeLeavesReadableSession) {
     RecordTake(session->get(), "done", 2, 8);
     auto take_dir = (*session)->BeginTake("killed", 128.0, 1000000);
     if (!take_dir.ok()) ::_exit(4);
-    auto recorder = Recorder::Start(RecorderOptions(), {*take_dir + "/cam0/frames.fdr", *take_dir + "/cam1/frames.fdr"});
+    auto recorder = Recorder::Start(
+        RecorderOptions(), {*take_dir + "/cam0/frames.fdr", *take_dir + "/cam1/frames.fdr"});
     if (!recorder.ok()) ::_exit(5);
     for (int64_t t = 0;; ++t) {
       for (int k = 0; k < 2; ++k) (void)(*recorder)->Push(k, MakeFrame(k, t));
@@ -162,7 +166,8 @@ TEST(Session, KillNineMidTakeLeavesReadableSession) {
   const std::string frames = dir.path() + "/takes/killed/cam1/frames.fdr";
   for (int i = 0; i < 500; ++i) {
     std::error_code ec;
-    if (std::filesystem::exists(frames, ec) && std::filesystem::file_size(frames, ec) > 200000) break;
+    if (std::filesystem::exists(frames, ec) && std::filesystem::file_size(frames, ec) > 200000)
+      break;
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   ::kill(child, SIGKILL);

@@ -1,12 +1,12 @@
 #include "reconstruct/board.h"
 
-#include <cmath>
-#include <random>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cmath>
 #include <opencv2/aruco/charuco.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
 
 #include "reconstruct/synthetic_views.h"
 #include "tests/support/test_support.h"
@@ -55,7 +55,7 @@ TEST(BoardLayout, EvenRowsDifferBetweenLayoutsOddRowsDoNot) {
   BoardSpec spec = *BoardSpec::Parse("charuco:5x4:40:30");
   BoardSpec legacy = spec;
   legacy.legacy = true;
-  EXPECT_FALSE(spec.SquareHasMarker(0, 0));  // 4.6: top-left black
+  EXPECT_FALSE(spec.SquareHasMarker(0, 0));   // 4.6: top-left black
   EXPECT_TRUE(legacy.SquareHasMarker(0, 0));  // pre-4.6, even rows: top-left white
   spec.rows = legacy.rows = 5;
   for (int y = 0; y < 5; ++y) {
@@ -105,10 +105,10 @@ RenderedView RenderView(const BoardSpec& spec, double tilt_rad, double noise, ui
                                  Eigen::Vector3d::Zero(), -Eigen::Vector3d::UnitY());
   camera.intrinsics[4] = -0.15;  // barrel distortion
   camera.intrinsics[5] = 0.05;
-  const double width = (spec.kind == BoardSpec::Kind::kChessboard ? spec.cols + 1 : spec.cols) *
-                       spec.square_mm;
-  const double height = (spec.kind == BoardSpec::Kind::kChessboard ? spec.rows + 1 : spec.rows) *
-                        spec.square_mm;
+  const double width =
+      (spec.kind == BoardSpec::Kind::kChessboard ? spec.cols + 1 : spec.cols) * spec.square_mm;
+  const double height =
+      (spec.kind == BoardSpec::Kind::kChessboard ? spec.rows + 1 : spec.rows) * spec.square_mm;
   const Rigid3 world_from_board =
       Rigid3::FromAxisAngle(Eigen::Vector3d(1, 0.3, 0).normalized(), tilt_rad) *
       Rigid3::FromTranslation(Eigen::Vector3d(-0.5 * width, -0.5 * height, 0));
@@ -125,8 +125,8 @@ double CornerErrorPx(const BoardSpec& spec, const RenderedView& view,
                      const BoardObservation& observation, bool reversed) {
   double worst = 0.0;
   for (int i = 0; i < observation.size(); ++i) {
-    const int id = reversed ? spec.corner_count() - 1 - observation.corner_ids[i]
-                            : observation.corner_ids[i];
+    const int id =
+        reversed ? spec.corner_count() - 1 - observation.corner_ids[i] : observation.corner_ids[i];
     Eigen::Vector2d truth;
     EXPECT_TRUE(view.camera.Project(view.world_from_board * spec.CornerInBoard(id), &truth));
     worst = std::max(worst, (truth - observation.pixels[i]).norm());
@@ -184,7 +184,8 @@ TEST(DetectBoard, NoBoardIsNotFound) {
     ASSERT_FALSE(observation.ok());
     EXPECT_EQ(observation.status().code(), StatusCode::kNotFound);
   }
-  const auto wrong_type = DetectBoard(cv::Mat(10, 10, CV_32F), *BoardSpec::Parse("chessboard:9x6:20"));
+  const auto wrong_type =
+      DetectBoard(cv::Mat(10, 10, CV_32F), *BoardSpec::Parse("chessboard:9x6:20"));
   EXPECT_EQ(wrong_type.status().code(), StatusCode::kInvalidArgument);
 }
 

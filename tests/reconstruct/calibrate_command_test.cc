@@ -1,13 +1,13 @@
 // `facedyn calibrate` end to end: real photographs, rendered multi-camera ChArUco views, and
 // bad input (corrupt image, bad board spec, no images).
 
-#include <filesystem>
-#include <random>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <random>
 
 #include "reconstruct/board.h"
 #include "reconstruct/calibration.h"
@@ -73,7 +73,8 @@ TEST(CalibrateCommand, RenderedMultiCameraCharuco) {
   std::uniform_real_distribution<double> uniform(-1.0, 1.0);
   for (int v = 0; v < 12; ++v) {
     const Rigid3 world_from_board =
-        Rigid3::FromTranslation(Eigen::Vector3d(40 * uniform(rng), 30 * uniform(rng), 60 * uniform(rng))) *
+        Rigid3::FromTranslation(
+            Eigen::Vector3d(40 * uniform(rng), 30 * uniform(rng), 60 * uniform(rng))) *
         Rigid3::FromAxisAngle(Eigen::Vector3d(uniform(rng), uniform(rng), 0).normalized(),
                               0.5 * std::abs(uniform(rng))) *
         Rigid3::FromAxisAngle(Eigen::Vector3d::UnitX(), M_PI) *
@@ -89,10 +90,10 @@ TEST(CalibrateCommand, RenderedMultiCameraCharuco) {
     }
   }
   std::string out;
-  const int rc = RunCommand(FacedynExecutable() + " --quiet calibrate --images '" +
-                                temp.Join("cam*/*.png") + "' --board charuco:9x6:30:22 --out " +
-                                temp.Join("rig.yaml") + " --json",
-                            &out);
+  const int rc =
+      RunCommand(FacedynExecutable() + " --quiet calibrate --images '" + temp.Join("cam*/*.png") +
+                     "' --board charuco:9x6:30:22 --out " + temp.Join("rig.yaml") + " --json",
+                 &out);
   ASSERT_EQ(rc, 0) << out;
   const auto json = nlohmann::json::parse(out.substr(out.find('{')));
   EXPECT_LT(json["rms_px"].get<double>(), 0.3);

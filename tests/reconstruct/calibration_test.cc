@@ -1,16 +1,16 @@
 #include "reconstruct/calibration.h"
 
-#include <algorithm>
-#include <cmath>
-#include <filesystem>
-#include <random>
-
-#include <Eigen/Geometry>
 #include <ceres/ceres.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <random>
 
 #include "reconstruct/synthetic_views.h"
 #include "tests/support/test_support.h"
@@ -68,8 +68,8 @@ TEST(BoardCornerResidual, MatchesProjectionAndFiniteDifferences) {
 }
 
 TEST(PoseBlock, RoundTrip) {
-  const Rigid3 t = Rigid3::FromAxisAngle(Eigen::Vector3d(1, 2, 3).normalized(), 2.5,
-                                         Eigen::Vector3d(4, 5, 6));
+  const Rigid3 t =
+      Rigid3::FromAxisAngle(Eigen::Vector3d(1, 2, 3).normalized(), 2.5, Eigen::Vector3d(4, 5, 6));
   EXPECT_TRUE(FromPoseBlock(ToPoseBlock(t)).IsApprox(t, 1e-12));
 }
 
@@ -111,11 +111,11 @@ TEST(Calibrate, RealOpenCvSampleImagesMatchOpenCv) {
                                                 distortion, rvecs, tvecs);
   const Camera& camera = result->cameras[0];
   RecordProperty("rms_px", std::to_string(result->rms_px));
-  std::printf("facedyn: rms %.4f px fx %.2f fy %.2f cx %.2f cy %.2f (outliers %d)\n"
-              "opencv:  rms %.4f px fx %.2f fy %.2f cx %.2f cy %.2f\n",
-              result->rms_px, camera.fx(), camera.fy(), camera.cx(), camera.cy(), summary.outliers,
-              opencv_rms, k.at<double>(0, 0), k.at<double>(1, 1), k.at<double>(0, 2),
-              k.at<double>(1, 2));
+  std::printf(
+      "facedyn: rms %.4f px fx %.2f fy %.2f cx %.2f cy %.2f (outliers %d)\n"
+      "opencv:  rms %.4f px fx %.2f fy %.2f cx %.2f cy %.2f\n",
+      result->rms_px, camera.fx(), camera.fy(), camera.cx(), camera.cy(), summary.outliers,
+      opencv_rms, k.at<double>(0, 0), k.at<double>(1, 1), k.at<double>(0, 2), k.at<double>(1, 2));
   EXPECT_TRUE(summary.converged);
   EXPECT_LE(result->rms_px, 0.45);
   EXPECT_NEAR(camera.fx(), k.at<double>(0, 0), 0.01 * k.at<double>(0, 0));
@@ -162,8 +162,8 @@ SyntheticRig MakeSyntheticRig(double sigma_px, int views, uint32_t seed) {
         Eigen::Vector3d(uniform(rng), uniform(rng), 0.3 * uniform(rng)).normalized(),
         0.6 * std::abs(uniform(rng)));
     const Eigen::Vector3d position(80 * uniform(rng), 60 * uniform(rng), 80 * uniform(rng));
-    const Rigid3 world_from_board = Rigid3::FromTranslation(position) * tilt * facing *
-                                    Rigid3::FromTranslation(-board_centre);
+    const Rigid3 world_from_board =
+        Rigid3::FromTranslation(position) * tilt * facing * Rigid3::FromTranslation(-board_centre);
     rig.input.view_names.push_back("view" + std::to_string(v));
     for (int c = 0; c < 4; ++c) {
       BoardObservation observation;
@@ -198,9 +198,9 @@ std::vector<double> AlignedCentreErrorsMm(const std::vector<Camera>& truth,
   const Eigen::Matrix4d b_from_a = Eigen::umeyama(a, b, false);
   std::vector<double> errors;
   for (size_t c = 0; c < truth.size(); ++c) {
-    errors.push_back(((b_from_a.topLeftCorner<3, 3>() * a.col(c) + b_from_a.topRightCorner<3, 1>()) -
-                      b.col(c))
-                         .norm());
+    errors.push_back(
+        ((b_from_a.topLeftCorner<3, 3>() * a.col(c) + b_from_a.topRightCorner<3, 1>()) - b.col(c))
+            .norm());
   }
   return errors;
 }
@@ -209,7 +209,8 @@ TEST(Calibrate, SyntheticRigRecoversCamerasWithinNoise) {
   const double sigma_px = 0.3;
   SyntheticRig rig = MakeSyntheticRig(sigma_px, 40, 7);
   // A few gross outliers (mis-detected corners), which must be rejected.
-  for (int k = 0; k < 10; ++k) rig.input.observations[3 * k].corners.pixels[2] += Eigen::Vector2d(15, -9);
+  for (int k = 0; k < 10; ++k)
+    rig.input.observations[3 * k].corners.pixels[2] += Eigen::Vector2d(15, -9);
   CalibrationSummary summary;
   const auto result = Calibrate(rig.input, CalibrationOptions(), &summary);
   ASSERT_TRUE(result.ok()) << result.status().ToString();
@@ -244,7 +245,8 @@ TEST(Calibrate, ChessboardHalfTurnsAreResolvedAcrossCameras) {
   // Board poses: a simple set in front of the rig.
   for (int v = 0; v < 16; ++v) {
     const Rigid3 world_from_board =
-        Rigid3::FromTranslation(Eigen::Vector3d(10 * (v % 4) - 15, 8 * (v / 4) - 12, 20 * (v % 3))) *
+        Rigid3::FromTranslation(
+            Eigen::Vector3d(10 * (v % 4) - 15, 8 * (v / 4) - 12, 20 * (v % 3))) *
         Rigid3::FromAxisAngle(Eigen::Vector3d(std::cos(v), std::sin(v), 0), 0.35) *
         Rigid3::FromAxisAngle(Eigen::Vector3d::UnitX(), M_PI) *
         Rigid3::FromTranslation(-Eigen::Vector3d(125, 87.5, 0));
@@ -315,7 +317,8 @@ TEST(CalibrationFile, RoundTripTruncatedAndCorrupt) {
       EXPECT_NEAR(loaded->cameras[c].intrinsics[k], result->cameras[c].intrinsics[k],
                   1e-9 * std::max(1.0, std::abs(result->cameras[c].intrinsics[k])));
     }
-    EXPECT_TRUE(loaded->cameras[c].cam_from_world.IsApprox(result->cameras[c].cam_from_world, 1e-9));
+    EXPECT_TRUE(
+        loaded->cameras[c].cam_from_world.IsApprox(result->cameras[c].cam_from_world, 1e-9));
     EXPECT_EQ(loaded->cameras[c].name, result->cameras[c].name);
   }
   const std::string text = testing::ReadBytes(path);

@@ -1,10 +1,10 @@
 #include "reconstruct/dense_fit.h"
 
-#include <cmath>
-#include <random>
-
 #include <ceres/ceres.h>
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
 
 #include "reconstruct/pipeline.h"
 #include "reconstruct/synthetic_views.h"
@@ -114,8 +114,7 @@ TEST(ReconstructTake, SimulatedElevenHertzSmile) {
     if (f == 50) continue;
     const Eigen::Matrix3Xd fitted = rig.SamplePositions(result->take.FramePositions(f));
     const Eigen::Matrix3Xd dynamic = rig.SamplePositions(take->FramePositions(f));
-    const Eigen::Matrix3Xd still =
-        rig.SamplePositions(quasistatic->second.Frame(f).cast<double>());
+    const Eigen::Matrix3Xd still = rig.SamplePositions(quasistatic->second.Frame(f).cast<double>());
     sq += (fitted - dynamic).colwise().squaredNorm().sum();
     n += static_cast<int>(fitted.cols());
     const Eigen::Matrix3d r = take->world_from_skull[f].Inverse().RotationMatrix();
@@ -131,11 +130,11 @@ TEST(ReconstructTake, SimulatedElevenHertzSmile) {
   const Eigen::Map<const Eigen::VectorXd> b(truth.data(), truth.size());
   const Eigen::VectorXd ac = a.array() - a.mean(), bc = b.array() - b.mean();
   const double correlation = ac.dot(bc) / std::sqrt(ac.squaredNorm() * bc.squaredNorm());
-  std::printf("344 samples: RMS %.3f mm over %d frames; dynamic offsets: correlation %.3f "
-              "(true RMS %.3f mm); triangulate %.2f s, dense %.2f s\n",
-              rms, take->frame_count() - skip - 1, correlation,
-              std::sqrt(bc.squaredNorm() / bc.size()), result->timings.triangulate_s,
-              result->timings.dense_s);
+  std::printf(
+      "344 samples: RMS %.3f mm over %d frames; dynamic offsets: correlation %.3f "
+      "(true RMS %.3f mm); triangulate %.2f s, dense %.2f s\n",
+      rms, take->frame_count() - skip - 1, correlation, std::sqrt(bc.squaredNorm() / bc.size()),
+      result->timings.triangulate_s, result->timings.dense_s);
   EXPECT_LE(rms, 0.3);
   EXPECT_GE(correlation, 0.9);
 }

@@ -1,10 +1,10 @@
 #include "reconstruct/marker_detection.h"
 
-#include <cmath>
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <random>
 
 #include "reconstruct/synthetic_views.h"
 #include "tests/support/test_support.h"
@@ -74,8 +74,8 @@ std::vector<const MarkerDetection*> Match(const DotImage& dots,
   for (const Eigen::Vector2d& c : dots.centers) {
     const MarkerDetection* best = nullptr;
     for (const MarkerDetection& d : detections) {
-      if ((d.center_px - c).norm() < 3.0 && (!best || (d.center_px - c).norm() <
-                                                           (best->center_px - c).norm())) {
+      if ((d.center_px - c).norm() < 3.0 &&
+          (!best || (d.center_px - c).norm() < (best->center_px - c).norm())) {
         best = &d;
       }
     }
@@ -85,7 +85,8 @@ std::vector<const MarkerDetection*> Match(const DotImage& dots,
 }
 
 TEST(DetectMarkers, SubPixelCentresUnderBlurAndNoise) {
-  for (const auto& [blur, noise] : {std::pair{0.0, 2.0}, std::pair{1.0, 4.0}, std::pair{2.0, 6.0}}) {
+  for (const auto& [blur, noise] :
+       {std::pair{0.0, 2.0}, std::pair{1.0, 4.0}, std::pair{2.0, 6.0}}) {
     const DotImage dots = MakeDots(4.0, blur, noise, 3);
     MarkerDetectionOptions options;
     MarkerDetectionSummary summary;
@@ -116,8 +117,8 @@ TEST(DetectMarkers, PartialOcclusionBiasesLittleAndLowersQuality) {
   // A background-coloured band (an eyelash, a nose edge) hides a third of every other dot.
   for (size_t i = 0; i < dots.centers.size(); i += 2) {
     const Eigen::Vector2d c = dots.centers[i];
-    cv::rectangle(dots.image, cv::Point2d(c.x() + 1.8, c.y() - 8), cv::Point2d(c.x() + 9, c.y() + 8),
-                  cv::Scalar(185), cv::FILLED);
+    cv::rectangle(dots.image, cv::Point2d(c.x() + 1.8, c.y() - 8),
+                  cv::Point2d(c.x() + 9, c.y() + 8), cv::Scalar(185), cv::FILLED);
   }
   MarkerDetectionSummary summary;
   const auto detections = DetectMarkers(dots.image, MarkerDetectionOptions(), &summary);
@@ -148,12 +149,31 @@ TEST(DetectMarkers, PartialOcclusionBiasesLittleAndLowersQuality) {
   // neighbours' shape recovers the centre where the neighbours say the dot is too small. At
   // the edge of the grid (fewer clear neighbours) some keep the bias, but every partly hidden
   // dot carries a clearly lower quality, which triangulation uses as its weight.
-  std::printf("occluded: %d found, %d within 0.4 px, worst centre error %.3f px, mean quality "
-              "%.2f vs %.2f\n",
-              occluded, within, worst_occluded, occluded_quality / occluded, clear_quality / clear);
+  std::printf(
+      "occluded: %d found, %d within 0.4 px, worst centre error %.3f px, mean quality "
+      "%.2f vs %.2f\n",
+      occluded, within, worst_occluded, occluded_quality / occluded, clear_quality / clear);
   EXPECT_GE(within, occluded / 2);
   EXPECT_LT(worst_occluded, 1.6);
   EXPECT_LT(occluded_quality / occluded, clear_quality / clear - 0.1);
+}
+
+TEST(DetectMarkersInImages, SameAsOneByOneInImageOrder) {
+  std::vector<cv::Mat> images;
+  for (uint32_t seed = 1; seed <= 5; ++seed) images.push_back(MakeDots(4.0, 1.0, 3.0, seed).image);
+  images.push_back(cv::Mat());  // a camera without a frame
+  const auto all = DetectMarkersInImages(images, MarkerDetectionOptions(), 3);
+  ASSERT_EQ(all.size(), images.size());
+  for (size_t i = 0; i + 1 < images.size(); ++i) {
+    const auto one = DetectMarkers(images[i], MarkerDetectionOptions());
+    ASSERT_TRUE(all[i].ok() && one.ok());
+    ASSERT_EQ(all[i]->size(), one->size());
+    for (size_t k = 0; k < one->size(); ++k) {
+      EXPECT_EQ((*all[i])[k].center_px, (*one)[k].center_px);
+    }
+  }
+  ASSERT_TRUE(all.back().ok());
+  EXPECT_TRUE(all.back()->empty());
 }
 
 TEST(DetectMarkers, NothingInAFlatImageAndBadInputRefused) {

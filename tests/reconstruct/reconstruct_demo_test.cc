@@ -2,9 +2,9 @@
 
 #include "app/reconstruct_demo.h"
 
-#include <filesystem>
-
 #include <gtest/gtest.h>
+
+#include <filesystem>
 
 #include "sim/performance.h"
 #include "tests/reconstruct/reconstruct_test_util.h"

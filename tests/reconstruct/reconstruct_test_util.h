@@ -2,10 +2,9 @@
 // it, and marker observations made by projecting known 3D points through known cameras.
 #pragma once
 
+#include <Eigen/Core>
 #include <random>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/face_rig.h"
 #include "reconstruct/camera.h"

@@ -1,9 +1,9 @@
 #include "reconstruct/skull_pose.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "reconstruct/synthetic_views.h"
 #include "reconstruct/triangulation.h"
@@ -80,11 +80,11 @@ TEST(SkullPose, SimulatedElevenHertzTakeThroughCameras) {
   MarkerTracker tracker(rig, TrackingOptions());
   for (int f = 0; f < take->frame_count(); ++f) {
     const Eigen::Matrix3Xd skin = take->FramePositions(f);
-    const MarkerViews views = ProjectMarkers(cameras, MarkerPositions(rig, skin),
-                                             MarkerNormals(rig, skin), 0.2, &rng);
-    ASSERT_TRUE(tracker.AddFrame(TriangulateDetections(cameras, views.detections,
-                                                       CorrespondenceOptions()))
-                    .ok());
+    const MarkerViews views =
+        ProjectMarkers(cameras, MarkerPositions(rig, skin), MarkerNormals(rig, skin), 0.2, &rng);
+    ASSERT_TRUE(
+        tracker.AddFrame(TriangulateDetections(cameras, views.detections, CorrespondenceOptions()))
+            .ok());
   }
   const std::vector<TrackedFrame> frames = tracker.Finish();
   for (bool prior : {true, false}) {
@@ -104,9 +104,10 @@ TEST(SkullPose, SimulatedElevenHertzTakeThroughCameras) {
       ++n;
     }
     const double rms_t = std::sqrt(sq_t / n), rms_r = std::sqrt(sq_r / n);
-    std::printf("thickness prior %d: skull origin RMS %.3f mm (max %.3f), rotation RMS %.4f deg "
-                "(max %.4f) over %d frames\n",
-                prior, rms_t, max_t, rms_r, max_r, n);
+    std::printf(
+        "thickness prior %d: skull origin RMS %.3f mm (max %.3f), rotation RMS %.4f deg "
+        "(max %.4f) over %d frames\n",
+        prior, rms_t, max_t, rms_r, max_r, n);
     if (prior) {
       EXPECT_LE(rms_t, 0.2);
       EXPECT_LE(rms_r, 0.1);

@@ -1,11 +1,11 @@
 #include "reconstruct/tracking.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "reconstruct/assignment.h"
 #include "sim/performance.h"
@@ -69,8 +69,8 @@ TEST(FitRigToPoints, LabelsARotatedExpressiveFaceWithoutPrior) {
   Eigen::VectorXd weights = Eigen::VectorXd::Zero(rig.blendshape_names.size());
   weights[rig.BlendshapeIndex("jaw_open")] = 0.6;
   weights[rig.BlendshapeIndex("smile")] = 0.4;
-  const Rigid3 world_from_skull = Rigid3::FromAxisAngle(
-      Eigen::Vector3d(0.3, 1.0, 0.2).normalized(), 1.1, Eigen::Vector3d(40, 1500, -300));
+  const Rigid3 world_from_skull = Rigid3::FromAxisAngle(Eigen::Vector3d(0.3, 1.0, 0.2).normalized(),
+                                                        1.1, Eigen::Vector3d(40, 1500, -300));
   const Eigen::Matrix3Xd markers =
       world_from_skull.Apply(testing::MarkerPositions(rig, rig.Evaluate(weights)));
   std::mt19937 rng(3);
@@ -102,10 +102,11 @@ TEST(FitRigToPoints, LabelsARotatedExpressiveFaceWithoutPrior) {
       ++wrong;
     }
   }
-  std::printf("labelled %d correctly, %d wrongly of %zu seen; rms %.3f mm; jaw_open %.2f smile %.2f\n",
-              correct, wrong, kept.size(), fit->rms_mm,
-              fit->blendshape_weights[rig.BlendshapeIndex("jaw_open")],
-              fit->blendshape_weights[rig.BlendshapeIndex("smile")]);
+  std::printf(
+      "labelled %d correctly, %d wrongly of %zu seen; rms %.3f mm; jaw_open %.2f smile %.2f\n",
+      correct, wrong, kept.size(), fit->rms_mm,
+      fit->blendshape_weights[rig.BlendshapeIndex("jaw_open")],
+      fit->blendshape_weights[rig.BlendshapeIndex("smile")]);
   EXPECT_EQ(wrong, 0);
   EXPECT_GE(correct, static_cast<int>(0.97 * kept.size()));
   EXPECT_NEAR(fit->blendshape_weights[rig.BlendshapeIndex("jaw_open")], 0.6, 0.1);
@@ -113,8 +114,8 @@ TEST(FitRigToPoints, LabelsARotatedExpressiveFaceWithoutPrior) {
 }
 
 TEST(FitRigToPoints, TooFewPointsIsAnError) {
-  const auto fit = FitRigToPoints(testing::ProceduralFace(), Eigen::Matrix3Xd::Zero(3, 4),
-                                  TrackingOptions());
+  const auto fit =
+      FitRigToPoints(testing::ProceduralFace(), Eigen::Matrix3Xd::Zero(3, 4), TrackingOptions());
   ASSERT_FALSE(fit.ok());
   EXPECT_NE(fit.status().message().find("only 4 points"), std::string::npos);
 }

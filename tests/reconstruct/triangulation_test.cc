@@ -1,11 +1,11 @@
 #include "reconstruct/triangulation.h"
 
+#include <ceres/ceres.h>
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <map>
 #include <random>
-
-#include <ceres/ceres.h>
-#include <gtest/gtest.h>
 
 #include "tests/reconstruct/reconstruct_test_util.h"
 #include "tests/support/test_support.h"
@@ -114,7 +114,8 @@ TEST(TriangulateDetections, EightCamerasAtPointTwoPixelNoise) {
   std::mt19937 rng(11);
   const testing::MarkerViews views = testing::ProjectMarkers(cameras, markers, normals, 0.2, &rng);
   TriangulationSummary summary;
-  const auto points = TriangulateDetections(cameras, views.detections, CorrespondenceOptions(), &summary);
+  const auto points =
+      TriangulateDetections(cameras, views.detections, CorrespondenceOptions(), &summary);
   const Accuracy accuracy = Evaluate(views, markers, points);
   std::printf("%d markers, %d triangulable, %d points (%d wrong), RMS %.4f mm, %d unused of %d\n",
               static_cast<int>(markers.cols()), accuracy.triangulable, accuracy.points,

@@ -2,15 +2,15 @@
 // a server for every real profile, and facedyn's simulated drive for fault injection.
 #include "rig/drive_client.h"
 
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <chrono>
 #include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <fmt/format.h>
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "rig/modbus_transport.h"
 #include "sim/drive_sim.h"
@@ -94,7 +94,8 @@ TEST(DriveClient, WritesEachRealProfileToPymodbusServer) {
     const char* name;
     int setpoint_counts;  // 7.5 Hz
   };
-  for (const Case& c : {Case{"delta_ms300", 750}, Case{"invertek_e3", 75}, Case{"siemens_v20", 2458}}) {
+  for (const Case& c :
+       {Case{"delta_ms300", 750}, Case{"invertek_e3", 75}, Case{"siemens_v20", 2458}}) {
     SCOPED_TRACE(c.name);
     const DriveProfile profile = testing::LoadProfileOrDie(c.name);
     testing::TempDir dir;

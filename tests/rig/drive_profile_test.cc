@@ -1,9 +1,9 @@
 #include "rig/drive_profile.h"
 
-#include <string>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <string>
 
 #include "tests/rig/rig_test_util.h"
 
@@ -54,7 +54,8 @@ TEST(FrequencyScaling, RoundTripsEveryRealProfileAcrossTheBand) {
       auto counts = p.setpoint_scaling.HzToRegister(hz, "setpoint");
       ASSERT_TRUE(counts.ok()) << name << " " << counts.status().ToString();
       // Resolution is one count: 0.01 Hz (Delta), 0.1 Hz (E3), 50/16384 Hz (V20).
-      EXPECT_NEAR(p.setpoint_scaling.RegisterToHz(*counts), hz, 0.5 / p.setpoint_scaling.CountsPerHz())
+      EXPECT_NEAR(p.setpoint_scaling.RegisterToHz(*counts), hz,
+                  0.5 / p.setpoint_scaling.CountsPerHz())
           << name;
     }
   }

@@ -1,9 +1,9 @@
 #include "rig/platform_model.h"
 
-#include <cmath>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 namespace facedyn::rig {
 namespace {
@@ -15,7 +15,8 @@ TEST(PlatformModel, RatioAndSlipRoundTrip) {
   ASSERT_TRUE(options.Check().ok());
   const PlatformModel model(options);
   EXPECT_NEAR(model.PlatformHzFor(20.0), 20.0 * 0.5 * 0.96, 1e-12);
-  for (double hz : {6.0, 8.5, 11.0}) EXPECT_NEAR(model.PlatformHzFor(model.MotorHzFor(hz)), hz, 1e-12);
+  for (double hz : {6.0, 8.5, 11.0})
+    EXPECT_NEAR(model.PlatformHzFor(model.MotorHzFor(hz)), hz, 1e-12);
 }
 
 TEST(PlatformModelOptions, CheckNamesField) {
@@ -34,14 +35,18 @@ TEST(FrequencyTrim, RemovesAConstantSlipErrorAndStaysBounded) {
   options.max_correction_hz = 0.6;
   FrequencyTrim trim(options);
   const double target_hz = 10.0;
-  auto plant = [](double commanded_hz) { return commanded_hz * 0.97; };  // 3% more slip than assumed
+  auto plant = [](double commanded_hz) {
+    return commanded_hz * 0.97;
+  };  // 3% more slip than assumed
   trim.Jump(target_hz, plant(target_hz));
-  for (int i = 0; i < 200; ++i) trim.Update(target_hz, plant(target_hz + trim.correction_hz()), 0.1);
+  for (int i = 0; i < 200; ++i)
+    trim.Update(target_hz, plant(target_hz + trim.correction_hz()), 0.1);
   EXPECT_NEAR(plant(target_hz + trim.correction_hz()), target_hz, 1e-6);
   EXPECT_FALSE(trim.saturated());
   // An error the trim cannot cover saturates at the bound instead of running away.
   FrequencyTrim small(TrimOptions{true, 0.8, 0.1, 0.6});
-  for (int i = 0; i < 200; ++i) small.Update(target_hz, plant(target_hz + small.correction_hz()), 0.1);
+  for (int i = 0; i < 200; ++i)
+    small.Update(target_hz, plant(target_hz + small.correction_hz()), 0.1);
   EXPECT_NEAR(small.correction_hz(), 0.1, 1e-12);
   EXPECT_TRUE(small.saturated());
 }

@@ -1,9 +1,9 @@
 #include "rig/rig_config.h"
 
-#include <string>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <string>
 
 #include "tests/rig/rig_test_util.h"
 
@@ -12,7 +12,8 @@ namespace {
 
 using ::testing::HasSubstr;
 
-const char* const kShippedRigs[] = {"sim-tcp", "sim-rtu", "delta-ms300", "invertek-e3", "siemens-v20"};
+const char* const kShippedRigs[] = {"sim-tcp", "sim-rtu", "delta-ms300", "invertek-e3",
+                                    "siemens-v20"};
 
 TEST(LoadRigConfig, ShippedConfigsLoad) {
   for (const char* name : kShippedRigs) {
@@ -59,8 +60,10 @@ TEST(LoadRigConfig, BadFieldsAreNamed) {
   EXPECT_THAT(ErrorWith(dir, "kind: tcp", "kind: can"), HasSubstr("transport.kind"));
   EXPECT_THAT(ErrorWith(dir, "port: 5020", "port: 70000"), HasSubstr("transport.port"));
   EXPECT_THAT(ErrorWith(dir, "slip: 0.03", "slip: 0.7"), HasSubstr("platform.slip"));
-  EXPECT_THAT(ErrorWith(dir, "feedback: sensor", "feedback: guess"), HasSubstr("platform.feedback"));
-  EXPECT_THAT(ErrorWith(dir, "motor_max_hz: 13.0", "motor_max_hz: 11.0"), HasSubstr("limits.motor_max_hz"));
+  EXPECT_THAT(ErrorWith(dir, "feedback: sensor", "feedback: guess"),
+              HasSubstr("platform.feedback"));
+  EXPECT_THAT(ErrorWith(dir, "motor_max_hz: 13.0", "motor_max_hz: 11.0"),
+              HasSubstr("limits.motor_max_hz"));
   EXPECT_THAT(ErrorWith(dir, "comm_watchdog_s: 1.0", "comm_watchdog_s: 0.2"),
               HasSubstr("safety.comm_watchdog_s"));
   EXPECT_THAT(ErrorWith(dir, "max_ramp_hz_per_s: 2.0", "max_ramp_hz_per_sec: 2.0"),
@@ -85,12 +88,14 @@ TEST(LoadRigConfig, SensorFeedbackNeedsTheRegister) {
 TEST(LoadRigConfig, WatchdogLongerThanTheDriveAllowsIsRefused) {
   testing::TempDir dir;
   std::string text = testing::ReadBytes(testing::RigConfigPath("delta-ms300"));
-  text.replace(text.find("../drives/delta_ms300.yaml"), 26, testing::DriveProfilePath("delta_ms300"));
+  text.replace(text.find("../drives/delta_ms300.yaml"), 26,
+               testing::DriveProfilePath("delta_ms300"));
   text.replace(text.find("comm_watchdog_s: 1.0"), 20, "comm_watchdog_s: 150");
   testing::WriteBytes(dir.Join("rig.yaml"), text);
   auto config = LoadRigConfig(dir.Join("rig.yaml"));
   ASSERT_FALSE(config.ok());
-  EXPECT_THAT(config.status().message(), HasSubstr("safety.comm_watchdog_s: 150 s is above the 100 s"));
+  EXPECT_THAT(config.status().message(),
+              HasSubstr("safety.comm_watchdog_s: 150 s is above the 100 s"));
   EXPECT_THAT(config.status().message(), HasSubstr("Pr.09-03"));
 }
 

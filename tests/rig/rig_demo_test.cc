@@ -1,11 +1,11 @@
 // The rig stage of `facedyn demo` (app/rig_demo.cc), compiled into this test.
 #include "app/rig_demo.h"
 
-#include <cmath>
-#include <cstdlib>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
 
 #include "rig/session_log.h"
 #include "tests/rig/rig_test_util.h"

@@ -2,6 +2,7 @@
 // run as a child process.
 #pragma once
 
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -10,8 +11,6 @@
 #include <fstream>
 #include <string>
 #include <thread>
-
-#include <gtest/gtest.h>
 
 #include "rig/drive_profile.h"
 #include "tests/support/test_support.h"
@@ -58,8 +57,13 @@ class PymodbusServer {
  public:
   PymodbusServer(const TempDir& dir, int size, const std::vector<std::string>& presets = {})
       : log_path_(dir.Join("writes.log")), ready_path_(dir.Join("ready")) {
-    std::vector<std::string> args = {"/usr/bin/python3", RigTestScript("pymodbus_server.py"),
-                                     "--ready", ready_path_, "--log", log_path_, "--size",
+    std::vector<std::string> args = {"/usr/bin/python3",
+                                     RigTestScript("pymodbus_server.py"),
+                                     "--ready",
+                                     ready_path_,
+                                     "--log",
+                                     log_path_,
+                                     "--size",
                                      std::to_string(size)};
     for (const std::string& preset : presets) {
       args.push_back("--preset");

@@ -2,20 +2,19 @@
 // pseudo-terminal pair made by socat, with the fault injection a serial line sees (CRC garbage,
 // late replies, exception replies, a trip, a cut cable), and pymodbus as an independent RTU
 // client of the simulated drive.
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <fmt/format.h>
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include "rig/drive_client.h"
 #include "rig/modbus_transport.h"
@@ -35,16 +34,17 @@ bool SocatAvailable() {
   return testing::RunCommand("command -v socat", &output) == 0;
 }
 
-#define FACEDYN_REQUIRE_SOCAT()                                               \
-  if (!SocatAvailable()) {                                                    \
-    if (testing::InCi()) FAIL() << "socat is missing and CI=true";            \
-    GTEST_SKIP() << "socat not installed (needed for RTU over a pty pair)";   \
+#define FACEDYN_REQUIRE_SOCAT()                                             \
+  if (!SocatAvailable()) {                                                  \
+    if (testing::InCi()) FAIL() << "socat is missing and CI=true";          \
+    GTEST_SKIP() << "socat not installed (needed for RTU over a pty pair)"; \
   }
 
 // `socat pty,link=drive pty,link=host`: a null-modem cable between two pseudo-terminals.
 class PtyPair {
  public:
-  explicit PtyPair(const testing::TempDir& dir) : drive_(dir.Join("drive")), host_(dir.Join("host")) {
+  explicit PtyPair(const testing::TempDir& dir)
+      : drive_(dir.Join("drive")), host_(dir.Join("host")) {
     pid_ = ::fork();
     if (pid_ == 0) {
       const std::string a = "pty,raw,echo=0,link=" + drive_;
@@ -79,7 +79,8 @@ class PtyPair {
   bool ready_ = false;
 };
 
-std::unique_ptr<sim::DriveSim> StartRtuSim(const rig::DriveProfile& profile, const std::string& device,
+std::unique_ptr<sim::DriveSim> StartRtuSim(const rig::DriveProfile& profile,
+                                           const std::string& device,
                                            int watchdog_fault_code = 10) {
   sim::DriveSimOptions options;
   options.rtu_device = device;
@@ -250,7 +251,8 @@ TEST(Rtu, PymodbusSerialClientDrivesTheSimulatedDrive) {
   ASSERT_NE(sim, nullptr);
   const std::string command = fmt::format(
       "/usr/bin/python3 {} --rtu {} --port 0 --setpoint-register {} --counts-per-hz {} --hz 7 "
-      "--command-register {} --run-value {} --output-register {} --status-register {} --seconds 1.0",
+      "--command-register {} --run-value {} --output-register {} --status-register {} --seconds "
+      "1.0",
       testing::RigTestScript("pymodbus_client.py"), pty.host(), profile.setpoint_register,
       profile.setpoint_scaling.CountsPerHz(), profile.command_register, profile.run_value,
       profile.output_frequency_register, profile.status_register);

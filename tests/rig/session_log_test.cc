@@ -1,9 +1,9 @@
 #include "rig/session_log.h"
 
-#include <string>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <string>
 
 #include "tests/support/test_support.h"
 

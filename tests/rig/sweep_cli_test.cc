@@ -1,20 +1,19 @@
 // `facedyn sweep` and `facedyn rig ... --config` as a user runs them: a separate facedyn
 // process against the simulated drive hosted by this test, killed with SIGINT and SIGKILL.
 #include <fcntl.h>
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <fmt/format.h>
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include "core/config_node.h"
 #include "rig/rig_config.h"
@@ -108,8 +107,9 @@ std::unique_ptr<Stage> StartStage() {
 
 std::string WriteSweep(const Stage& stage, const std::string& steps) {
   const std::string path = stage.dir.Join("sweep.yaml");
-  testing::WriteBytes(path, fmt::format("name: cli-test\nrig: {}\ndefaults: {{settle_timeout_s: 20}}\nsteps:\n{}",
-                                        stage.rig_path, steps));
+  testing::WriteBytes(
+      path, fmt::format("name: cli-test\nrig: {}\ndefaults: {{settle_timeout_s: 20}}\nsteps:\n{}",
+                        stage.rig_path, steps));
   return path;
 }
 
@@ -121,7 +121,8 @@ int CountEvents(const std::string& log_path, const std::string& event) {
   return count;
 }
 
-bool WaitForEvents(const std::string& log_path, const std::string& event, int count, double timeout_s) {
+bool WaitForEvents(const std::string& log_path, const std::string& event, int count,
+                   double timeout_s) {
   const auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
   while (Clock::now() < deadline) {
     if (CountEvents(log_path, event) >= count) return true;
@@ -138,11 +139,14 @@ TEST(SweepCommand, KillDashNineThenResumeCompletesWithNothingRepeatedOrLost) {
   auto stage = StartStage();
   ASSERT_NE(stage, nullptr);
   const std::string sweep = WriteSweep(*stage,
-      "  - {hz: 7, hold_s: 0.6}\n  - {hz: 8, hold_s: 0.6}\n  - {hz: 7.5, hold_s: 0.6}\n  - {hz: 8.5, hold_s: 0.6}\n");
+                                       "  - {hz: 7, hold_s: 0.6}\n  - {hz: 8, hold_s: 0.6}\n  - "
+                                       "{hz: 7.5, hold_s: 0.6}\n  - {hz: 8.5, hold_s: 0.6}\n");
   {
-    Child child({testing::FacedynExecutable(), "sweep", "--config", sweep, "--session", stage->session},
-                stage->dir.Join("first.out"));
-    ASSERT_TRUE(WaitForEvents(stage->log_path, "step_done", 2, 40.0)) << testing::ReadBytes(stage->dir.Join("first.out"));
+    Child child(
+        {testing::FacedynExecutable(), "sweep", "--config", sweep, "--session", stage->session},
+        stage->dir.Join("first.out"));
+    ASSERT_TRUE(WaitForEvents(stage->log_path, "step_done", 2, 40.0))
+        << testing::ReadBytes(stage->dir.Join("first.out"));
     child.Signal(SIGKILL);
     EXPECT_EQ(child.Wait(5.0), 128 + SIGKILL);
   }
@@ -158,7 +162,8 @@ TEST(SweepCommand, KillDashNineThenResumeCompletesWithNothingRepeatedOrLost) {
 
   // The trip must be acknowledged explicitly before the sweep may move the platform again.
   std::string output;
-  const std::string resume = fmt::format("sweep --config {} --session {} --resume", sweep, stage->session);
+  const std::string resume =
+      fmt::format("sweep --config {} --session {} --resume", sweep, stage->session);
   EXPECT_EQ(RunFacedyn(resume, &output), 1) << output;
   EXPECT_THAT(output, HasSubstr("comm watchdog expired"));
   EXPECT_THAT(output, HasSubstr("facedyn rig reset"));
@@ -186,10 +191,13 @@ TEST(SweepCommand, KillDashNineThenResumeCompletesWithNothingRepeatedOrLost) {
 TEST(SweepCommand, SigintDuringAHoldRampsToStop) {
   auto stage = StartStage();
   ASSERT_NE(stage, nullptr);
-  const std::string sweep = WriteSweep(*stage, "  - {hz: 9, hold_s: 30}\n  - {hz: 10, hold_s: 30}\n");
-  Child child({testing::FacedynExecutable(), "sweep", "--config", sweep, "--session", stage->session},
-              stage->dir.Join("out"));
-  ASSERT_TRUE(WaitForEvents(stage->log_path, "settled", 1, 30.0)) << testing::ReadBytes(stage->dir.Join("out"));
+  const std::string sweep =
+      WriteSweep(*stage, "  - {hz: 9, hold_s: 30}\n  - {hz: 10, hold_s: 30}\n");
+  Child child(
+      {testing::FacedynExecutable(), "sweep", "--config", sweep, "--session", stage->session},
+      stage->dir.Join("out"));
+  ASSERT_TRUE(WaitForEvents(stage->log_path, "settled", 1, 30.0))
+      << testing::ReadBytes(stage->dir.Join("out"));
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   ASSERT_GT(stage->sim->state().output_hz, 8.0);
   child.Signal(SIGINT);
@@ -230,7 +238,10 @@ TEST(RigCommand, SetStatusStopWithConfig) {
   EXPECT_EQ(RunFacedyn("rig set --config " + stage->rig_path + " --hz 12", &output), 1);
   EXPECT_THAT(output, HasSubstr("hz: 12 Hz is above limits.absolute_max_hz 11 Hz"));
   EXPECT_EQ(stage->sim->state().run_commanded, false);
-  ASSERT_EQ(RunFacedyn("rig set --config " + stage->rig_path + " --hz 8.5 --seconds 0.5 --json", &output), 0) << output;
+  ASSERT_EQ(
+      RunFacedyn("rig set --config " + stage->rig_path + " --hz 8.5 --seconds 0.5 --json", &output),
+      0)
+      << output;
   const auto json = nlohmann::json::parse(output.substr(output.find('{')));
   EXPECT_NEAR(json["measured_hz"].get<double>(), 8.5, 0.05);
   EXPECT_NEAR(json["hold"]["mean_measured_hz"].get<double>(), 8.5, 0.05);
@@ -250,8 +261,8 @@ TEST(RigCommand, SetStatusStopWithConfig) {
 
 TEST(RigServeSim, ServesTheRigConfigOnAFreePortUntilSigint) {
   testing::TempDir dir;
-  Child server({testing::FacedynExecutable(), "rig", "serve-sim", "--config", testing::RigConfigPath("sim-tcp"),
-                "--tcp", "127.0.0.1:0", "--seconds", "30"},
+  Child server({testing::FacedynExecutable(), "rig", "serve-sim", "--config",
+                testing::RigConfigPath("sim-tcp"), "--tcp", "127.0.0.1:0", "--seconds", "30"},
                dir.Join("serve.out"));
   int port = 0;
   const auto deadline = Clock::now() + std::chrono::seconds(10);
@@ -264,7 +275,10 @@ TEST(RigServeSim, ServesTheRigConfigOnAFreePortUntilSigint) {
   ASSERT_GT(port, 0) << testing::ReadBytes(dir.Join("serve.out"));
   std::string output;
   ASSERT_EQ(RunFacedyn(fmt::format("rig status --profile {} --tcp 127.0.0.1:{} --json",
-                                   testing::DriveProfilePath("sim"), port), &output), 0) << output;
+                                   testing::DriveProfilePath("sim"), port),
+                       &output),
+            0)
+      << output;
   EXPECT_THAT(output, HasSubstr("\"running\": false"));
   server.Signal(SIGINT);
   EXPECT_EQ(server.Wait(5.0), 0);

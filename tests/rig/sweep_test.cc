@@ -2,12 +2,12 @@
 // simulated drive, including resume after a failure mid-sweep.
 #include "rig/sweep.h"
 
-#include <map>
-#include <string>
-
 #include <fmt/format.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <map>
+#include <string>
 
 #include "rig/session_log.h"
 #include "sim/drive_sim.h"
@@ -36,7 +36,8 @@ TEST(LoadSweepScript, ShippedSweepsLoadAndFitTheSimRig) {
   EXPECT_EQ(paper->InstanceCount(), 66);  // 11 expressions x 6 frequencies
   std::map<double, int> per_hz;
   for (const SweepStep& s : paper->steps) ++per_hz[s.hz];
-  EXPECT_EQ(per_hz, (std::map<double, int>{{6, 11}, {7, 11}, {8, 11}, {9, 11}, {10, 11}, {11, 11}}));
+  EXPECT_EQ(per_hz,
+            (std::map<double, int>{{6, 11}, {7, 11}, {8, 11}, {9, 11}, {10, 11}, {11, 11}}));
   EXPECT_EQ(paper->steps[0].prompt, "neutral");
   EXPECT_EQ(paper->steps[6].prompt, "smile");  // prompt_major: all frequencies per expression
   EXPECT_TRUE(paper->CheckAgainst(rig).ok());
@@ -142,7 +143,8 @@ TEST(RunSweep, RunsEveryStepCallsHooksAndResumesAfterAFailure) {
   ASSERT_NE(bench.sim, nullptr);
   auto script = ParseText(
       "name: t\ndefaults: {hold_s: 0.4, settle_timeout_s: 15}\n"
-      "steps:\n  - {hz: 7, prompt: neutral}\n  - {hz: 7.5, prompt: smile, repeats: 2}\n  - {hz: 8, prompt: pucker}\n");
+      "steps:\n  - {hz: 7, prompt: neutral}\n  - {hz: 7.5, prompt: smile, repeats: 2}\n  - {hz: 8, "
+      "prompt: pucker}\n");
   ASSERT_TRUE(script.ok());
   testing::TempDir dir;
   SweepOptions options;
@@ -161,7 +163,8 @@ TEST(RunSweep, RunsEveryStepCallsHooksAndResumesAfterAFailure) {
   EXPECT_THAT(first.status().message(), HasSubstr("camera 3 did not answer"));
   EXPECT_EQ(started, (std::vector<int>{0, 1, 2}));
   EXPECT_EQ(bench.sim->state().output_hz, 0.0);  // a failed hook ramps the platform to a stop
-  EXPECT_EQ(StepDoneCounts(dir.Join("session/rig_log.jsonl")), (std::map<int, int>{{0, 1}, {1, 1}}));
+  EXPECT_EQ(StepDoneCounts(dir.Join("session/rig_log.jsonl")),
+            (std::map<int, int>{{0, 1}, {1, 1}}));
 
   // Starting again without --resume would overwrite the journal: refused.
   auto again = RunSweep(*script, bench.rig, options);

@@ -57,10 +57,12 @@ int main(int argc, char** argv) {
       failed = Report(step, c.ResetFault());
     } else if (step == "status") {
       auto status = c.ReadStatus();
-      failed = Report(step, status.status(), status.ok() ? Json{{"status", status->ToJson()}} : Json::object());
+      failed = Report(step, status.status(),
+                      status.ok() ? Json{{"status", status->ToJson()}} : Json::object());
     } else if (step == "accel") {
       auto samples = c.ReadAccelerationG();
-      failed = Report(step, samples.status(), samples.ok() ? Json{{"samples_g", *samples}} : Json::object());
+      failed = Report(step, samples.status(),
+                      samples.ok() ? Json{{"samples_g", *samples}} : Json::object());
     } else if (step == "trigger") {
       failed = Report(step, c.Trigger(128, 1.0 / 128.0));
     } else {

@@ -4,17 +4,17 @@
 // transfer, the submit the client must send (setup packet compared byte for byte) and the
 // device's completion (status, reply bytes). A request that differs from the script is never
 // answered, so the client's encoding of the vendor protocol is checked, not just its decoding.
+#include <fmt/format.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <cerrno>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <fmt/format.h>
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include "tests/rig/rig_test_util.h"
 
@@ -30,10 +30,10 @@ bool UmockdevAvailable() {
   return testing::RunCommand("command -v umockdev-run", &output) == 0;
 }
 
-#define FACEDYN_REQUIRE_UMOCKDEV()                                                  \
-  if (!UmockdevAvailable()) {                                                       \
-    if (testing::InCi()) FAIL() << "umockdev is missing and CI=true";               \
-    GTEST_SKIP() << "umockdev not installed (needed to script a USB device)";       \
+#define FACEDYN_REQUIRE_UMOCKDEV()                                            \
+  if (!UmockdevAvailable()) {                                                 \
+    if (testing::InCi()) FAIL() << "umockdev is missing and CI=true";         \
+    GTEST_SKIP() << "umockdev not installed (needed to script a USB device)"; \
   }
 
 // A pcap file of LINKTYPE_USB_LINUX_MMAPPED (220) records, as Wireshark saves from usbmon.
@@ -55,13 +55,21 @@ class UsbCapture {
     std::ofstream out(path, std::ios::binary);
     const uint32_t header[] = {0xa1b2c3d4, 0x00040002, 0, 0, 65535, 220};
     out.write(reinterpret_cast<const char*>(header), sizeof(header));
-    out.write(reinterpret_cast<const char*>(bytes_.data()), static_cast<std::streamsize>(bytes_.size()));
+    out.write(reinterpret_cast<const char*>(bytes_.data()),
+              static_cast<std::streamsize>(bytes_.size()));
   }
 
  private:
-  static std::vector<uint8_t> Setup(uint8_t type, uint8_t request, uint16_t value, uint16_t index, uint16_t length) {
-    return {type, request, uint8_t(value & 0xFF), uint8_t(value >> 8), uint8_t(index & 0xFF), uint8_t(index >> 8),
-            uint8_t(length & 0xFF), uint8_t(length >> 8)};
+  static std::vector<uint8_t> Setup(uint8_t type, uint8_t request, uint16_t value, uint16_t index,
+                                    uint16_t length) {
+    return {type,
+            request,
+            uint8_t(value & 0xFF),
+            uint8_t(value >> 8),
+            uint8_t(index & 0xFF),
+            uint8_t(index >> 8),
+            uint8_t(length & 0xFF),
+            uint8_t(length >> 8)};
   }
   template <typename T>
   static void Put(std::vector<uint8_t>* out, T value) {
@@ -69,16 +77,17 @@ class UsbCapture {
     out->insert(out->end(), p, p + sizeof(T));
   }
   // The 64-byte usbmon "mmapped" header (linux/Documentation/usb/usbmon.rst), then the data.
-  void Record(uint64_t id, char event, uint8_t endpoint, char setup_flag, char data_flag, int32_t status,
-              uint32_t urb_len, const std::vector<uint8_t>& data, const std::vector<uint8_t>& setup) {
+  void Record(uint64_t id, char event, uint8_t endpoint, char setup_flag, char data_flag,
+              int32_t status, uint32_t urb_len, const std::vector<uint8_t>& data,
+              const std::vector<uint8_t>& setup) {
     time_us_ += 1000;
     std::vector<uint8_t> packet;
     Put<uint64_t>(&packet, id);
     Put<uint8_t>(&packet, static_cast<uint8_t>(event));
     Put<uint8_t>(&packet, 2);  // control transfer
     Put<uint8_t>(&packet, endpoint);
-    Put<uint8_t>(&packet, 3);    // device address
-    Put<uint16_t>(&packet, 1);   // bus
+    Put<uint8_t>(&packet, 3);   // device address
+    Put<uint16_t>(&packet, 1);  // bus
     Put<uint8_t>(&packet, static_cast<uint8_t>(setup_flag));
     Put<uint8_t>(&packet, static_cast<uint8_t>(data_flag));
     Put<int64_t>(&packet, 0);
@@ -89,7 +98,8 @@ class UsbCapture {
     std::vector<uint8_t> s = setup;
     s.resize(8, 0);
     packet.insert(packet.end(), s.begin(), s.end());
-    for (int i = 0; i < 4; ++i) Put<int32_t>(&packet, 0);  // interval, start_frame, xfer_flags, ndesc
+    for (int i = 0; i < 4; ++i)
+      Put<int32_t>(&packet, 0);  // interval, start_frame, xfer_flags, ndesc
     packet.insert(packet.end(), data.begin(), data.end());
     Put<uint32_t>(&bytes_, 0);
     Put<uint32_t>(&bytes_, static_cast<uint32_t>(time_us_));
@@ -123,19 +133,23 @@ std::vector<uint8_t> Info(int version = 1) { return Le({version, 0x07, 500, 1200
 std::string ProbePath() { return std::string(FACEDYN_PROBE_PATH); }
 
 // Runs the probe on the scripted device; returns its JSON lines.
-std::vector<nlohmann::json> RunProbe(const testing::TempDir& dir, const UsbCapture& capture, const std::string& args,
-                                     int* exit_code, const std::string& device_file = "") {
+std::vector<nlohmann::json> RunProbe(const testing::TempDir& dir, const UsbCapture& capture,
+                                     const std::string& args, int* exit_code,
+                                     const std::string& device_file = "") {
   capture.Write(dir.Join("session.pcap"));
-  const std::string device = device_file.empty() ? testing::RigTestScript("usb_controller.umockdev") : device_file;
+  const std::string device =
+      device_file.empty() ? testing::RigTestScript("usb_controller.umockdev") : device_file;
   std::string output;
-  *exit_code = testing::RunCommand(fmt::format("timeout 30 umockdev-run -d {} -p {}={} -- {} {} 2>/dev/null", device,
-                                               kSysfsPath, dir.Join("session.pcap"), ProbePath(), args),
-                                   &output);
+  *exit_code = testing::RunCommand(
+      fmt::format("timeout 30 umockdev-run -d {} -p {}={} -- {} {} 2>/dev/null", device, kSysfsPath,
+                  dir.Join("session.pcap"), ProbePath(), args),
+      &output);
   std::vector<nlohmann::json> lines;
   size_t begin = 0;
   while (begin < output.size()) {
     const size_t end = output.find('\n', begin);
-    const std::string line = output.substr(begin, end == std::string::npos ? std::string::npos : end - begin);
+    const std::string line =
+        output.substr(begin, end == std::string::npos ? std::string::npos : end - begin);
     begin = end == std::string::npos ? output.size() : end + 1;
     if (!line.empty() && line[0] == '{') lines.push_back(nlohmann::json::parse(line));
   }
@@ -148,8 +162,8 @@ TEST(UsbPlatformController, FullSessionAgainstTheScriptedDevice) {
   testing::TempDir dir;
   UsbCapture capture;
   capture.In(0x01, 8, Info());
-  capture.Out(0x10, 850, 0);     // SET_FREQUENCY 8.50 Hz
-  capture.Out(0x11, 0, 0);       // START
+  capture.Out(0x10, 850, 0);  // SET_FREQUENCY 8.50 Hz
+  capture.Out(0x11, 0, 0);    // START
   capture.In(0x13, 8, Le({0x01, 0, 850, 847, 41}));
   std::vector<uint8_t> accel = {3, 0};  // count 3, then 1000, -500, 12 milli-g
   for (int v : {1000, -500, 12}) {
@@ -181,7 +195,8 @@ TEST(UsbPlatformController, ARequestOtherThanTheScriptIsNeverAnswered) {
   capture.In(0x01, 8, Info());
   capture.Out(0x10, 900, 0);  // the device expects 9.00 Hz ...
   int code = -1;
-  const auto lines = RunProbe(dir, capture, "--hz 8.5 --steps set", &code);  // ... the client sends 8.50
+  const auto lines =
+      RunProbe(dir, capture, "--hz 8.5 --steps set", &code);  // ... the client sends 8.50
   ASSERT_EQ(code, 1);
   EXPECT_EQ(lines.back()["step"], "set");
   EXPECT_THAT(lines.back()["error"].get<std::string>(), HasSubstr("SET_FREQUENCY"));
@@ -199,7 +214,8 @@ TEST(UsbPlatformController, StallMeansUnsupportedAndShortRepliesAreDataLoss) {
     const auto lines = RunProbe(dir, capture, "--steps trigger", &code);
     ASSERT_EQ(code, 1);
     EXPECT_EQ(lines.back()["code"], "failed precondition");
-    EXPECT_THAT(lines.back()["error"].get<std::string>(), HasSubstr("TRIGGER: not supported by the controller's firmware"));
+    EXPECT_THAT(lines.back()["error"].get<std::string>(),
+                HasSubstr("TRIGGER: not supported by the controller's firmware"));
   }
   {
     testing::TempDir dir;
@@ -223,7 +239,8 @@ TEST(UsbPlatformController, OtherProtocolVersionIsRefused) {
   const auto lines = RunProbe(dir, capture, "--steps open", &code);
   ASSERT_EQ(code, 1);
   EXPECT_EQ(lines.back()["step"], "open");
-  EXPECT_THAT(lines.back()["error"].get<std::string>(), HasSubstr("protocol version 2, facedyn speaks 1"));
+  EXPECT_THAT(lines.back()["error"].get<std::string>(),
+              HasSubstr("protocol version 2, facedyn speaks 1"));
 }
 
 TEST(UsbPlatformController, NoDeviceFoundNamesTheIdAndWhatWasSeen) {
@@ -253,8 +270,8 @@ TEST(RigUsbStatusCommand, PrintsTheControllerOrSaysNoneWasFound) {
   std::string output;
   const int code = testing::RunCommand(
       fmt::format("timeout 60 umockdev-run -d {} -p {}={} -- {} rig usb-status --json 2>/dev/null",
-                  testing::RigTestScript("usb_controller.umockdev"), kSysfsPath, dir.Join("session.pcap"),
-                  testing::FacedynExecutable()),
+                  testing::RigTestScript("usb_controller.umockdev"), kSysfsPath,
+                  dir.Join("session.pcap"), testing::FacedynExecutable()),
       &output);
   ASSERT_EQ(code, 0) << output;
   const auto json = nlohmann::json::parse(output.substr(output.find('{')));
@@ -269,7 +286,8 @@ TEST(RigUsbStatusCommand, PrintsTheControllerOrSaysNoneWasFound) {
                   testing::RigTestScript("usb_controller.umockdev"), testing::FacedynExecutable()),
       &output);
   EXPECT_EQ(missing, 1) << output;
-  EXPECT_THAT(output, HasSubstr("no USB platform controller 1209:00aa found (1 USB device(s) present)"));
+  EXPECT_THAT(output,
+              HasSubstr("no USB platform controller 1209:00aa found (1 USB device(s) present)"));
 }
 
 }  // namespace

@@ -1,9 +1,9 @@
 #include "sim/calibration_target.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
-
-#include <gtest/gtest.h>
 #include <opencv2/aruco/charuco.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -12,8 +12,9 @@ namespace facedyn::sim {
 namespace {
 
 capture::CameraModel Camera() {
-  capture::CameraModel camera = capture::CameraModel::LookAt("c", 640, 480, 900, Eigen::Vector3d(60, -40, -520),
-                                                             Eigen::Vector3d(90, 60, 0), -Eigen::Vector3d::UnitY());
+  capture::CameraModel camera =
+      capture::CameraModel::LookAt("c", 640, 480, 900, Eigen::Vector3d(60, -40, -520),
+                                   Eigen::Vector3d(90, 60, 0), -Eigen::Vector3d::UnitY());
   camera.intrinsics[4] = -0.2;
   camera.intrinsics[5] = 0.08;
   camera.intrinsics[7] = 0.002;
@@ -29,7 +30,8 @@ RenderOptions Sensor() {
 }
 
 // Distance from each detected point to the nearest ground-truth corner.
-std::vector<double> MatchErrors(const std::vector<cv::Point2f>& detected, const std::vector<Eigen::Vector2d>& truth) {
+std::vector<double> MatchErrors(const std::vector<cv::Point2f>& detected,
+                                const std::vector<Eigen::Vector2d>& truth) {
   std::vector<double> errors;
   for (const cv::Point2f& p : detected) {
     double best = std::numeric_limits<double>::infinity();
@@ -45,7 +47,8 @@ TEST(BoardRenderer, OpenCvFindsChessboardCornersWhereTheyProject) {
   CalibrationBoard board;  // 10 x 7 squares of 20 mm
   const BoardRenderer renderer(board, Sensor());
   const capture::CameraModel camera = Camera();
-  const Rigid3 world_from_board = Rigid3::FromAxisAngle(Eigen::Vector3d(1, 0.3, 0).normalized(), 0.35);
+  const Rigid3 world_from_board =
+      Rigid3::FromAxisAngle(Eigen::Vector3d(1, 0.3, 0).normalized(), 0.35);
   cv::Mat image(camera.height_px, camera.width_px, CV_8U);
   renderer.Render(camera, world_from_board, 1, image.data);
   std::vector<cv::Point2f> corners;
@@ -53,7 +56,8 @@ TEST(BoardRenderer, OpenCvFindsChessboardCornersWhereTheyProject) {
   cv::cornerSubPix(image, corners, cv::Size(5, 5), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-3));
   ASSERT_EQ(corners.size(), 54u);
-  const std::vector<double> errors = MatchErrors(corners, renderer.ProjectInnerCorners(camera, world_from_board));
+  const std::vector<double> errors =
+      MatchErrors(corners, renderer.ProjectInnerCorners(camera, world_from_board));
   double sum = 0, worst = 0;
   for (double e : errors) {
     sum += e;
@@ -85,7 +89,8 @@ TEST(BoardRenderer, CharucoMarkersAndCornersAreDetected) {
   // the way a calibration pipeline does, then compare with the exact projections.
   cv::cornerSubPix(image, corners, cv::Size(5, 5), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-3));
-  const std::vector<double> errors = MatchErrors(corners, renderer.ProjectInnerCorners(camera, world_from_board));
+  const std::vector<double> errors =
+      MatchErrors(corners, renderer.ProjectInnerCorners(camera, world_from_board));
   double sum = 0;
   for (double e : errors) {
     sum += e;

@@ -1,14 +1,14 @@
 #include "sim/drive_sim.h"
 
-#include <chrono>
-#include <cmath>
-#include <string>
-#include <thread>
-
 #include <fmt/format.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
 #include <nlohmann/json.hpp>
+#include <string>
+#include <thread>
 
 #include "rig/drive_client.h"
 #include "rig/modbus_transport.h"
@@ -73,7 +73,8 @@ TEST(DriveSim, AnswersPymodbusClientPerSimProfile) {
   ASSERT_TRUE(sim.ok()) << sim.status().ToString();
   const std::string command = fmt::format(
       "/usr/bin/python3 {} --port {} --setpoint-register {} --counts-per-hz {} --hz 8 "
-      "--command-register {} --run-value {} --output-register {} --status-register {} --seconds 1.2",
+      "--command-register {} --run-value {} --output-register {} --status-register {} --seconds "
+      "1.2",
       testing::RigTestScript("pymodbus_client.py"), (*sim)->port(), profile.setpoint_register,
       profile.setpoint_scaling.CountsPerHz(), profile.command_register, profile.run_value,
       profile.output_frequency_register, profile.status_register);
@@ -100,7 +101,8 @@ TEST(DriveSim, WatchdogStopsMotorWhenClientGoesSilent) {
   auto transport = rig::ModbusTransport::Open(transport_options);
   ASSERT_TRUE(transport.ok());
   // The watchdog time is written over Modbus, as a client would on a real drive.
-  ASSERT_TRUE((*transport)->WriteRegister(*profile.comm_watchdog->register_address, 3).ok());  // 0.3 s
+  ASSERT_TRUE(
+      (*transport)->WriteRegister(*profile.comm_watchdog->register_address, 3).ok());  // 0.3 s
   rig::DriveClient client(transport->get(), profile);
   ASSERT_TRUE(client.SetFrequencyHz(8.0).ok());
   ASSERT_TRUE(client.Start().ok());
@@ -194,14 +196,16 @@ TEST(DriveModel, ScheduledTripFiresAfterRunningTime) {
 }
 
 TEST(ParseDriveModelOptions, ReadsFieldsAndNamesBadOnes) {
-  auto node = ConfigNode::Parse("sim:\n  accel_hz_per_s: 7\n  slip_load: 0.05\n  seed: 3\n", "rig.yaml");
+  auto node =
+      ConfigNode::Parse("sim:\n  accel_hz_per_s: 7\n  slip_load: 0.05\n  seed: 3\n", "rig.yaml");
   ASSERT_TRUE(node.ok());
   DriveModelOptions options;
   ASSERT_TRUE(ParseDriveModelOptions(*node->Child("sim"), &options).ok());
   EXPECT_EQ(options.accel_hz_per_s, 7.0);
   EXPECT_EQ(options.slip_load, 0.05);
   EXPECT_EQ(options.seed, 3u);
-  for (const char* bad : {"sim:\n  slip: 0.1\n", "sim:\n  slip_base: 0.9\n", "sim:\n  sensor_window_s: x\n"}) {
+  for (const char* bad :
+       {"sim:\n  slip: 0.1\n", "sim:\n  slip_base: 0.9\n", "sim:\n  sensor_window_s: x\n"}) {
     SCOPED_TRACE(bad);
     auto parsed = ConfigNode::Parse(bad, "rig.yaml");
     ASSERT_TRUE(parsed.ok());

@@ -1,11 +1,11 @@
 #include "sim/virtual_camera.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <thread>
-
-#include <gtest/gtest.h>
 
 #include "capture/frame_sync.h"
 #include "capture/trigger.h"
@@ -33,8 +33,9 @@ RenderOptions Clean() {
 }
 
 capture::CameraModel FrontCamera(int width = 640, int height = 512, double focal = 1500) {
-  capture::CameraModel camera = capture::CameraModel::LookAt("front", width, height, focal, Eigen::Vector3d(40, 20, 750),
-                                                             Eigen::Vector3d(0, -5, 60), Eigen::Vector3d::UnitY());
+  capture::CameraModel camera =
+      capture::CameraModel::LookAt("front", width, height, focal, Eigen::Vector3d(40, 20, 750),
+                                   Eigen::Vector3d(0, -5, 60), Eigen::Vector3d::UnitY());
   camera.intrinsics[4] = -0.15;  // visible barrel distortion
   camera.intrinsics[5] = 0.05;
   camera.intrinsics[6] = 0.001;
@@ -58,13 +59,15 @@ MarkerStats MeasureMarkers(const capture::CameraModel& camera, const std::vector
   for (int m = 0; m < markers.cols(); ++m) {
     Eigen::Vector2d pixel;
     if (!camera.Project(markers.col(m), &pixel) || !camera.InImage(pixel, 6)) continue;
-    const int x = static_cast<int>(std::lround(pixel.x())), y = static_cast<int>(std::lround(pixel.y()));
+    const int x = static_cast<int>(std::lround(pixel.x())),
+              y = static_cast<int>(std::lround(pixel.y()));
     const double z = (camera.cam_from_world * Eigen::Vector3d(markers.col(m))).z();
     const bool visible = std::abs(ws.depth_mm[y * camera.width_px + x] - z) < 1.0;
     // Local skin brightness: the brightest pixel in a 9x9 window.
     int local_max = 0;
     for (int dy = -4; dy <= 4; ++dy) {
-      for (int dx = -4; dx <= 4; ++dx) local_max = std::max<int>(local_max, image[(y + dy) * camera.width_px + x + dx]);
+      for (int dx = -4; dx <= 4; ++dx)
+        local_max = std::max<int>(local_max, image[(y + dy) * camera.width_px + x + dx]);
     }
     const bool dark = image[y * camera.width_px + x] < 0.5 * local_max;
     if (visible) {
@@ -73,7 +76,8 @@ MarkerStats MeasureMarkers(const capture::CameraModel& camera, const std::vector
       double wsum = 0, cx = 0, cy = 0;
       for (int dy = -4; dy <= 4; ++dy) {
         for (int dx = -4; dx <= 4; ++dx) {
-          const double w = std::max(0.0, 0.8 * local_max - image[(y + dy) * camera.width_px + x + dx]);
+          const double w =
+              std::max(0.0, 0.8 * local_max - image[(y + dy) * camera.width_px + x + dx]);
           wsum += w;
           cx += w * (x + dx);
           cy += w * (y + dy);
@@ -116,8 +120,9 @@ TEST(FaceRenderer, PaintedMarkersAppearAtTheirProjections) {
 TEST(FaceRenderer, SelfOcclusionHidesTheFarCheek) {
   const FaceRenderer renderer(Face(), Clean());
   // From the subject's right side (-X), looking across the face.
-  const capture::CameraModel camera = capture::CameraModel::LookAt(
-      "side", 640, 512, 1500, Eigen::Vector3d(-650, 0, 300), Eigen::Vector3d(0, -5, 60), Eigen::Vector3d::UnitY());
+  const capture::CameraModel camera =
+      capture::CameraModel::LookAt("side", 640, 512, 1500, Eigen::Vector3d(-650, 0, 300),
+                                   Eigen::Vector3d(0, -5, 60), Eigen::Vector3d::UnitY());
   RenderWorkspace ws;
   std::vector<uint8_t> image(camera.width_px * camera.height_px);
   renderer.Render(camera, Face().neutral.positions_mm, 1, &ws, image.data());
@@ -135,8 +140,9 @@ TEST(FaceRenderer, SensorNoiseIsDeterministicWithTheConfiguredSigma) {
   options.background = 0.2;
   const FaceRenderer renderer(Face(), options);
   // Looking away from the face: only background.
-  const capture::CameraModel camera = capture::CameraModel::LookAt("away", 320, 256, 400, Eigen::Vector3d(0, 0, 700),
-                                                                   Eigen::Vector3d(0, 0, 1400), Eigen::Vector3d::UnitY());
+  const capture::CameraModel camera =
+      capture::CameraModel::LookAt("away", 320, 256, 400, Eigen::Vector3d(0, 0, 700),
+                                   Eigen::Vector3d(0, 0, 1400), Eigen::Vector3d::UnitY());
   RenderWorkspace ws;
   std::vector<uint8_t> a(320 * 256), b(320 * 256), c(320 * 256);
   renderer.Render(camera, Face().neutral.positions_mm, 7, &ws, a.data());
@@ -152,7 +158,8 @@ TEST(FaceRenderer, SensorNoiseIsDeterministicWithTheConfiguredSigma) {
   EXPECT_NEAR(sigma, std::sqrt(3.0 * 3.0 + 1.0 / 12), 0.15);  // read noise plus rounding
 }
 
-std::shared_ptr<Take> StaticTake(int frames, double fps, const Eigen::Vector3d& velocity_mm_per_frame) {
+std::shared_ptr<Take> StaticTake(int frames, double fps,
+                                 const Eigen::Vector3d& velocity_mm_per_frame) {
   auto take = std::make_shared<Take>();
   take->info.fps = fps;
   take->topology = Face().neutral;
@@ -180,13 +187,16 @@ TEST(FaceRenderer, MotionBlurAveragesOverTheExposure) {
     EXPECT_TRUE(sim.Arm().ok());
     EXPECT_TRUE(sim.OnTrigger({0, 0}).ok());
     capture::Frame frame;
-    EXPECT_TRUE(sim.NextFrame(1.0, &frame).ok());
+    bool got = false;
+    EXPECT_TRUE(sim.NextFrame(1.0, &frame, &got).ok());
+    EXPECT_TRUE(got);
     return frame.pixels;
   };
   const Eigen::Vector3d still = Eigen::Vector3d::Zero(), moving(6.0, 0, 0);
   const std::vector<uint8_t> sharp_still = run(1, still), blurred_still = run(6, still);
   int differing = 0;
-  for (size_t i = 0; i < sharp_still.size(); ++i) differing += std::abs(sharp_still[i] - blurred_still[i]) > 1;
+  for (size_t i = 0; i < sharp_still.size(); ++i)
+    differing += std::abs(sharp_still[i] - blurred_still[i]) > 1;
   EXPECT_LT(differing, 10);  // no motion: the average of identical instants
   const std::vector<uint8_t> sharp = run(1, moving), blurred = run(6, moving);
   auto horizontal_gradient = [](const std::vector<uint8_t>& image) {
@@ -220,9 +230,11 @@ TEST(SimCamera, InjectedFaultsAreSeenByTheSyncChecker) {
   });
   capture::Frame frame;
   for (;;) {
-    const Status status = sim.NextFrame(0.5, &frame);
+    bool got = false;
+    const Status status = sim.NextFrame(0.5, &frame, &got);
     if (status.code() == StatusCode::kAborted) break;
     ASSERT_TRUE(status.ok()) << status.message();
+    if (!got) continue;
     EXPECT_EQ(frame.camera_index, 1);
     order.push_back(frame.trigger_index);
     (void)checker.Observe(frame.trigger_index, frame.timestamp_ns,
@@ -239,15 +251,22 @@ TEST(SimCamera, InjectedFaultsAreSeenByTheSyncChecker) {
 
 TEST(SimCamera, ConfigureRejectsMismatchedSettings) {
   auto renderer = std::make_shared<FaceRenderer>(Face(), Clean());
-  SimCamera sim(0, FrontCamera(64, 48, 120), renderer, StaticTake(2, 128.0, Eigen::Vector3d::Zero()));
-  EXPECT_NE(sim.Configure({65, 48, capture::PixelFormat::kMono8, 1000, 128.0}).message().find("calibration"), std::string::npos);
-  EXPECT_NE(sim.Configure({64, 48, capture::PixelFormat::kMono8, 1000, 96.0}).message().find("fps"), std::string::npos);
+  SimCamera sim(0, FrontCamera(64, 48, 120), renderer,
+                StaticTake(2, 128.0, Eigen::Vector3d::Zero()));
+  EXPECT_NE(sim.Configure({65, 48, capture::PixelFormat::kMono8, 1000, 128.0})
+                .message()
+                .find("calibration"),
+            std::string::npos);
+  EXPECT_NE(sim.Configure({64, 48, capture::PixelFormat::kMono8, 1000, 96.0}).message().find("fps"),
+            std::string::npos);
   EXPECT_FALSE(sim.Arm().ok());
   ASSERT_TRUE(sim.Configure({64, 48, capture::PixelFormat::kMono8, 1000, 128.0}).ok());
   ASSERT_TRUE(sim.Arm().ok());
   ASSERT_TRUE(sim.OnTrigger({5, 0}).ok());
   capture::Frame frame;
-  const Status beyond = sim.NextFrame(0.5, &frame);
+  bool got = false;
+  const Status beyond = sim.NextFrame(0.5, &frame, &got);
+  EXPECT_FALSE(got);
   EXPECT_NE(beyond.message().find("beyond"), std::string::npos) << beyond.message();
 }
 

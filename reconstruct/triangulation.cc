@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <unordered_map>
 
 namespace facedyn::reconstruct {
@@ -12,8 +13,10 @@ namespace {
 
 struct Grid {
   double cell_px = 8.0;
-  std::unordered_map<long long, std::vector<int>> cells;
-  long long Key(int x, int y) const { return (static_cast<long long>(x) << 32) ^ (y & 0xffffffff); }
+  std::unordered_map<uint64_t, std::vector<int>> cells;
+  uint64_t Key(int x, int y) const {
+    return (static_cast<uint64_t>(static_cast<uint32_t>(x)) << 32) | static_cast<uint32_t>(y);
+  }
   void Insert(const Eigen::Vector2d& p, int index) {
     cells[Key(static_cast<int>(std::floor(p.x() / cell_px)),
               static_cast<int>(std::floor(p.y() / cell_px)))]

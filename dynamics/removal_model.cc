@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "core/check.h"
+#include "dynamics/model_file.h"
 #include "dynamics/quasistatic.h"
 
 namespace facedyn::dynamics {
@@ -118,31 +119,16 @@ StatusOr<RemovalModel> RemovalModel::Create(const RemovalConfig& config, uint64_
 }
 
 Status RemovalModel::Save(const std::string& path) const {
-  Json json = config_.ToJson();
-  json["format_version"] = kRemovalFormatVersion;
-  return mlp_.Save(path, kKind, std::move(json));
+  return SaveFeatureModel(mlp_, config_, kKind, kRemovalFormatVersion, path);
 }
 
 StatusOr<RemovalModel> RemovalModel::Load(const std::string& path) {
-  Json json;
   RemovalModel model;
-  FACEDYN_ASSIGN_OR_RETURN(model.mlp_, Mlp::Load(path, kKind, &json));
-  if (json.value("format_version", 0) != kRemovalFormatVersion) {
-    return DataLossError(
-        path + ": removal format_version " + json.value("format_version", Json()).dump() +
-        " is not supported (expected " + std::to_string(kRemovalFormatVersion) + ")");
-  }
-  StatusOr<FeatureSpec> spec = FeatureSpec::FromJson(json);
-  if (!spec.ok()) return spec.status().WithContext(path);
-  static_cast<FeatureSpec&>(model.config_) = *spec;
+  FACEDYN_ASSIGN_OR_RETURN(model.mlp_,
+                           LoadFeatureModel(path, kKind, kRemovalFormatVersion, &model.config_));
   model.config_.hidden_units = model.mlp_.shape().hidden_units;
-  if (model.mlp_.shape().input_size != model.config_.input_size() ||
-      model.mlp_.shape().output_size != 3) {
-    return DataLossError(path + ": network size " + std::to_string(model.mlp_.shape().input_size) +
-                         " -> " + std::to_string(model.mlp_.shape().output_size) +
-                         " disagrees with its features (" +
-                         std::to_string(model.config_.input_size()) + " -> 3)");
-  }
+  FACEDYN_RETURN_IF_ERROR(
+      CheckNetworkSizes(path, model.mlp_.shape(), model.config_.input_size(), 3));
   return model;
 }
 

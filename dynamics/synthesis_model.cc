@@ -9,6 +9,7 @@
 
 #include "core/check.h"
 #include "dynamics/features.h"
+#include "dynamics/model_file.h"
 
 namespace facedyn::dynamics {
 
@@ -115,27 +116,16 @@ StatusOr<SynthesisModel> SynthesisModel::Create(const SynthesisConfig& config, u
 }
 
 Status SynthesisModel::Save(const std::string& path) const {
-  Json json = config_.ToJson();
-  json["format_version"] = kSynthesisFormatVersion;
-  return mlp_.Save(path, kKind, std::move(json));
+  return SaveFeatureModel(mlp_, config_, kKind, kSynthesisFormatVersion, path);
 }
 
 StatusOr<SynthesisModel> SynthesisModel::Load(const std::string& path) {
-  Json json;
   SynthesisModel model;
-  FACEDYN_ASSIGN_OR_RETURN(model.mlp_, Mlp::Load(path, kKind, &json));
-  if (json.value("format_version", 0) != kSynthesisFormatVersion) {
-    return DataLossError(path + ": synthesis format_version " +
-                         json.value("format_version", Json()).dump() + " is not supported");
-  }
-  StatusOr<FeatureSpec> spec = FeatureSpec::FromJson(json);
-  if (!spec.ok()) return spec.status().WithContext(path);
-  static_cast<FeatureSpec&>(model.config_) = *spec;
+  FACEDYN_ASSIGN_OR_RETURN(model.mlp_,
+                           LoadFeatureModel(path, kKind, kSynthesisFormatVersion, &model.config_));
   model.config_.hidden_units = model.mlp_.shape().hidden_units;
-  if (model.mlp_.shape().input_size != model.config_.input_size() ||
-      model.mlp_.shape().output_size != model.config_.output_size()) {
-    return DataLossError(path + ": network size disagrees with its features");
-  }
+  FACEDYN_RETURN_IF_ERROR(CheckNetworkSizes(path, model.mlp_.shape(), model.config_.input_size(),
+                                            model.config_.output_size()));
   return model;
 }
 

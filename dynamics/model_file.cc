@@ -1,0 +1,39 @@
+#include "dynamics/model_file.h"
+
+#include <utility>
+
+namespace facedyn::dynamics {
+
+Status SaveFeatureModel(const Mlp& mlp, const FeatureSpec& spec, const std::string& kind,
+                        int format_version, const std::string& path) {
+  Json json = spec.ToJson();
+  json["format_version"] = format_version;
+  return mlp.Save(path, kind, std::move(json));
+}
+
+StatusOr<Mlp> LoadFeatureModel(const std::string& path, const std::string& kind, int format_version,
+                               FeatureSpec* spec) {
+  Json json;
+  FACEDYN_ASSIGN_OR_RETURN(Mlp mlp, Mlp::Load(path, kind, &json));
+  if (json.value("format_version", 0) != format_version) {
+    return DataLossError(path + ": " + kind + " format_version " +
+                         json.value("format_version", Json()).dump() +
+                         " is not supported (expected " + std::to_string(format_version) + ")");
+  }
+  StatusOr<FeatureSpec> loaded = FeatureSpec::FromJson(json);
+  if (!loaded.ok()) return loaded.status().WithContext(path);
+  *spec = std::move(loaded).value();
+  return mlp;
+}
+
+Status CheckNetworkSizes(const std::string& path, const MlpShape& shape, int input_size,
+                         int output_size) {
+  if (shape.input_size != input_size || shape.output_size != output_size) {
+    return DataLossError(path + ": network size " + std::to_string(shape.input_size) + " -> " +
+                         std::to_string(shape.output_size) + " disagrees with its features (" +
+                         std::to_string(input_size) + " -> " + std::to_string(output_size) + ")");
+  }
+  return Status::Ok();
+}
+
+}  // namespace facedyn::dynamics

@@ -155,6 +155,16 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
   Json m;
   m["calibration_rms_px"] = calibration.rms_px;
   m["calibration_worst_centre_error_mm"] = worst_centre_mm;
+  // Per-camera reprojection RMS over that camera's board corners (the report's bar chart).
+  Json per_camera = Json::array();
+  for (size_t c = 0; c < calibration.camera_rms_px.size(); ++c) {
+    per_camera.push_back({{"camera", "cam" + std::to_string(c)},
+                          {"rms_px", calibration.camera_rms_px[c]},
+                          {"corners", c < calibration.camera_corners.size()
+                                          ? calibration.camera_corners[c]
+                                          : 0}});
+  }
+  m["calibration_per_camera"] = per_camera;
   m["skull_origin_rms_mm"] = n_pose ? std::sqrt(sq_t / n_pose) : 0.0;
   m["skull_origin_max_mm"] = max_t;
   m["skull_rotation_rms_deg"] = n_pose ? std::sqrt(sq_r / n_pose) : 0.0;

@@ -19,6 +19,7 @@ namespace {
 
 constexpr char kKindKey[] = "facedyn_model_kind";
 constexpr char kConfigKey[] = "facedyn_model_config";
+const std::string kAttachmentPrefix = "facedyn_attachment_";
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -111,14 +112,24 @@ const MlpShape& Mlp::shape() const {
   return impl_->shape;
 }
 
-Status Mlp::Save(const std::string& path, const std::string& kind, Json config) const {
+Status Mlp::Save(const std::string& path, const std::string& kind, Json config,
+                 const MlpAttachments& attachments) const {
   FACEDYN_CHECK(valid(), "Save() on an empty Mlp");
   FACEDYN_CHECK(config.is_object(), "Mlp::Save: config must be a JSON object");
   config["mlp"] = ShapeToJson(impl_->shape);
+  Json listed = Json::object();
+  for (const auto& [name, matrix] : attachments) listed[name] = {matrix.rows(), matrix.cols()};
+  config["attachments"] = listed;
   const std::string temporary = path + ".tmp";
   try {
     torch::serialize::OutputArchive archive;
     impl_->net->save(archive);
+    for (const auto& [name, matrix] : attachments) {
+      // A copy: the archive keeps the tensor, and the matrix is const.
+      torch::Tensor flat = torch::empty({static_cast<int64_t>(matrix.size())}, torch::kFloat32);
+      std::memcpy(flat.data_ptr<float>(), matrix.data(), sizeof(float) * matrix.size());
+      archive.write(kAttachmentPrefix + name, flat);
+    }
     archive.write(kKindKey, c10::IValue(kind));
     archive.write(kConfigKey, c10::IValue(config.dump()));
     archive.save_to(temporary);
@@ -133,7 +144,8 @@ Status Mlp::Save(const std::string& path, const std::string& kind, Json config) 
   return Status::Ok();
 }
 
-StatusOr<Mlp> Mlp::Load(const std::string& path, const std::string& expected_kind, Json* config) {
+StatusOr<Mlp> Mlp::Load(const std::string& path, const std::string& expected_kind, Json* config,
+                        MlpAttachments* attachments) {
   FACEDYN_CHECK(config != nullptr, "Mlp::Load: config is null");
   try {
     torch::serialize::InputArchive archive;
@@ -186,6 +198,32 @@ StatusOr<Mlp> Mlp::Load(const std::string& path, const std::string& expected_kin
     for (const auto& item : model.impl_->net->named_buffers()) {
       if (item.value().sizes().vec() != expected[k++]) {
         return DataLossError(path + ": tensor " + item.key() + " has the wrong shape");
+      }
+    }
+    if (attachments != nullptr) {
+      attachments->clear();
+      const Json listed = config->value("attachments", Json::object());
+      if (!listed.is_object()) return DataLossError(path + ": \"attachments\" is not an object");
+      for (const auto& [name, size] : listed.items()) {
+        if (!size.is_array() || size.size() != 2 || !size[0].is_number_integer() ||
+            !size[1].is_number_integer() || size[0].get<int64_t>() < 0 ||
+            size[1].get<int64_t>() < 0) {
+          return DataLossError(path + ": attachment " + name + " has no [rows, cols]");
+        }
+        const int64_t rows = size[0].get<int64_t>(), cols = size[1].get<int64_t>();
+        torch::Tensor flat;
+        if (!archive.try_read(kAttachmentPrefix + name, flat)) {
+          return DataLossError(path + ": attachment " + name + " is listed but missing");
+        }
+        if (flat.scalar_type() != torch::kFloat32 || flat.dim() != 1 ||
+            flat.numel() != rows * cols) {
+          return DataLossError(path + ": attachment " + name + " is not " + std::to_string(rows) +
+                               " x " + std::to_string(cols) + " floats");
+        }
+        flat = flat.contiguous();
+        Eigen::MatrixXf matrix(rows, cols);
+        std::memcpy(matrix.data(), flat.data_ptr<float>(), sizeof(float) * matrix.size());
+        (*attachments)[name] = std::move(matrix);
       }
     }
     model.impl_->net->eval();

@@ -16,6 +16,9 @@
 // string entries: "facedyn_model_kind" (e.g. "removal", "synthesis") and "facedyn_model_config",
 // a JSON object with the MLP's shape under "mlp" and the caller's own configuration beside it.
 // Loading checks the kind, the shape against every stored tensor, and returns the JSON.
+// Attachments: named float matrices stored beside the network (e.g. a model's learned
+// propagation), each as a flat tensor "facedyn_attachment_<name>" in Eigen's column-major order,
+// its rows and columns listed in the config under "attachments".
 //
 // Determinism: training on CPU is reproducible for a seed and a LibTorch thread count
 // (MlpTrainOptions::num_threads; LibTorch's intra-op parallelism splits work statically, so the
@@ -24,6 +27,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -44,6 +48,9 @@ struct MlpShape {
   double ForwardMultiplyAdds() const;
 };
 
+// Named matrices saved and loaded with a network (see the file format above).
+using MlpAttachments = std::map<std::string, Eigen::MatrixXf>;
+
 class Mlp {
  public:
   Mlp();
@@ -53,12 +60,14 @@ class Mlp {
 
   // A freshly initialised network (torch::manual_seed(seed) first; identity normalisation).
   static StatusOr<Mlp> Create(const MlpShape& shape, uint64_t seed);
-  // `config` must be a JSON object; its "mlp" key is written by Save.
-  Status Save(const std::string& path, const std::string& kind, Json config) const;
+  // `config` must be a JSON object; its "mlp" and "attachments" keys are written by Save.
+  Status Save(const std::string& path, const std::string& kind, Json config,
+              const MlpAttachments& attachments = {}) const;
   // DataLoss for a truncated or foreign file, a kind other than `expected_kind`, or tensors that
-  // disagree with the stored shape; the message starts with the path.
+  // disagree with the stored shape (attachments included); the message starts with the path.
+  // `attachments` may be null (they are then not read).
   static StatusOr<Mlp> Load(const std::string& path, const std::string& expected_kind,
-                            Json* config);
+                            Json* config, MlpAttachments* attachments = nullptr);
 
   bool valid() const { return impl_ != nullptr; }
   const MlpShape& shape() const;

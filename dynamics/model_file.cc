@@ -4,17 +4,28 @@
 
 namespace facedyn::dynamics {
 
+namespace {
+constexpr char kPropagation[] = "propagation";
+}  // namespace
+
 Status SaveFeatureModel(const Mlp& mlp, const FeatureSpec& spec, const std::string& kind,
-                        int format_version, const std::string& path) {
+                        int format_version, const SamplePropagation* propagation,
+                        const std::string& path) {
   Json json = spec.ToJson();
   json["format_version"] = format_version;
-  return mlp.Save(path, kind, std::move(json));
+  MlpAttachments attachments;
+  if (propagation != nullptr) {
+    attachments[kPropagation] = propagation->weights();
+    json["propagation_method"] = propagation->method();
+  }
+  return mlp.Save(path, kind, std::move(json), attachments);
 }
 
 StatusOr<Mlp> LoadFeatureModel(const std::string& path, const std::string& kind, int format_version,
-                               FeatureSpec* spec) {
+                               FeatureSpec* spec, std::optional<SamplePropagation>* propagation) {
   Json json;
-  FACEDYN_ASSIGN_OR_RETURN(Mlp mlp, Mlp::Load(path, kind, &json));
+  MlpAttachments attachments;
+  FACEDYN_ASSIGN_OR_RETURN(Mlp mlp, Mlp::Load(path, kind, &json, &attachments));
   if (json.value("format_version", 0) != format_version) {
     return DataLossError(path + ": " + kind + " format_version " +
                          json.value("format_version", Json()).dump() +
@@ -23,6 +34,17 @@ StatusOr<Mlp> LoadFeatureModel(const std::string& path, const std::string& kind,
   StatusOr<FeatureSpec> loaded = FeatureSpec::FromJson(json);
   if (!loaded.ok()) return loaded.status().WithContext(path);
   *spec = std::move(loaded).value();
+  propagation->reset();
+  if (auto found = attachments.find(kPropagation); found != attachments.end()) {
+    if (found->second.cols() != spec->sample_count) {
+      return DataLossError(path + ": propagation has " + std::to_string(found->second.cols()) +
+                           " sample columns, the features " + std::to_string(spec->sample_count));
+    }
+    StatusOr<SamplePropagation> loaded_propagation = SamplePropagation::FromWeights(
+        std::move(found->second), json.value("propagation_method", std::string("learned")));
+    if (!loaded_propagation.ok()) return loaded_propagation.status().WithContext(path);
+    *propagation = std::move(loaded_propagation).value();
+  }
   return mlp;
 }
 

@@ -1,8 +1,10 @@
 #include "dynamics/propagation.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <algorithm>
+#include <utility>
 #include <vector>
 
 #include "core/check.h"
@@ -91,6 +93,81 @@ StatusOr<SamplePropagation> SamplePropagation::Build(const FaceRig& rig,
   propagation.weights_ = weights.cast<float>();
   propagation.weights_transposed_ = propagation.weights_.transpose();
   return propagation;
+}
+
+StatusOr<SamplePropagation> SamplePropagation::FromWeights(Eigen::MatrixXf weights,
+                                                           std::string method) {
+  if (weights.size() == 0) return InvalidArgumentError("propagation: empty weight matrix");
+  if (!weights.allFinite()) return DataLossError("propagation: weight matrix is not finite");
+  SamplePropagation propagation;
+  propagation.method_ = std::move(method);
+  propagation.weights_ = std::move(weights);
+  propagation.weights_transposed_ = propagation.weights_.transpose();
+  return propagation;
+}
+
+Status PropagationLearnOptions::Check() const {
+  if (!(prior_weight > 0 && prior_weight <= 1e3))
+    return InvalidArgumentError("prior_weight must be in (0, 1000]");
+  return Status::Ok();
+}
+
+PropagationLearner::PropagationLearner(const SamplePropagation& prior,
+                                       std::vector<SurfacePoint> samples,
+                                       PropagationLearnOptions options)
+    : prior_(&prior), samples_(std::move(samples)), options_(options) {
+  FACEDYN_CHECK(static_cast<int>(samples_.size()) == prior.sample_count(),
+                "PropagationLearner: sample count differs from the prior's");
+  sample_gram_ = Eigen::MatrixXd::Zero(prior.sample_count(), prior.sample_count());
+  vertex_sample_ = Eigen::MatrixXd::Zero(prior.vertex_count(), prior.sample_count());
+}
+
+Status PropagationLearner::Add(const PointCache& vertex_offsets, int first_frame, int last_frame) {
+  if (vertex_offsets.vertex_count != prior_->vertex_count()) {
+    return InvalidArgumentError("propagation: offsets have " +
+                                std::to_string(vertex_offsets.vertex_count) +
+                                " vertices, the rig " + std::to_string(prior_->vertex_count()));
+  }
+  if (first_frame < 0 || last_frame > vertex_offsets.frame_count() || first_frame > last_frame) {
+    return InvalidArgumentError("propagation: frame range [" + std::to_string(first_frame) + ", " +
+                                std::to_string(last_frame) + ") outside the take's " +
+                                std::to_string(vertex_offsets.frame_count()) + " frames");
+  }
+  const int sample_count = prior_->sample_count();
+  const int frames = last_frame - first_frame;
+  if (frames == 0) return Status::Ok();
+  // Columns are (frame, component): x, y and z share W.
+  Eigen::MatrixXd sample_columns(sample_count, 3L * frames);
+  Eigen::MatrixXd vertex_columns(prior_->vertex_count(), 3L * frames);
+  for (int t = first_frame; t < last_frame; ++t) {
+    const auto frame = vertex_offsets.Frame(t);
+    const Eigen::Index column = 3L * (t - first_frame);
+    vertex_columns.middleCols(column, 3) = frame.transpose().cast<double>();
+    for (int i = 0; i < sample_count; ++i) {
+      sample_columns.block(i, column, 1, 3) =
+          samples_[i].Evaluate(frame).cast<double>().transpose();
+    }
+  }
+  sample_gram_.selfadjointView<Eigen::Lower>().rankUpdate(sample_columns);
+  vertex_sample_.noalias() += vertex_columns * sample_columns.transpose();
+  frames_ += frames;
+  return Status::Ok();
+}
+
+StatusOr<SamplePropagation> PropagationLearner::Fit() const {
+  FACEDYN_RETURN_IF_ERROR(options_.Check());
+  if (frames_ == 0) return FailedPreconditionError("propagation: no training frames to learn from");
+  const int sample_count = prior_->sample_count();
+  Eigen::MatrixXd gram = sample_gram_.selfadjointView<Eigen::Lower>();
+  const double mu = options_.prior_weight * std::max(gram.trace() / sample_count, 1e-12);
+  gram.diagonal().array() += mu;
+  const Eigen::MatrixXd rhs = vertex_sample_ + mu * prior_->weights().cast<double>();
+  // W (G + mu I) = rhs, with G + mu I symmetric positive definite: solve for W^T.
+  const Eigen::LLT<Eigen::MatrixXd> llt(gram);
+  if (llt.info() != Eigen::Success) return InternalError("propagation: learned system not SPD");
+  const Eigen::MatrixXd weights = llt.solve(rhs.transpose()).transpose();
+  if (!weights.allFinite()) return InternalError("propagation: learned solve is not finite");
+  return SamplePropagation::FromWeights(weights.cast<float>(), "learned");
 }
 
 void SamplePropagation::Apply(const Eigen::Ref<const Eigen::Matrix3Xf>& sample_offsets,

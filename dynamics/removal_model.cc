@@ -119,13 +119,13 @@ StatusOr<RemovalModel> RemovalModel::Create(const RemovalConfig& config, uint64_
 }
 
 Status RemovalModel::Save(const std::string& path) const {
-  return SaveFeatureModel(mlp_, config_, kKind, kRemovalFormatVersion, path);
+  return SaveFeatureModel(mlp_, config_, kKind, kRemovalFormatVersion, propagation(), path);
 }
 
 StatusOr<RemovalModel> RemovalModel::Load(const std::string& path) {
   RemovalModel model;
-  FACEDYN_ASSIGN_OR_RETURN(model.mlp_,
-                           LoadFeatureModel(path, kKind, kRemovalFormatVersion, &model.config_));
+  FACEDYN_ASSIGN_OR_RETURN(model.mlp_, LoadFeatureModel(path, kKind, kRemovalFormatVersion,
+                                                        &model.config_, &model.propagation_));
   model.config_.hidden_units = model.mlp_.shape().hidden_units;
   FACEDYN_RETURN_IF_ERROR(
       CheckNetworkSizes(path, model.mlp_.shape(), model.config_.input_size(), 3));
@@ -139,6 +139,7 @@ Status RemovalTrainOptions::Check() const {
   }
   if (hidden_units < 1) return InvalidArgumentError("hidden_units must be >= 1");
   if (!(window_s > 0 && window_s <= 1)) return InvalidArgumentError("window_s must be in (0, 1]");
+  if (Status status = propagation.Check(); !status.ok()) return status.WithContext("propagation");
   return Status::Ok();
 }
 
@@ -162,6 +163,12 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
   RemovalDataset data(config.skull_descriptor_size(), config.features.SkinDescriptorSize(),
                       config.sample_count, max_frames);
   const int window = config.features.window_frames();
+  std::optional<SamplePropagation> prior;
+  std::optional<PropagationLearner> learner;
+  if (options.learn_propagation) {
+    FACEDYN_ASSIGN_OR_RETURN(prior, SamplePropagation::Build(*takes[0].rig));
+    learner.emplace(*prior, takes[0].rig->skin_samples, options.propagation);
+  }
   std::vector<std::pair<int, int>> frames;  // (take, frame) usable for training
   for (size_t k = 0; k < takes.size(); ++k) {
     const Take& take = *takes[k].take;
@@ -191,6 +198,12 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
     };
     StatusOr<PointCache> offsets = targets();
     if (!offsets.ok()) return offsets.status().WithContext(context);
+    if (learner && take.frame_count() > 2 * window) {
+      if (Status status = learner->Add(*offsets, window, take.frame_count() - window);
+          !status.ok()) {
+        return status.WithContext(context);
+      }
+    }
     data.Add(std::move(features).value(), SampleCache(*offsets, rig.skin_samples));
     for (int t = window; t < take.frame_count() - window; ++t) {
       frames.emplace_back(static_cast<int>(k), t);
@@ -216,7 +229,29 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
   }
   FACEDYN_RETURN_IF_ERROR(
       TrainMlp(data, train_rows, validation_rows, options.train, model.mutable_mlp(), summary));
+  if (learner) {
+    FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, learner->Fit());
+    model.set_propagation(std::move(learned));
+  }
   return model;
+}
+
+StatusOr<const SamplePropagation*> SelectPropagation(const SamplePropagation* model_propagation,
+                                                     const SamplePropagation* fallback,
+                                                     const FaceRig& rig,
+                                                     std::optional<SamplePropagation>* built) {
+  if (model_propagation != nullptr) {
+    if (model_propagation->vertex_count() != rig.vertex_count()) {
+      return FailedPreconditionError(
+          "vertex_count: the model's propagation was learned on a rig with " +
+          std::to_string(model_propagation->vertex_count()) + " vertices, this rig has " +
+          std::to_string(rig.vertex_count()));
+    }
+    return model_propagation;
+  }
+  if (fallback != nullptr) return fallback;
+  FACEDYN_ASSIGN_OR_RETURN(*built, SamplePropagation::Build(rig));
+  return &**built;
 }
 
 StatusOr<Eigen::MatrixXf> PredictSampleOffsets(const RemovalModel& model, const Take& take,
@@ -277,16 +312,14 @@ StatusOr<Take> RemoveDynamics(const RemovalModel& model, const Take& take, const
 
   const auto propagate_start = std::chrono::steady_clock::now();
   std::optional<SamplePropagation> built;
-  if (propagation == nullptr) {
-    FACEDYN_ASSIGN_OR_RETURN(built, SamplePropagation::Build(rig));
-    propagation = &*built;
-  }
+  FACEDYN_ASSIGN_OR_RETURN(propagation,
+                           SelectPropagation(model.propagation(), propagation, rig, &built));
   Take result;
   result.info = take.info;
   result.info.source = "dynamics remove";
   result.info.metadata["removal_sample_count"] = model.config().sample_count;
   result.info.metadata["removal_window_frames"] = model.config().features.window_frames();
-  result.info.metadata["removal_propagation"] = "laplacian";
+  result.info.metadata["removal_propagation"] = propagation->method();
   result.topology = take.topology;
   result.time_s = take.time_s;
   result.world_from_skull = take.world_from_skull;

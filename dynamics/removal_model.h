@@ -5,7 +5,9 @@
 //
 // input = [B(t) flattened; X_i(t) flattened] (features.h layout), two hidden layers of 128 with
 // ReLU, output dx_i (3, skull frame, mm), normalisation in the model (mlp.h). The corrected
-// samples are propagated to every vertex with the prefactorised Laplacian of propagation.h.
+// samples are propagated to every vertex by the model's own learned propagation (fitted to the
+// training targets, saved in the model; propagation.h says why), or by the rig's prefactorised
+// Laplacian for a model without one.
 //
 // A saved model (kind "removal", mlp.h file format) carries its FeatureSpec (fps, window,
 // landmarks, samples), so applying it to an incompatible take is a clear error.
@@ -13,6 +15,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -57,10 +60,27 @@ class RemovalModel {
   Mlp* mutable_mlp() { return &mlp_; }
   const Mlp& mlp() const { return mlp_; }
 
+  // The learned propagation trained with the network, or null.
+  const SamplePropagation* propagation() const {
+    return propagation_ ? &*propagation_ : nullptr;
+  }
+  void set_propagation(std::optional<SamplePropagation> propagation) {
+    propagation_ = std::move(propagation);
+  }
+
  private:
   RemovalConfig config_;
   Mlp mlp_;
+  std::optional<SamplePropagation> propagation_;
 };
+
+// The propagation to apply with a model: the model's own when it has one (FailedPrecondition
+// "vertex_count" when it was learned on a rig with another vertex count), else `fallback` when
+// non-null, else the rig's Laplacian, built into *built.
+StatusOr<const SamplePropagation*> SelectPropagation(const SamplePropagation* model_propagation,
+                                                     const SamplePropagation* fallback,
+                                                     const FaceRig& rig,
+                                                     std::optional<SamplePropagation>* built);
 
 // One training take: the dynamic take and the rig that defines its landmarks and samples.
 struct TrainingTake {
@@ -81,6 +101,10 @@ struct RemovalTrainOptions {
   int hidden_units = 128;
   double window_s = 0.08;  // feature and moving-average half-window
   RemovalTargets targets = RemovalTargets::kMovingAverage;
+  // Fit the propagation to the per-vertex training targets (propagation.h) and keep it in the
+  // model; false leaves the model without one (the rig's Laplacian is used).
+  bool learn_propagation = true;
+  PropagationLearnOptions propagation;
   // train valid, validation_fraction in [0, 0.9], hidden_units >= 1, window_s in (0, 1].
   // The message names the field.
   Status Check() const;
@@ -116,7 +140,8 @@ StatusOr<Eigen::MatrixXf> PredictSampleOffsets(const RemovalModel& model, const 
 // Eq. (7) on a whole take, then propagated: the result is a copy of `take` whose positions are
 // the quasistatic estimate x - T(t) d(t) for every vertex and whose only channel is
 // "dynamic_offset" (the propagated d, skull frame, mm); info.source "dynamics remove".
-// `propagation` may be null (built from the rig). Errors: an incompatible take or rig.
+// `propagation` is used only for a model without its own (SelectPropagation); it may be null.
+// Errors: an incompatible take or rig.
 StatusOr<Take> RemoveDynamics(const RemovalModel& model, const Take& take, const FaceRig& rig,
                               const SamplePropagation* propagation = nullptr,
                               RemovalSummary* summary = nullptr);

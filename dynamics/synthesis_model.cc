@@ -116,13 +116,13 @@ StatusOr<SynthesisModel> SynthesisModel::Create(const SynthesisConfig& config, u
 }
 
 Status SynthesisModel::Save(const std::string& path) const {
-  return SaveFeatureModel(mlp_, config_, kKind, kSynthesisFormatVersion, path);
+  return SaveFeatureModel(mlp_, config_, kKind, kSynthesisFormatVersion, propagation(), path);
 }
 
 StatusOr<SynthesisModel> SynthesisModel::Load(const std::string& path) {
   SynthesisModel model;
-  FACEDYN_ASSIGN_OR_RETURN(model.mlp_,
-                           LoadFeatureModel(path, kKind, kSynthesisFormatVersion, &model.config_));
+  FACEDYN_ASSIGN_OR_RETURN(model.mlp_, LoadFeatureModel(path, kKind, kSynthesisFormatVersion,
+                                                        &model.config_, &model.propagation_));
   model.config_.hidden_units = model.mlp_.shape().hidden_units;
   FACEDYN_RETURN_IF_ERROR(CheckNetworkSizes(path, model.mlp_.shape(), model.config_.input_size(),
                                             model.config_.output_size()));
@@ -139,6 +139,7 @@ Status SynthesisTrainOptions::Check() const {
   if (!(stretch_step_mm > 0 && stretch_step_mm <= 50)) {
     return InvalidArgumentError("stretch_step_mm must be in (0, 50]");
   }
+  if (Status status = propagation.Check(); !status.ok()) return status.WithContext("propagation");
   return Status::Ok();
 }
 
@@ -187,6 +188,12 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   }
   SynthesisDataset data(max_frames);
   const int window = config.features.window_frames();
+  std::optional<SamplePropagation> prior;
+  std::optional<PropagationLearner> learner;
+  if (options.learn_propagation) {
+    FACEDYN_ASSIGN_OR_RETURN(prior, SamplePropagation::Build(*decomposed[0].rig));
+    learner.emplace(*prior, decomposed[0].rig->skin_samples, options.propagation);
+  }
   std::vector<long> rows;
   for (size_t k = 0; k < decomposed.size(); ++k) {
     const Take& take = *decomposed[k].take;
@@ -217,6 +224,12 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
     StatusOr<Eigen::MatrixXf> features =
         SynthesisFeatures(take, take.world_from_skull, rig, config, stencil);
     if (!features.ok()) return features.status().WithContext(context);
+    if (learner && take.frame_count() > 2 * window) {
+      if (Status status = learner->Add(offsets->second, window, take.frame_count() - window);
+          !status.ok()) {
+        return status.WithContext(context);
+      }
+    }
     data.Add(std::move(features).value(), SampleOffsetsByFrame(offsets->second, rig.skin_samples));
     for (int t = window; t < take.frame_count() - window; ++t) {
       rows.push_back(data.RowOf(static_cast<int>(k), t));
@@ -234,6 +247,10 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   const std::vector<long> train_rows(rows.begin() + validation_count, rows.end());
   FACEDYN_RETURN_IF_ERROR(
       TrainMlp(data, train_rows, validation_rows, options.train, model.mutable_mlp(), summary));
+  if (learner) {
+    FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, learner->Fit());
+    model.set_propagation(std::move(learned));
+  }
   return model;
 }
 
@@ -262,10 +279,8 @@ StatusOr<Take> SynthesizeDynamics(const SynthesisModel& model, const Take& quasi
 
   const auto propagate_start = std::chrono::steady_clock::now();
   std::optional<SamplePropagation> built;
-  if (propagation == nullptr) {
-    FACEDYN_ASSIGN_OR_RETURN(built, SamplePropagation::Build(rig));
-    propagation = &*built;
-  }
+  FACEDYN_ASSIGN_OR_RETURN(propagation,
+                           SelectPropagation(model.propagation(), propagation, rig, &built));
   Take result;
   result.info = quasistatic.info;
   result.info.source = "dynamics synthesize";

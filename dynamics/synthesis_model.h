@@ -20,6 +20,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -58,9 +59,18 @@ class SynthesisModel {
   std::vector<float> FlatParameters() const { return mlp_.FlatParameters(); }
   Mlp* mutable_mlp() { return &mlp_; }
 
+  // The propagation learned from the training offsets (propagation.h), or null.
+  const SamplePropagation* propagation() const {
+    return propagation_ ? &*propagation_ : nullptr;
+  }
+  void set_propagation(std::optional<SamplePropagation> propagation) {
+    propagation_ = std::move(propagation);
+  }
+
  private:
   SynthesisConfig config_;
   Mlp mlp_;
+  std::optional<SamplePropagation> propagation_;
 };
 
 struct SynthesisTrainOptions {
@@ -70,6 +80,10 @@ struct SynthesisTrainOptions {
   int hidden_units = 256;
   double window_s = 0.08;
   double stretch_step_mm = 2.0;  // Eq. (8)'s ~2 mm uv steps
+  // Fit the propagation to the training takes' per-vertex dynamic offsets and keep it in the
+  // model (as RemovalTrainOptions).
+  bool learn_propagation = true;
+  PropagationLearnOptions propagation;
   // train valid; ranges as RemovalTrainOptions; stretch_step_mm in (0, 50]. Names the field.
   Status Check() const;
 
@@ -110,6 +124,7 @@ StatusOr<Take> SynthesizeDynamics(const SynthesisModel& model, const Take& quasi
                                   const std::string& motion_name, const FaceRig& rig,
                                   const SamplePropagation* propagation = nullptr,
                                   SynthesisSummary* summary = nullptr);
+// (`propagation` is used only for a model without its own, as RemoveDynamics.)
 
 // A held shape (3 x V, skull frame, mm) posed by `world_from_skull` at `fps`: the quasistatic
 // take of a subject holding one expression under a given head motion.

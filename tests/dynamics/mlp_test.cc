@@ -138,6 +138,26 @@ TEST(Mlp, SaveLoadRoundTripAndKindCheck) {
               HasSubstr("is a removal model, expected a synthesis model"));
 }
 
+TEST(Mlp, AttachmentsRoundTripBitwise) {
+  const Mlp model = Mlp::Create(SmallShape(), 5).value();
+  testing::TempDir dir;
+  MlpAttachments attachments;
+  attachments["w"] = Eigen::MatrixXf::Random(7, 3);
+  attachments["empty"] = Eigen::MatrixXf(0, 4);
+  ASSERT_TRUE(model.Save(dir.Join("m.pt"), "removal", Json::object(), attachments).ok());
+  Json config;
+  MlpAttachments loaded;
+  ASSERT_TRUE(Mlp::Load(dir.Join("m.pt"), "removal", &config, &loaded).ok());
+  ASSERT_EQ(loaded.size(), 2u);
+  EXPECT_EQ(loaded.at("w"), attachments.at("w"));
+  EXPECT_EQ(loaded.at("empty").rows(), 0);
+  EXPECT_EQ(loaded.at("empty").cols(), 4);
+  // A file without attachments loads with none.
+  ASSERT_TRUE(model.Save(dir.Join("plain.pt"), "removal", Json::object()).ok());
+  ASSERT_TRUE(Mlp::Load(dir.Join("plain.pt"), "removal", &config, &loaded).ok());
+  EXPECT_TRUE(loaded.empty());
+}
+
 TEST(MeasureGemm, GivesAPositiveRate) {
   const double rate = MeasureGemmMultiplyAddsPerSecond(64, 64, 64, 0.0);
   EXPECT_GT(rate, 1e6);  // any machine this runs on does more than a million per second

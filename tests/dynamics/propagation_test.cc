@@ -7,6 +7,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <random>
+#include <vector>
 
 #include "sim/procedural_face.h"
 #include "tests/support/test_support.h"
@@ -95,6 +98,136 @@ TEST(SamplePropagation, DoesNotLeakAcrossTheMouth) {
   lower_mean /= rig.regions.at("lower_lip").size();
   EXPECT_GT(upper_mean, 0.5);
   EXPECT_LT(lower_mean, 0.25 * upper_mean) << "upper " << upper_mean << " lower " << lower_mean;
+}
+
+// Vertex offsets (3 x V) of a few fixed spatial patterns the Laplacian interpolant cannot
+// reproduce from the samples (fine ripples of ~6 mm wavelength between ~10 mm-spaced samples, and
+// a step across the face's midline), mixed with per-frame coefficients.
+struct Patterns {
+  std::vector<Eigen::Matrix3Xf> fields;
+  PointCache Mix(int frames, uint64_t seed) const {
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<float> normal(0.0f, 1.0f);
+    PointCache cache;
+    cache.vertex_count = static_cast<int>(fields[0].cols());
+    cache.positions = Eigen::MatrixXf::Zero(3 * cache.vertex_count, frames);
+    for (int t = 0; t < frames; ++t) {
+      Eigen::Map<Eigen::Matrix3Xf> frame = cache.Frame(t);
+      for (const Eigen::Matrix3Xf& field : fields) frame += normal(rng) * field;
+    }
+    return cache;
+  }
+};
+
+Patterns RipplePatterns(const FaceRig& rig) {
+  const Eigen::Matrix3Xd& p = rig.neutral.positions_mm;
+  Patterns patterns;
+  for (int k = 0; k < 4; ++k) {
+    Eigen::Matrix3Xf field(3, rig.vertex_count());
+    for (int v = 0; v < rig.vertex_count(); ++v) {
+      const double ripple = std::sin(p(0, v) * (1.0 + 0.1 * k) + p(1, v) * 0.7 * k);
+      const double step = p(0, v) > 0 ? 1.0 : -1.0;
+      field.col(v) = Eigen::Vector3f(0.3f * step, static_cast<float>(ripple), 0.2f * k);
+    }
+    patterns.fields.push_back(field);
+  }
+  return patterns;
+}
+
+double MeanDistance(const Eigen::Matrix3Xf& a, const Eigen::Matrix3Xf& b) {
+  return (a - b).colwise().norm().mean();
+}
+
+TEST(PropagationLearner, RecoversPatternsTheLaplacianCannotAndGeneralisesToNewMixtures) {
+  const FaceRig& rig = Face();
+  const auto laplacian = SamplePropagation::Build(rig).value();
+  const Patterns patterns = RipplePatterns(rig);
+  PropagationLearner learner(laplacian, rig.skin_samples);
+  ASSERT_TRUE(learner.Add(patterns.Mix(60, 1), 0, 60).ok());
+  EXPECT_EQ(learner.frame_count(), 60);
+  const auto learned = learner.Fit();
+  ASSERT_TRUE(learned.ok()) << learned.status().message();
+  EXPECT_EQ(learned->method(), "learned");
+  ASSERT_EQ(learned->vertex_count(), rig.vertex_count());
+
+  // New mixtures (another seed), never seen in training.
+  const PointCache test = patterns.Mix(20, 2);
+  double laplacian_error = 0, learned_error = 0, magnitude = 0;
+  Eigen::Matrix3Xf samples(3, laplacian.sample_count()), a(3, rig.vertex_count()),
+      b(3, rig.vertex_count());
+  for (int t = 0; t < test.frame_count(); ++t) {
+    const auto truth = test.Frame(t);
+    for (int i = 0; i < laplacian.sample_count(); ++i) {
+      samples.col(i) = rig.skin_samples[i].Evaluate(truth).cast<float>();
+    }
+    laplacian.Apply(samples, a);
+    learned->Apply(samples, b);
+    laplacian_error += MeanDistance(a, truth);
+    learned_error += MeanDistance(b, truth);
+    magnitude += truth.colwise().norm().mean();
+  }
+  std::printf("ripples: Laplacian %.4f, learned %.4f, magnitude %.4f (mean per frame, mm)\n",
+              laplacian_error / 20, learned_error / 20, magnitude / 20);
+  EXPECT_GT(laplacian_error, 0.2 * magnitude);  // the case is hard for the Laplacian
+  EXPECT_LT(learned_error, 0.01 * magnitude);
+}
+
+TEST(PropagationLearner, ReproducesLaplacianInterpolantsFromTheirSamples) {
+  // Training fields that are the prior's own interpolants of random sample offsets: a data set
+  // the prior already explains, so the learned map must reproduce the fields from their sample
+  // values (the prior alone would not exactly, as its soft constraints do not interpolate).
+  const FaceRig& rig = Face();
+  const auto laplacian = SamplePropagation::Build(rig).value();
+  std::mt19937_64 rng(3);
+  std::normal_distribution<float> normal(0.0f, 1.0f);
+  PointCache cache;
+  cache.vertex_count = rig.vertex_count();
+  cache.positions.resize(3 * rig.vertex_count(), 30);
+  for (int t = 0; t < 30; ++t) {
+    Eigen::Matrix3Xf samples(3, laplacian.sample_count());
+    for (int i = 0; i < samples.size(); ++i) samples.data()[i] = normal(rng);
+    Eigen::Map<Eigen::Matrix3Xf> frame = cache.Frame(t);
+    Eigen::Matrix3Xf vertices(3, rig.vertex_count());
+    laplacian.Apply(samples, vertices);
+    frame = vertices;
+  }
+  PropagationLearner learner(laplacian, rig.skin_samples);
+  ASSERT_TRUE(learner.Add(cache, 0, 30).ok());
+  const auto learned = learner.Fit().value();
+  double worst = 0;
+  for (int t = 0; t < 5; ++t) {
+    const auto frame = cache.Frame(t);
+    Eigen::Matrix3Xf samples(3, laplacian.sample_count());
+    for (int i = 0; i < laplacian.sample_count(); ++i) {
+      samples.col(i) = rig.skin_samples[i].Evaluate(frame).cast<float>();
+    }
+    Eigen::Matrix3Xf vertices(3, rig.vertex_count());
+    learned.Apply(samples, vertices);
+    worst = std::max(worst, static_cast<double>((vertices - frame).cwiseAbs().maxCoeff()));
+  }
+  EXPECT_LT(worst, 0.05);
+}
+
+TEST(PropagationLearner, BadInputIsAnErrorNamingIt) {
+  const FaceRig& rig = Face();
+  const auto laplacian = SamplePropagation::Build(rig).value();
+  PropagationLearner learner(laplacian, rig.skin_samples);
+  EXPECT_EQ(learner.Fit().status().code(), StatusCode::kFailedPrecondition);
+  PointCache wrong;
+  wrong.vertex_count = 10;
+  wrong.positions = Eigen::MatrixXf::Zero(30, 4);
+  EXPECT_THAT(learner.Add(wrong, 0, 4).message(), ::testing::HasSubstr("vertices"));
+  PointCache right;
+  right.vertex_count = rig.vertex_count();
+  right.positions = Eigen::MatrixXf::Zero(3 * rig.vertex_count(), 4);
+  EXPECT_THAT(learner.Add(right, 2, 9).message(), ::testing::HasSubstr("frame range"));
+  PropagationLearnOptions options;
+  options.prior_weight = 0;
+  EXPECT_THAT(options.Check().message(), ::testing::HasSubstr("prior_weight"));
+  EXPECT_FALSE(SamplePropagation::FromWeights(Eigen::MatrixXf(), "x").ok());
+  Eigen::MatrixXf nan = Eigen::MatrixXf::Zero(4, 3);
+  nan(1, 1) = std::nanf("");
+  EXPECT_EQ(SamplePropagation::FromWeights(nan, "x").status().code(), StatusCode::kDataLoss);
 }
 
 TEST(SamplePropagation, RefusesARigWithoutSamples) {

@@ -221,6 +221,39 @@ TEST(TrainRemoval, LearnsAKnownSmoothFunctionOfTheFeatures) {
   EXPECT_LT(error, 0.2 * offset);
 }
 
+TEST(TrainRemoval, LearnsItsPropagationAndSavesIt) {
+  const FaceRig rig = TinyRig();
+  const Take take = SyntheticTake(rig, 80, 128.0, 0.0);
+  const RemovalModel model = TrainRemoval({{&take, &rig}}, QuickOptions(2)).value();
+  ASSERT_NE(model.propagation(), nullptr);
+  EXPECT_EQ(model.propagation()->method(), "learned");
+  EXPECT_EQ(model.propagation()->vertex_count(), rig.vertex_count());
+  testing::TempDir dir;
+  ASSERT_TRUE(model.Save(dir.Join("F.pt")).ok());
+  const RemovalModel loaded = RemovalModel::Load(dir.Join("F.pt")).value();
+  ASSERT_NE(loaded.propagation(), nullptr);
+  EXPECT_EQ(loaded.propagation()->weights(), model.propagation()->weights());
+  EXPECT_EQ(RemoveDynamics(loaded, take, rig).value().positions.positions,
+            RemoveDynamics(model, take, rig).value().positions.positions);
+  EXPECT_EQ(RemoveDynamics(model, take, rig).value().info.metadata["removal_propagation"],
+            "learned");
+
+  RemovalTrainOptions laplacian_only = QuickOptions(2);
+  laplacian_only.learn_propagation = false;
+  const RemovalModel plain = TrainRemoval({{&take, &rig}}, laplacian_only).value();
+  EXPECT_EQ(plain.propagation(), nullptr);
+  EXPECT_EQ(RemoveDynamics(plain, take, rig).value().info.metadata["removal_propagation"],
+            "laplacian");
+
+  // A propagation learned on another mesh is refused by name.
+  const SamplePropagation other =
+      SamplePropagation::FromWeights(Eigen::MatrixXf::Zero(5, rig.skin_samples.size()), "learned")
+          .value();
+  std::optional<SamplePropagation> built;
+  EXPECT_THAT(SelectPropagation(&other, nullptr, rig, &built).status().message(),
+              HasSubstr("vertex_count"));
+}
+
 // Simulated platform takes (sim/performance.h): train at 7 and 9 Hz, test at 8 Hz.
 TEST(RemoveDynamics, HeldOutPlatformFrequencyBeatsNoRemoval) {
   sim::ProceduralFaceOptions face_options;

@@ -27,17 +27,28 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
     std::string take_dir;
     std::string out_dir;
     double window_ms = 80.0;
+    std::string method = "moving-average";
+    double platform_hz = 0.0;
   };
   auto quasistatic_options = std::make_shared<QuasistaticCommandOptions>();
   auto* quasistatic = dynamics->add_subcommand(
       "quasistatic",
-      "Moving-average quasistatic estimate of a held-expression take (Eq. 5) plus its dynamic "
-      "offsets (Eq. 6) as channel dynamic_offset");
+      "Quasistatic estimate of a held-expression take (moving average, Eq. 5, or the "
+      "platform-synchronous fit) plus its dynamic offsets (Eq. 6) as channel dynamic_offset");
   quasistatic->add_option("--take", quasistatic_options->take_dir, "Input take folder")->required();
   quasistatic->add_option("--out", quasistatic_options->out_dir, "Output take folder")->required();
   quasistatic->add_option("--window-ms", quasistatic_options->window_ms,
                           "Half-window in milliseconds (frames = round(ms * fps / 1000))")
       ->capture_default_str();
+  quasistatic
+      ->add_option("--method", quasistatic_options->method,
+                   "moving-average (the paper's Eq. 5) or platform-synchronous (least-squares "
+                   "fit at the platform frequency; exact for a steady sinusoid)")
+      ->check(CLI::IsMember({"moving-average", "platform-synchronous"}))
+      ->capture_default_str();
+  quasistatic->add_option("--platform-hz", quasistatic_options->platform_hz,
+                          "Platform frequency for platform-synchronous (default: the take's own "
+                          "platform_hz)");
   quasistatic->callback([quasistatic_options, selected] {
     *selected = [quasistatic_options]() -> Status {
       dynamics::QuasistaticOptions options;
@@ -45,6 +56,16 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
       if (!options.Check().ok()) {
         return InvalidArgumentError("--window-ms must be in [0, 1000], got " +
                                     std::to_string(quasistatic_options->window_ms));
+      }
+      if (quasistatic_options->method == "platform-synchronous") {
+        options.method = dynamics::QuasistaticMethod::kPlatformSynchronous;
+      }
+      if (quasistatic_options->platform_hz != 0.0) {
+        if (!(quasistatic_options->platform_hz > 0)) {
+          return InvalidArgumentError("--platform-hz must be > 0, got " +
+                                      std::to_string(quasistatic_options->platform_hz));
+        }
+        options.platform_hz = quasistatic_options->platform_hz;
       }
       FACEDYN_ASSIGN_OR_RETURN(const Take take, LoadTake(quasistatic_options->take_dir));
       FACEDYN_ASSIGN_OR_RETURN(const Take result, dynamics::ExtractQuasistatic(take, options));

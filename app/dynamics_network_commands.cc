@@ -97,8 +97,9 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       ->required();
   train_removal_cmd
       ->add_option("--targets", train_removal->targets,
-                   "moving-average (Eq. 5-6, the paper) or exact (simulated takes' quasistatic)")
-      ->check(CLI::IsMember({"moving-average", "exact"}))
+                   "moving-average (Eq. 5-6, the paper), platform-synchronous (fit at each "
+                   "take's recorded platform frequency) or exact (simulated takes' quasistatic)")
+      ->check(CLI::IsMember({"moving-average", "platform-synchronous", "exact"}))
       ->capture_default_str();
   train_removal_cmd->add_option("--epochs", train_removal->options.train.epochs)
       ->capture_default_str();
@@ -115,12 +116,15 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       ->add_option("--threads", train_removal->options.train.num_threads,
                    "LibTorch threads (0: default); the same count gives the same model")
       ->capture_default_str();
+  train_removal_cmd
+      ->add_option("--lr-final", train_removal->options.train.final_learning_rate_fraction,
+                   "Decay the learning rate exponentially to this fraction at the last epoch")
+      ->capture_default_str();
   train_removal_cmd->add_flag("--json", train_removal->json, "Print the training summary as JSON");
   train_removal_cmd->callback([train_removal, selected] {
     *selected = [train_removal]() -> Status {
-      train_removal->options.targets = train_removal->targets == "exact"
-                                           ? dynamics::RemovalTargets::kExact
-                                           : dynamics::RemovalTargets::kMovingAverage;
+      FACEDYN_ASSIGN_OR_RETURN(train_removal->options.targets,
+                               dynamics::ParseRemovalTargets(train_removal->targets));
       if (Status status = train_removal->options.Check(); !status.ok()) {
         return InvalidArgumentError("train-removal: " + status.message());
       }

@@ -13,6 +13,7 @@
 #include "dynamics/evaluate.h"
 #include "dynamics/mlp.h"
 #include "dynamics/propagation.h"
+#include "dynamics/quasistatic.h"
 #include "dynamics/removal_model.h"
 #include "dynamics/synthesis_model.h"
 #include "sim/performance.h"
@@ -188,6 +189,11 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     FACEDYN_RETURN_IF_ERROR(train_removal("F_moving_average_targets",
                                           dynamics::RemovalTargets::kMovingAverage, held_training));
   }
+  if (options.platform_targets) {
+    FACEDYN_RETURN_IF_ERROR(train_removal("F_platform_targets",
+                                          dynamics::RemovalTargets::kPlatformSynchronous,
+                                          held_training));
+  }
 
   // --- removal evaluation against the exact quasistatic ---
   Json removal = Json::array();
@@ -237,7 +243,58 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
       }
       if (&trained == &models.front()) removed_by_best.push_back(std::move(removed));
     }
+    if (options.platform_targets && t.take.info.platform_hz) {
+      // The platform-synchronous filter itself (what F_platform_targets learns from).
+      dynamics::QuasistaticOptions synchronous;
+      synchronous.method = dynamics::QuasistaticMethod::kPlatformSynchronous;
+      synchronous.window_s = options.window_s;
+      FACEDYN_ASSIGN_OR_RETURN(const Take filtered,
+                               dynamics::ExtractQuasistatic(t.take, synchronous));
+      FACEDYN_ASSIGN_OR_RETURN(
+          const dynamics::Evaluation evaluation,
+          dynamics::Evaluate(filtered, t.take, nullptr, &rig, evaluate_options));
+      add_method("platform_synchronous", filtered.positions, evaluation.reports.front().face);
+    }
     entry["methods"] = methods;
+
+    // Diagnostics of F_exact's error: what propagation alone leaves (the exact sample offsets
+    // propagated to every vertex, by the rig's Laplacian and by F's learned propagation), and
+    // F's error at the samples before propagation.
+    {
+      const dynamics::RemovalModel& model = models.front().model;
+      const PointCache& exact = t.take.channels.at("dynamic_offset");
+      const int sample_count = static_cast<int>(rig.skin_samples.size());
+      Eigen::MatrixXf exact_samples(3, static_cast<Eigen::Index>(exact.frame_count()) * sample_count);
+      for (int f = 0; f < exact.frame_count(); ++f) {
+        for (int i = 0; i < sample_count; ++i) {
+          exact_samples.col(static_cast<Eigen::Index>(f) * sample_count + i) =
+              rig.skin_samples[i].Evaluate(exact.Frame(f)).cast<float>();
+        }
+      }
+      auto floor_of = [&](const dynamics::SamplePropagation& used) {
+        PointCache offsets, positions;
+        dynamics::ComposeOffsets(t.take, used, exact_samples, -1.0f, &offsets, &positions);
+        return Round4(MaskedMeanDistance(positions, truth, mask, skip) / offset_mm);
+      };
+      Json diagnostics;
+      diagnostics["exact_samples_laplacian_relative"] = floor_of(propagation);
+      if (model.propagation() != nullptr) {
+        diagnostics["exact_samples_learned_relative"] = floor_of(*model.propagation());
+      }
+      FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXf predicted,
+                               dynamics::PredictSampleOffsets(model, t.take, rig));
+      double error = 0, magnitude = 0;
+      for (int f = skip; f < exact.frame_count() - skip; ++f) {
+        const auto columns = Eigen::seqN(static_cast<Eigen::Index>(f) * sample_count, sample_count);
+        error += (predicted(Eigen::all, columns) - exact_samples(Eigen::all, columns))
+                     .colwise()
+                     .norm()
+                     .sum();
+        magnitude += exact_samples(Eigen::all, columns).colwise().norm().sum();
+      }
+      diagnostics["F_exact_sample_error_relative"] = Round4(magnitude > 0 ? error / magnitude : 0);
+      entry["diagnostics"] = diagnostics;
+    }
     const double best = methods["F_exact_targets"]["jiggle_mean_mm"].get<double>();
     const double lowpass = methods["lowpass"]["jiggle_mean_mm"].get<double>();
     entry["F_exact_vs_lowpass"] = Round4(best > 0 ? lowpass / best : 0.0);

@@ -44,6 +44,9 @@ struct DynamicsStudyOptions {
   int synthesis_epochs = 30;           // the paper's
   int synthesis_batch = 50;            // the paper's
   bool moving_average_targets = true;  // also train F on the paper's moving-average targets
+  // Also train F on platform-synchronous targets (quasistatic.h; held takes only, like the
+  // moving average), and report that filter itself as a method beside the baselines.
+  bool platform_targets = true;
   bool synthesis = true;
   // Paper Fig. 5: also train F (exact targets) on the first 1, 2, ... n-1 training frequencies
   // and test each on the first test take; the full set is the main model.

@@ -11,9 +11,10 @@
 //
 //   dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs N] [--seconds S]
 //                  [--hz 6,7,...] [--expressions a,b] [--speech-hz F] [--no-train-speech]
-//                  [--lr-final F] [--window-ms MS] [--no-moving-average]
+//                  [--lr-final F] [--window-ms MS] [--no-moving-average] [--no-platform-targets]
 //
-// --no-moving-average skips F trained on the paper's moving-average targets (it halves the run).
+// --no-moving-average / --no-platform-targets skip F trained on the paper's moving-average
+// targets / on platform-synchronous targets (each is one more training run).
 
 #include <spdlog/spdlog.h>
 
@@ -140,13 +141,16 @@ int main(int argc, char** argv) {
       options.synthesis_epochs = std::atoi(next());
     } else if (arg == "--no-moving-average") {
       options.moving_average_targets = false;
+    } else if (arg == "--no-platform-targets") {
+      options.platform_targets = false;
     } else if (arg == "--seconds") {
       options.seconds = std::atof(next());
     } else {
       std::fprintf(stderr,
                    "usage: dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs "
                    "N] [--seconds S] [--hz 6,7,...] [--expressions a,b] [--speech-hz F] "
-                   "[--no-train-speech] [--lr-final F] [--window-ms MS] [--no-moving-average]\n");
+                   "[--no-train-speech] [--lr-final F] [--window-ms MS] [--no-moving-average] "
+                   "[--no-platform-targets]\n");
       return 2;
     }
   }

@@ -9,8 +9,20 @@
 // is the training target of the removal network and one of the baselines every figure is
 // reported against. End policy as in features.h: frame indices are clamped to [0, F-1], i.e.
 // the first and last frames are replicated, so the window always holds 2w+1 terms.
+//
+// Platform-synchronous extraction (QuasistaticMethod::kPlatformSynchronous, facedyn's own): on a
+// vibrating platform the frequency is known (the rig logs it; Take::info.platform_hz), and a box
+// window of 2w+1 frames averages a sinusoid of that frequency to zero only when it spans a whole
+// number of periods, which a fixed 80 ms window does at one frequency at best (at 11 Hz and 128
+// fps it spans 1.8 periods and leaves ~10% of the jiggle). Instead, per point and frame, the
+// stabilised trajectory over the window is fitted by least squares with a constant plus sines and
+// cosines of the platform frequency and its harmonics, and the constant is the quasistatic. The
+// fit is linear with fixed basis, so it is a fixed FIR filter: weights h = A (A^T A)^-1 e_0 with
+// A the (2w+1) x (1 + 2H) basis matrix of frame offsets -w..w; it passes a constant exactly and
+// removes the platform frequency and its first H-1 harmonics exactly, whatever the window.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -22,11 +34,39 @@
 
 namespace facedyn::dynamics {
 
+enum class QuasistaticMethod {
+  kMovingAverage,        // Eq. (5), the paper's
+  kPlatformSynchronous,  // least-squares fit at the known platform frequency (above)
+};
+
+// "moving-average", "platform-synchronous".
+const char* QuasistaticMethodName(QuasistaticMethod method);
+
 struct QuasistaticOptions {
   double window_s = 0.08;  // half-window w in seconds; frames = round(window_s * fps)
-  // window_s in [0, 1] s. The message names the field.
+  QuasistaticMethod method = QuasistaticMethod::kMovingAverage;
+  // Platform-synchronous only: the frequency (Hz; unset: the take's info.platform_hz), the
+  // number of harmonics fitted (1 = the fundamental only), and the shortest window in periods
+  // (the half-window grows to span at least this many periods when window_s is shorter).
+  std::optional<double> platform_hz;
+  int harmonics = 2;
+  double min_periods = 1.5;
+  // window_s in [0, 1] s, platform_hz > 0 when set, harmonics in 1..4, min_periods in [1, 10].
+  // The message names the field.
   Status Check() const;
 };
+
+// The FIR weights (2w+1, offsets -w..w) of the platform-synchronous fit at `platform_hz` with
+// `harmonics` harmonics. Errors: a harmonic at or above the Nyquist frequency, or a window too
+// short for the fit to be well conditioned.
+StatusOr<std::vector<double>> PlatformSynchronousWeights(double fps, double platform_hz,
+                                                         int half_window_frames, int harmonics);
+
+// Like MovingAverageInSkull with any centred weights (size 2w+1, offsets -w..w; clamped frame
+// indices at the ends): T(t) sum_k h_k T(t+k)^-1 x(t+k).
+StatusOr<PointCache> WeightedAverageInSkull(const PointCache& positions,
+                                            const std::vector<Rigid3>& world_from_skull,
+                                            const std::vector<double>& weights);
 
 // Eq. (5) for every point of a cache: `positions` (3N x F, world frame, mm) and one pose per
 // frame; returns y (3N x F, world frame). A running sum in double keeps the cost O(N F)
@@ -40,9 +80,12 @@ StatusOr<PointCache> MovingAverageInSkull(const PointCache& positions,
 StatusOr<PointCache> DynamicOffsets(const PointCache& positions, const PointCache& quasistatic,
                                     const std::vector<Rigid3>& world_from_skull);
 
-// The whole take: a copy of `take` whose positions are y (Eq. 5) for every vertex, whose only
-// channel is "dynamic_offset" = dx (Eq. 6), with info.source "dynamics quasistatic" and the
-// window recorded in metadata ("quasistatic_window_s", "quasistatic_window_frames"). The
+// The whole take: a copy of `take` whose positions are y (Eq. 5, or the platform-synchronous
+// fit) for every vertex, whose only channel is "dynamic_offset" = dx (Eq. 6), with info.source
+// "dynamics quasistatic" and the method and window recorded in metadata ("quasistatic_method",
+// "quasistatic_window_s", "quasistatic_window_frames", "quasistatic_platform_hz"). A
+// platform-synchronous request on a take without a platform frequency (and none in the options)
+// is a FailedPrecondition naming platform_hz. The
 // input's own channels (e.g. the simulator's exact "quasistatic") are not carried over: the
 // result is an estimate, evaluate it against the input with evaluate.h.
 StatusOr<Take> ExtractQuasistatic(const Take& take, const QuasistaticOptions& options);

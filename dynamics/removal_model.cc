@@ -94,6 +94,27 @@ class RemovalDataset final : public MlpDataset {
 
 }  // namespace
 
+const char* RemovalTargetsName(RemovalTargets targets) {
+  switch (targets) {
+    case RemovalTargets::kExact:
+      return "exact";
+    case RemovalTargets::kPlatformSynchronous:
+      return "platform-synchronous";
+    case RemovalTargets::kMovingAverage:
+      break;
+  }
+  return "moving-average";
+}
+
+StatusOr<RemovalTargets> ParseRemovalTargets(const std::string& name) {
+  for (RemovalTargets targets : {RemovalTargets::kMovingAverage, RemovalTargets::kExact,
+                                 RemovalTargets::kPlatformSynchronous}) {
+    if (name == RemovalTargetsName(targets)) return targets;
+  }
+  return InvalidArgumentError("targets: unknown \"" + name +
+                              "\" (moving-average, platform-synchronous or exact)");
+}
+
 RemovalConfig RemovalConfig::ForRig(const FaceRig& rig, double fps) {
   RemovalConfig config;
   static_cast<FeatureSpec&>(config) = FeatureSpec::ForRig(rig, fps);
@@ -193,6 +214,9 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
       }
       QuasistaticOptions quasistatic;
       quasistatic.window_s = options.window_s;
+      if (options.targets == RemovalTargets::kPlatformSynchronous) {
+        quasistatic.method = QuasistaticMethod::kPlatformSynchronous;
+      }
       FACEDYN_ASSIGN_OR_RETURN(Take estimate, ExtractQuasistatic(take, quasistatic));
       return std::move(estimate.channels.at("dynamic_offset"));
     };

@@ -92,7 +92,15 @@ struct TrainingTake {
 enum class RemovalTargets {
   kMovingAverage,  // Eq. (5)-(6) on held-expression takes, as in the paper (the default)
   kExact,          // the take's exact "quasistatic" channel (simulated takes only)
+  // The platform-synchronous fit of quasistatic.h on held-expression platform takes (each take
+  // must record its platform frequency, info.platform_hz): exact for a steady sinusoid, where
+  // the paper's fixed window leaves up to ~10% of the jiggle in the targets.
+  kPlatformSynchronous,
 };
+
+// "moving-average", "exact", "platform-synchronous"; and back (InvalidArgument listing them).
+const char* RemovalTargetsName(RemovalTargets targets);
+StatusOr<RemovalTargets> ParseRemovalTargets(const std::string& name);
 
 struct RemovalTrainOptions {
   // Optimisation: the paper's 250 epochs, batch 10,000 and Adam at 1e-3 (sec. 5.2).

@@ -97,6 +97,47 @@ TEST(DynamicsCli, TrainRemoveSynthesizeRetargetEvaluate) {
   EXPECT_THAT(out, HasSubstr("is a synthesis model, expected a removal model"));
 }
 
+TEST(DynamicsCli, PlatformSynchronousQuasistaticAndTargets) {
+  const TempDir& takes = Takes();
+  TempDir dir;
+  std::string out;
+  ASSERT_EQ(RunCommand(Facedyn("dynamics quasistatic --take " + takes.Join("p8") +
+                               " --method platform-synchronous --out " + dir.Join("q")),
+                       &out),
+            0)
+      << out;
+  const auto take_json = nlohmann::json::parse(testing::ReadBytes(dir.Join("q/take.json")));
+  EXPECT_EQ(take_json["metadata"]["quasistatic_method"], "platform-synchronous") << take_json;
+  EXPECT_EQ(take_json["metadata"]["quasistatic_platform_hz"], 8.0) << take_json;
+  ASSERT_EQ(RunCommand(Facedyn("dynamics train-removal --takes " + takes.Join("p7") + " " +
+                               takes.Join("p9") +
+                               " --targets platform-synchronous --epochs 1 --batch 4000 --out " +
+                               dir.Join("F.pt")),
+                       &out),
+            0)
+      << out;
+  EXPECT_TRUE(std::filesystem::exists(dir.Join("F.pt")));
+  // A take without a platform frequency (a walk) is refused by name, and nothing is written.
+  ASSERT_EQ(RunCommand(Facedyn("sim perform --expression neutral --motion walk --seconds 0.5 "
+                               "--out " + dir.Join("walk")),
+                       &out),
+            0)
+      << out;
+  EXPECT_EQ(RunCommand(Facedyn("dynamics quasistatic --take " + dir.Join("walk") +
+                               " --method platform-synchronous --out " + dir.Join("q2")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("platform_hz"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("q2/take.json")));
+  // ... unless the frequency is given.
+  EXPECT_EQ(RunCommand(Facedyn("dynamics quasistatic --take " + dir.Join("walk") +
+                               " --method platform-synchronous --platform-hz 2 --out " +
+                               dir.Join("q3")),
+                       &out),
+            0)
+      << out;
+}
+
 TEST(DynamicsCli, BadArgumentsNameTheField) {
   const TempDir& takes = Takes();
   TempDir dir;

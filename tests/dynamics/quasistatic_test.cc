@@ -131,6 +131,60 @@ TEST(ExtractQuasistatic, RejectsBadOptionsAndPoseCounts) {
   EXPECT_THAT(result.status().message(), ::testing::HasSubstr("4 skull poses"));
 }
 
+TEST(PlatformSynchronous, WeightsPassAConstantAndCancelThePlatformAndItsHarmonics) {
+  for (double hz : {6.0, 8.3, 11.0}) {
+    const auto weights = PlatformSynchronousWeights(128.0, hz, 10, 2);
+    ASSERT_TRUE(weights.ok()) << weights.status().message();
+    ASSERT_EQ(weights->size(), 21u);
+    double sum = 0, fundamental = 0, second = 0, third = 0;
+    for (int k = -10; k <= 10; ++k) {
+      const double h = (*weights)[k + 10];
+      sum += h;
+      fundamental += h * std::sin(2 * kPi * hz * k / 128.0 + 0.7);
+      second += h * std::cos(2 * kPi * 2 * hz * k / 128.0 + 0.2);
+      third += h * std::cos(2 * kPi * 3 * hz * k / 128.0);  // (a sine sums to 0 by symmetry)
+    }
+    EXPECT_NEAR(sum, 1.0, 1e-9) << hz;
+    EXPECT_NEAR(fundamental, 0.0, 1e-9) << hz;
+    EXPECT_NEAR(second, 0.0, 1e-9) << hz;
+    EXPECT_GT(std::abs(third), 1e-6) << hz << " (the third harmonic is not fitted)";
+  }
+  EXPECT_THAT(PlatformSynchronousWeights(128.0, 40.0, 10, 2).status().message(),
+              ::testing::HasSubstr("Nyquist"));
+  EXPECT_THAT(PlatformSynchronousWeights(128.0, 0.01, 2, 2).status().message(),
+              ::testing::HasSubstr("too short"));
+}
+
+TEST(ExtractQuasistatic, PlatformSynchronousRemovesAJiggleTheMovingAverageCannot) {
+  const Mesh rest = MakeEllipsoidPatch(75, 100, 90, 1.0, 0.8, 8, 8);
+  // 11 Hz at 128 fps: the 21-frame box spans 1.8 periods and leaves part of the jiggle.
+  const double hz = 11.0;
+  auto jiggle = [&](int t, int v) {
+    const double phase = 2 * kPi * hz * t / 128.0 + 0.1 * v;
+    return Eigen::Vector3d(0.5 * std::sin(phase), 2.0 * std::cos(phase) + 0.3 * std::sin(2 * phase),
+                           -1.0 * std::sin(phase));
+  };
+  Take take = HeldExpressionTake(rest, 120, 128.0, jiggle);
+  QuasistaticOptions options;
+  options.method = QuasistaticMethod::kPlatformSynchronous;
+  // No frequency anywhere: a clear error naming it.
+  EXPECT_THAT(ExtractQuasistatic(take, options).status().message(),
+              ::testing::HasSubstr("platform_hz"));
+  take.info.platform_hz = hz;
+  const Take synchronous = ExtractQuasistatic(take, options).value();
+  const Take box = ExtractQuasistatic(take, QuasistaticOptions()).value();
+  const int w = synchronous.info.metadata.at("quasistatic_window_frames").get<int>();
+  EXPECT_EQ(synchronous.info.metadata.at("quasistatic_method"), "platform-synchronous");
+  EXPECT_EQ(synchronous.info.metadata.at("quasistatic_platform_hz").get<double>(), hz);
+  EXPECT_LT(MaxStabilisedError(synchronous, rest, w, 120 - w), 1e-4);
+  EXPECT_GT(MaxStabilisedError(box, rest, w, 120 - w), 0.05);
+  // The options' frequency overrides the take's.
+  options.platform_hz = 9.0;
+  EXPECT_GT(MaxStabilisedError(ExtractQuasistatic(take, options).value(), rest, w, 120 - w), 0.05);
+  options.harmonics = 0;
+  EXPECT_THAT(options.Check().message(), ::testing::HasSubstr("harmonics"));
+}
+
 // The simulator's exact quasistatic channel as truth (4000 vertices, 1.5 s; one simulation
 // keeps the test under 10 s).
 class SimulatedTakes : public ::testing::Test {
@@ -179,6 +233,17 @@ TEST_F(SimulatedTakes, PlatformAt11HzMovingAverageBeatsNoRemoval) {
   const Eigen::Matrix3Xd expected = take.world_from_skull[t].RotationMatrix().transpose() *
                                     (take.FramePositions(t) - estimate.FramePositions(t));
   EXPECT_EIGEN_NEAR(dx.Frame(t).cast<double>(), expected, 1e-4);
+
+  // The platform-synchronous fit on the same take: the take knows its platform frequency.
+  ASSERT_TRUE(take.info.platform_hz.has_value());
+  QuasistaticOptions synchronous;
+  synchronous.method = QuasistaticMethod::kPlatformSynchronous;
+  const Take fitted = ExtractQuasistatic(take, synchronous).value();
+  const Evaluation fitted_evaluation = Evaluate(fitted, take, nullptr, &Face(), options).value();
+  std::printf("platform-synchronous: mean %.4f mm (moving average %.4f, no removal %.4f)\n",
+              fitted_evaluation.reports[0].face.mean_mm, moving_average.face.mean_mm,
+              no_removal.face.mean_mm);
+  EXPECT_LT(fitted_evaluation.reports[0].face.mean_mm, 0.5 * moving_average.face.mean_mm);
 }
 
 }  // namespace

@@ -3,8 +3,8 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <random>
+#include <utility>
 
 #include "core/file_util.h"
 #include "reconstruct/calibration.h"
@@ -12,26 +12,32 @@
 #include "reconstruct/synthetic_views.h"
 
 namespace facedyn::app {
-namespace {
 
 using namespace facedyn::reconstruct;
 
-StatusOr<RigCalibration> CalibrateDemoRig(const std::vector<Camera>& truth, int views,
-                                          std::mt19937* rng, double* worst_centre_mm) {
+StatusOr<DemoCameraRig> CalibrateDemoCameraRig(int board_views, uint64_t seed) {
+  if (board_views < 3) {
+    return InvalidArgumentError("calibration needs at least 3 board views, got " +
+                                std::to_string(board_views));
+  }
+  std::mt19937 rng(static_cast<std::mt19937::result_type>(seed));
+  DemoCameraRig rig;
+  rig.truth = MakeFaceCameraRing(8);
+  const std::vector<Camera>& truth = rig.truth;
   CalibrationInput input;
   input.board = *BoardSpec::Parse("charuco:10x7:25:18");
   for (const Camera& c : truth) input.cameras.push_back({c.name, c.width_px, c.height_px});
   std::normal_distribution<double> noise(0.0, 0.2);
   std::uniform_real_distribution<double> uniform(-1.0, 1.0);
   const Eigen::Vector3d board_centre(137.5, 100.0, 0.0);
-  for (int v = 0; v < views; ++v) {
+  for (int v = 0; v < board_views; ++v) {
     // In front of the face, facing the cameras, tilted up to ~35 degrees.
     const Rigid3 world_from_board =
-        Rigid3::FromTranslation(Eigen::Vector3d(60 * uniform(*rng), -15 + 50 * uniform(*rng),
-                                                60 + 60 * uniform(*rng))) *
+        Rigid3::FromTranslation(Eigen::Vector3d(60 * uniform(rng), -15 + 50 * uniform(rng),
+                                                60 + 60 * uniform(rng))) *
         Rigid3::FromAxisAngle(
-            Eigen::Vector3d(uniform(*rng), uniform(*rng), 0.3 * uniform(*rng)).normalized(),
-            0.6 * std::abs(uniform(*rng))) *
+            Eigen::Vector3d(uniform(rng), uniform(rng), 0.3 * uniform(rng)).normalized(),
+            0.6 * std::abs(uniform(rng))) *
         Rigid3::FromAxisAngle(Eigen::Vector3d::UnitX(), M_PI) *
         Rigid3::FromTranslation(-board_centre);
     input.view_names.push_back("view" + std::to_string(v));
@@ -44,16 +50,14 @@ StatusOr<RigCalibration> CalibrateDemoRig(const std::vector<Camera>& truth, int 
         Eigen::Vector2d pixel;
         if (!truth[c].Project(p, &pixel) || !truth[c].InImage(pixel, 5)) continue;
         observation.corner_ids.push_back(id);
-        observation.pixels.push_back(pixel + Eigen::Vector2d(noise(*rng), noise(*rng)));
+        observation.pixels.push_back(pixel + Eigen::Vector2d(noise(rng), noise(rng)));
       }
       if (observation.size() > 0)
         input.observations.push_back({static_cast<int>(c), v, observation});
     }
   }
-  FACEDYN_ASSIGN_OR_RETURN(RigCalibration calibration, Calibrate(input, CalibrationOptions()));
-  // The calibration's world is camera 0; bring it into the stage's world by the rigid motion
-  // that best maps the calibrated camera centres onto the true ones (what surveying the rig
-  // once would give), and record the worst remaining centre error.
+  FACEDYN_ASSIGN_OR_RETURN(rig.calibration, Calibrate(input, CalibrationOptions()));
+  RigCalibration& calibration = rig.calibration;
   Eigen::Matrix3Xd a(3, truth.size()), b(3, truth.size());
   for (size_t c = 0; c < truth.size(); ++c) {
     a.col(c) = calibration.cameras[c].CenterInWorld();
@@ -61,49 +65,58 @@ StatusOr<RigCalibration> CalibrateDemoRig(const std::vector<Camera>& truth, int 
   }
   const Eigen::Matrix4d m = Eigen::umeyama(a, b, false);
   const Rigid3 stage_from_calibration = Rigid3::FromMatrix4(m);
-  *worst_centre_mm = 0.0;
+  rig.worst_centre_error_mm = 0.0;
   for (size_t c = 0; c < truth.size(); ++c) {
     calibration.cameras[c].cam_from_world =
         calibration.cameras[c].cam_from_world * stage_from_calibration.Inverse();
-    *worst_centre_mm =
-        std::max(*worst_centre_mm,
+    rig.worst_centre_error_mm =
+        std::max(rig.worst_centre_error_mm,
                  (calibration.cameras[c].CenterInWorld() - truth[c].CenterInWorld()).norm());
   }
-  return calibration;
+  return rig;
 }
 
-}  // namespace
-
-Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
-                               const std::string& out_dir, bool quick, Json* metrics) {
+StatusOr<Reconstruction> ReconstructSimulatedTake(const FaceRig& face,
+                                                  const DemoCameraRig& cameras,
+                                                  const Take& simulated, uint64_t seed) {
   if (simulated.frame_count() == 0) return InvalidArgumentError("the simulated take is empty");
   if (simulated.vertex_count() != face.vertex_count()) {
     return FailedPreconditionError("the simulated take has " +
                                    std::to_string(simulated.vertex_count()) +
                                    " vertices, the face " + std::to_string(face.vertex_count()));
   }
-  const std::string stage_dir = JoinPath(out_dir, "reconstruct");
-  std::filesystem::create_directories(stage_dir);
-  std::mt19937 rng(2020);
-  const std::vector<Camera> truth = MakeFaceCameraRing(8);
-  double worst_centre_mm = 0.0;
-  FACEDYN_ASSIGN_OR_RETURN(RigCalibration calibration,
-                           CalibrateDemoRig(truth, quick ? 30 : 60, &rng, &worst_centre_mm));
-  FACEDYN_RETURN_IF_ERROR(SaveCalibration(calibration, JoinPath(stage_dir, "calibration.yaml")));
-
+  std::mt19937 rng(static_cast<std::mt19937::result_type>(seed));
   std::vector<std::vector<std::vector<ImageObservation>>> detections;
+  detections.reserve(simulated.frame_count());
   for (int f = 0; f < simulated.frame_count(); ++f) {
     const Eigen::Matrix3Xd skin = simulated.FramePositions(f);
-    detections.push_back(
-        ProjectMarkers(truth, MarkerPositions(face, skin), MarkerNormals(face, skin), 0.2, &rng)
-            .detections);
+    detections.push_back(ProjectMarkers(cameras.truth, MarkerPositions(face, skin),
+                                        MarkerNormals(face, skin), 0.2, &rng)
+                             .detections);
   }
   FACEDYN_ASSIGN_OR_RETURN(Reconstruction result,
-                           ReconstructTake(face, calibration.cameras, detections,
+                           ReconstructTake(face, cameras.calibration.cameras, detections,
                                            simulated.info.fps, ReconstructionOptions()));
+  result.take.info.subject = simulated.info.subject;
   result.take.info.expression = simulated.info.expression;
+  result.take.info.motion = simulated.info.motion;
   result.take.info.platform_hz = simulated.info.platform_hz;
   result.take.info.metadata["reconstructed_from"] = "simulated take, 8 simulated cameras";
+  return result;
+}
+
+Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
+                               const std::string& out_dir, bool quick, Json* metrics,
+                               DemoCameraRig* cameras, Take* reconstructed) {
+  if (simulated.frame_count() == 0) return InvalidArgumentError("the simulated take is empty");
+  const std::string stage_dir = JoinPath(out_dir, "reconstruct");
+  FACEDYN_RETURN_IF_ERROR(MakeDirectories(stage_dir));
+  FACEDYN_ASSIGN_OR_RETURN(const DemoCameraRig rig, CalibrateDemoCameraRig(quick ? 30 : 60, 2020));
+  const RigCalibration& calibration = rig.calibration;
+  const double worst_centre_mm = rig.worst_centre_error_mm;
+  FACEDYN_RETURN_IF_ERROR(SaveCalibration(calibration, JoinPath(stage_dir, "calibration.yaml")));
+  FACEDYN_ASSIGN_OR_RETURN(Reconstruction result,
+                           ReconstructSimulatedTake(face, rig, simulated, 2021));
   FACEDYN_RETURN_IF_ERROR(SaveTake(result.take, JoinPath(out_dir, "takes/reconstructed")));
 
   // Errors against the simulator's truth, after the motion's fade-in.
@@ -193,6 +206,8 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
       m["triangulate_fps"].get<double>(), m["dense_fit_fps"].get<double>(),
       m["take"].get<std::string>().c_str());
   if (metrics) *metrics = m;
+  if (cameras) *cameras = rig;
+  if (reconstructed) *reconstructed = std::move(result.take);
   return Status::Ok();
 }
 

@@ -7,9 +7,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
+#include <mutex>
+#include <thread>
 #include <vector>
 
 #include "core/file_util.h"
@@ -24,6 +29,67 @@ bool IsFile(const std::string& path) {
   struct stat info {};
   return ::stat(path.c_str(), &info) == 0 && S_ISREG(info.st_mode);
 }
+
+// Samples the simulated drive's state on its own thread while the sweep runs: the drive's
+// setpoint, the oscillation sensor's reading (what the controller reads over Modbus) and the
+// simulator's true platform frequency (which nothing on the control side sees), against wall
+// time since Start(). A thread rather than the sweep's hooks because the hooks only fire at the
+// edges of each hold, and the ramps in between are what the plot is for.
+class DriveSampler {
+ public:
+  DriveSampler(const sim::DriveSim* sim, double interval_s) : sim_(sim), interval_s_(interval_s) {}
+  ~DriveSampler() { Stop(); }
+
+  void Start() {
+    start_ = std::chrono::steady_clock::now();
+    thread_ = std::thread([this] {
+      std::unique_lock<std::mutex> lock(mutex_);
+      while (!stop_) {
+        const sim::DriveModelState state = sim_->state();
+        t_s_.push_back(NowS());
+        setpoint_hz_.push_back(state.run_commanded ? state.setpoint_hz : 0.0);
+        measured_hz_.push_back(state.sensor_hz);
+        true_hz_.push_back(state.platform_hz);
+        wake_.wait_for(lock, std::chrono::duration<double>(interval_s_), [this] { return stop_; });
+      }
+    });
+  }
+  void Stop() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    if (thread_.joinable()) thread_.join();
+  }
+  // Seconds since Start().
+  double NowS() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+  // Call after Stop().
+  Json ToJson() const {
+    auto rounded = [](const std::vector<double>& values, double step) {
+      Json array = Json::array();
+      for (double v : values) array.push_back(std::round(v / step) * step);
+      return array;
+    };
+    return {{"sample_interval_s", interval_s_},
+            {"t_s", rounded(t_s_, 1e-3)},
+            {"setpoint_hz", rounded(setpoint_hz_, 1e-4)},
+            {"measured_hz", rounded(measured_hz_, 1e-4)},
+            {"true_hz", rounded(true_hz_, 1e-4)}};
+  }
+
+ private:
+  const sim::DriveSim* sim_;
+  double interval_s_;
+  std::chrono::steady_clock::time_point start_;
+  std::thread thread_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool stop_ = false;
+  std::vector<double> t_s_, setpoint_hz_, measured_hz_, true_hz_;
+};
 
 }  // namespace
 
@@ -81,22 +147,33 @@ Status RunRigDemoStage(const std::string& out_dir, bool quick, Json* metrics) {
   // The simulator's true platform frequency over each hold, which the controller never sees.
   std::vector<double> true_sum_hz;
   std::vector<int> true_samples;
+  // Hold edges on the sampler's clock, so the plot can mark each step's ramp and hold.
+  std::vector<double> hold_start_s, hold_end_s;
+  DriveSampler sampler(sim.get(), 0.05);
   rig::SweepOptions options;
   options.session_dir = session;
   options.print_prompts = false;
   options.hooks.on_hold_start = [&](const rig::SweepStepInfo& info) {
     true_sum_hz.resize(info.instance_count, 0.0);
     true_samples.resize(info.instance_count, 0);
+    hold_start_s.resize(info.instance_count, std::nan(""));
+    hold_end_s.resize(info.instance_count, std::nan(""));
+    hold_start_s[info.instance] = sampler.NowS();
     true_sum_hz[info.instance] += sim->state().platform_hz;
     ++true_samples[info.instance];
     return Status::Ok();
   };
   options.hooks.on_hold_end = [&](const rig::SweepStepInfo& info, const rig::HoldSummary&) {
+    hold_end_s[info.instance] = sampler.NowS();
     true_sum_hz[info.instance] += sim->state().platform_hz;
     ++true_samples[info.instance];
     return Status::Ok();
   };
-  FACEDYN_ASSIGN_OR_RETURN(const rig::SweepResult result, rig::RunSweep(script, rig, options));
+  sampler.Start();
+  StatusOr<rig::SweepResult> swept = rig::RunSweep(script, rig, options);
+  sampler.Stop();
+  FACEDYN_RETURN_IF_ERROR(swept.status());
+  const rig::SweepResult& result = *swept;
 
   std::printf("\nRig: simulated drive over Modbus TCP (%s), sweep %s\n", sim->Describe().c_str(),
               script.name.c_str());
@@ -121,6 +198,16 @@ Status RunRigDemoStage(const std::string& out_dir, bool quick, Json* metrics) {
     s["max_abs_error_hz"] = step.hold.max_abs_error_hz;
     s["hold_s"] = step.hold.seconds;
     s["prompt"] = step.prompt;
+    // The step runs from the previous hold's end (the sweep's start for the first) through
+    // its ramp and settling to the end of its own hold.
+    const auto edge = [](const std::vector<double>& times, int k) -> Json {
+      return k >= 0 && k < static_cast<int>(times.size()) && std::isfinite(times[k])
+                 ? Json(std::round(times[k] * 1e3) / 1e3)
+                 : Json(nullptr);
+    };
+    s["start_s"] = i == 0 ? Json(0.0) : edge(hold_end_s, i - 1);
+    s["hold_start_s"] = edge(hold_start_s, i);
+    s["hold_end_s"] = edge(hold_end_s, i);
     steps.push_back(s);
   }
   std::printf("  exposure: %.1f s of vibration, A(8) %.3f m/s^2 (unweighted); journal %s\n",
@@ -132,6 +219,7 @@ Status RunRigDemoStage(const std::string& out_dir, bool quick, Json* metrics) {
     (*metrics)["worst_steady_state_error_hz"] = worst_steady;
     (*metrics)["exposure"] = result.exposure;
     (*metrics)["log"] = result.log_path;
+    (*metrics)["time_series"] = sampler.ToJson();
   }
   return Status::Ok();
 }

@@ -19,6 +19,7 @@ Status ReconstructionOptions::Check() const {
   FACEDYN_RETURN_IF_ERROR(correspondence.Check().WithContext("correspondence"));
   FACEDYN_RETURN_IF_ERROR(tracking.Check().WithContext("tracking"));
   FACEDYN_RETURN_IF_ERROR(skull.Check().WithContext("skull pose"));
+  FACEDYN_RETURN_IF_ERROR(jaw.Check().WithContext("jaw pose"));
   FACEDYN_RETURN_IF_ERROR(dense.Check().WithContext("dense fit"));
   return Status::Ok();
 }
@@ -108,6 +109,31 @@ StatusOr<Reconstruction> ReconstructTake(
   }
   out.timings.skull_s = Seconds(start);
 
+  // Jaw: skull_from_jaw per frame from the jaw markers in the skull frame of `poses`.
+  start = std::chrono::steady_clock::now();
+  const JawPoseEstimator jaw(rig, options.jaw);
+  out.jaw_status = jaw.status();
+  if (!jaw.status().ok()) {
+    out.take.info.metadata["jaw"] = "not estimated: " + jaw.status().message();
+  } else if (jaw.has_jaw()) {
+    JawSequence sequence = EstimateJawSequence(jaw, out.tracked, poses);
+    int carried = 0;
+    for (int f = 0; f < frame_count; ++f) {
+      FrameQuality& q = out.quality[f];
+      const JawPoseResult& result = sequence.results[f];
+      q.jaw_markers = result.markers_used;
+      q.jaw_rms_mm = result.rms_mm;
+      q.jaw_angle_rad = JawHingeAngleRad(jaw.jaw(), sequence.skull_from_jaw[f]);
+      q.jaw_carried = sequence.carried[f];
+      if (q.jaw_carried) q.jaw_carried_from = sequence.carried_from[f];
+      carried += q.jaw_carried ? 1 : 0;
+    }
+    out.take.skull_from_jaw = std::move(sequence.skull_from_jaw);
+    out.take.info.metadata["jaw"] = {{"markers", jaw.jaw_markers().size()},
+                                     {"frames_carried_over", carried}};
+  }
+  out.timings.jaw_s = Seconds(start);
+
   // Dense fit, warm-started frame to frame.
   const int vertex_count = rig.vertex_count();
   out.take.topology = rig.neutral;
@@ -159,6 +185,16 @@ StatusOr<Reconstruction> ReconstructTake(
       }
     }
     out.take.positions.Frame(f) = poses[f].Apply(in_skull[source]).cast<float>();
+  }
+  // Jaw notes go after any other problem of the frame, which is the more fundamental one.
+  for (FrameQuality& q : out.quality) {
+    if (!q.jaw_carried) continue;
+    const std::string note =
+        "too few jaw markers (" + std::to_string(q.jaw_markers) + " usable, " +
+        std::to_string(options.jaw.min_markers) + " needed); jaw pose " +
+        (q.jaw_carried_from >= 0 ? "carried over from frame " + std::to_string(q.jaw_carried_from)
+                                 : std::string("set to the rest pose (no earlier jaw estimate)"));
+    q.problem += (q.problem.empty() ? "" : "; ") + note;
   }
   out.take.SetUniformTimes();
   FACEDYN_RETURN_IF_ERROR(out.take.Validate().WithContext("reconstructed take"));

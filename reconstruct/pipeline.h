@@ -1,10 +1,13 @@
 // The reconstruction pipeline for one take: per frame, marker detections in every camera ->
-// triangulated points -> labelled markers -> skull pose -> dense mesh; out comes a Take in the
-// FaceRig's topology with world_from_skull per frame, plus a per-frame quality report.
+// triangulated points -> labelled markers -> skull pose -> jaw pose -> dense mesh; out comes a
+// Take in the FaceRig's topology with world_from_skull per frame (and skull_from_jaw per frame
+// when the rig has a jaw, see jaw_pose.h), plus a per-frame quality report.
 //
 // Bad frames do not stop the take: a frame whose cameras saw nothing, or too few markers for a
 // fit, is reported (FrameQuality::problem) and gets the skull pose interpolated from its
-// neighbours and the mesh of the nearest good frame carried to that pose.
+// neighbours and the mesh of the nearest good frame carried to that pose. A frame with too few
+// jaw markers for a jaw pose keeps the previous frame's skull_from_jaw (identity before the
+// first jaw estimate); it is flagged (FrameQuality::jaw_carried, and a note in problem).
 #pragma once
 
 #include <string>
@@ -15,6 +18,7 @@
 #include "core/take.h"
 #include "reconstruct/camera.h"
 #include "reconstruct/dense_fit.h"
+#include "reconstruct/jaw_pose.h"
 #include "reconstruct/skull_pose.h"
 #include "reconstruct/tracking.h"
 #include "reconstruct/triangulation.h"
@@ -25,6 +29,7 @@ struct ReconstructionOptions {
   CorrespondenceOptions correspondence;
   TrackingOptions tracking;
   SkullPoseOptions skull;
+  JawPoseOptions jaw;
   DenseFitOptions dense;
   Status Check() const;
 };
@@ -40,13 +45,22 @@ struct FrameQuality {
   int unlabelled_points = 0;
   double skull_rms_mm = 0.0;
   double fit_marker_rms_mm = 0.0;
-  std::string problem;  // empty when the frame reconstructed normally
+  // Jaw (all zero / false when the rig has no jaw): markers used, their weighted residual,
+  // the hinge angle (positive opens), and whether the jaw pose was carried over from an
+  // earlier frame because fewer than JawPoseOptions::min_markers jaw markers were usable.
+  int jaw_markers = 0;
+  double jaw_rms_mm = 0.0;
+  double jaw_angle_rad = 0.0;
+  bool jaw_carried = false;
+  int jaw_carried_from = -1;  // when carried: the frame whose jaw pose it is, -1 the rest pose
+  std::string problem;        // empty when the frame reconstructed normally
 };
 
 struct ReconstructionTimings {
   double triangulate_s = 0.0;  // correspondence + triangulation
   double track_s = 0.0;
   double skull_s = 0.0;
+  double jaw_s = 0.0;
   double dense_s = 0.0;
 };
 
@@ -55,6 +69,10 @@ struct Reconstruction {
   std::vector<FrameQuality> quality;
   std::vector<TrackedFrame> tracked;
   ReconstructionTimings timings;
+  // Ok when the jaw was estimated or the rig has no jaw (then take.skull_from_jaw is empty);
+  // otherwise why the rig's jaw could not be estimated at all (the take has no jaw either,
+  // and take.info.metadata["jaw"] says so too).
+  Status jaw_status;
 };
 
 // detections[f][c]: camera c's marker detections in frame f (pixels, weight = quality).

@@ -7,6 +7,10 @@
 //  - the full take pipeline (triangulation, tracking, skull pose, dense fit) on a simulated
 //    11 Hz take through the same cameras at 0.2 px detection noise; dense-fit frames/s, skull
 //    pose error, 344-sample error, dynamic-offset correlation;
+//  - jaw pose: skull_from_jaw from the jaw markers on simulated jaw_open and speech takes (11 Hz
+//    platform) through the same cameras at 0.2 px, after triangulation, tracking and skull
+//    pose: hinge angle error (deg), pivot and chin point error (mm) against the simulator's
+//    skull_from_jaw, and jaw-pose frames/s;
 //  - calibration: the 13 OpenCV photographs in ../shared/assets/opencv-calib against
 //    cv::calibrateCamera on the same corners (when present), and a synthetic 4-camera rig.
 //
@@ -29,6 +33,7 @@
 #include "core/progress.h"
 #include "reconstruct/board.h"
 #include "reconstruct/calibration.h"
+#include "reconstruct/jaw_pose.h"
 #include "reconstruct/marker_detection.h"
 #include "reconstruct/pipeline.h"
 #include "reconstruct/synthetic_views.h"
@@ -208,6 +213,88 @@ Json BenchPipeline(const facedyn::FaceRig& rig, const facedyn::Take& take) {
   out["dynamic_offset_correlation"] = cov / std::sqrt(va * vb);
   out["dynamic_offset_true_rms_mm"] = std::sqrt(sbb / n_offset);
   out["evaluated_from_s"] = 0.5;
+  // The jaw through the full pipeline (a smile barely moves it: this is the false-opening figure).
+  if (!result->take.skull_from_jaw.empty() && !take.skull_from_jaw.empty()) {
+    double sq_jaw = 0.0;
+    for (int f = skip; f < take.frame_count(); ++f) {
+      const double e = JawHingeAngleRad(rig.jaw, result->take.skull_from_jaw[f]) -
+                       JawHingeAngleRad(rig.jaw, take.skull_from_jaw[f]);
+      sq_jaw += std::pow(e * 180.0 / M_PI, 2);
+    }
+    out["jaw_angle_rms_deg"] = std::sqrt(sq_jaw / n_pose);
+  }
+  return out;
+}
+
+// The jaw alone (no dense fit, which does not feed it): detections -> triangulation ->
+// tracking -> skull pose -> jaw pose, errors against the simulator's skull_from_jaw.
+Json BenchJaw(const facedyn::FaceRig& rig, const std::string& expression, double seconds) {
+  facedyn::sim::PerformanceOptions performance;
+  performance.expression = expression;
+  performance.motion.kind = facedyn::sim::MotionKind::kPlatform;
+  performance.motion.platform_hz = 11.0;
+  performance.motion.amplitude_mm = 2.0;
+  performance.seconds = seconds;
+  performance.fps = 128.0;
+  Json out;
+  const auto take = facedyn::sim::SimulatePerformance(rig, performance);
+  if (!take.ok()) {
+    out["error"] = take.status().message();
+    return out;
+  }
+  const std::vector<Camera> cameras = MakeFaceCameraRing(8);
+  std::mt19937 rng(3);
+  MarkerTracker tracker(rig, TrackingOptions());
+  for (int f = 0; f < take->frame_count(); ++f) {
+    const Eigen::Matrix3Xd skin = take->FramePositions(f);
+    const MarkerViews views =
+        ProjectMarkers(cameras, MarkerPositions(rig, skin), MarkerNormals(rig, skin), 0.2, &rng);
+    (void)tracker.AddFrame(
+        TriangulateDetections(cameras, views.detections, CorrespondenceOptions()));
+  }
+  const std::vector<TrackedFrame> tracked = tracker.Finish();
+  const SkullPoseEstimator skull(rig, SkullPoseOptions());
+  std::vector<facedyn::Rigid3> poses;
+  for (const TrackedFrame& frame : tracked) poses.push_back(skull.Estimate(frame).world_from_skull);
+  const JawPoseEstimator jaw(rig, JawPoseOptions());
+  if (!jaw.status().ok() || !jaw.has_jaw()) {
+    out["error"] = jaw.status().ok() ? "the rig has no jaw" : jaw.status().message();
+    return out;
+  }
+  const auto start = Clock::now();
+  const JawSequence sequence = EstimateJawSequence(jaw, tracked, poses);
+  const double jaw_s = Seconds(start);
+  double sq_a = 0, sq_p = 0, sq_c = 0, max_a = 0, max_p = 0, max_c = 0, true_max = 0;
+  int carried = 0;
+  const int frames = take->frame_count();
+  for (int f = 0; f < frames; ++f) {
+    const JawPoseDifference d =
+        CompareJawPoses(rig.jaw, jaw.reference_point_in_skull(), sequence.skull_from_jaw[f],
+                        take->skull_from_jaw[f]);
+    const double a = std::abs(d.angle_rad) * 180.0 / M_PI;
+    sq_a += a * a;
+    sq_p += d.pivot_mm * d.pivot_mm;
+    sq_c += d.point_mm * d.point_mm;
+    max_a = std::max(max_a, a);
+    max_p = std::max(max_p, d.pivot_mm);
+    max_c = std::max(max_c, d.point_mm);
+    true_max = std::max(
+        true_max, std::abs(JawHingeAngleRad(rig.jaw, take->skull_from_jaw[f])) * 180.0 / M_PI);
+    carried += sequence.carried[f] ? 1 : 0;
+  }
+  out["frames"] = frames;
+  out["platform_hz"] = 11.0;
+  out["detection_noise_px"] = 0.2;
+  out["jaw_markers"] = jaw.jaw_markers().size();
+  out["true_angle_max_deg"] = true_max;
+  out["angle_rms_deg"] = std::sqrt(sq_a / frames);
+  out["angle_max_deg"] = max_a;
+  out["pivot_rms_mm"] = std::sqrt(sq_p / frames);
+  out["pivot_max_mm"] = max_p;
+  out["chin_rms_mm"] = std::sqrt(sq_c / frames);
+  out["chin_max_mm"] = max_c;
+  out["frames_carried_over"] = carried;
+  out["jaw_fps"] = frames / std::max(jaw_s, 1e-9);
   return out;
 }
 
@@ -387,6 +474,8 @@ int main(int argc, char** argv) {
   out["detection_triangulation"] =
       BenchDetection(*rig, *take, frames, static_cast<int>(std::thread::hardware_concurrency()));
   out["pipeline_11hz_smile"] = BenchPipeline(*rig, *take);
+  out["jaw"] = {{"jaw_open_11hz", BenchJaw(*rig, "jaw_open", seconds)},
+                {"speech_11hz", BenchJaw(*rig, "speech", std::max(seconds, 2.0))}};
   out["calibration"] = BenchCalibration(shared);
   std::printf("%s\n", out.dump(2).c_str());
   return 0;

@@ -104,6 +104,8 @@ Status DynamicsStudyOptions::Check() const {
     return InvalidArgumentError("vertices must be in 4000..10000");
   if (removal_epochs < 1 || synthesis_epochs < 1)
     return InvalidArgumentError("epochs must be >= 1");
+  if (!(learning_rate > 0 && learning_rate < 1))
+    return InvalidArgumentError("learning_rate must be in (0, 1)");
   if (removal_batch < 1 || synthesis_batch < 1)
     return InvalidArgumentError("batch sizes must be >= 1");
   return Status::Ok();
@@ -169,9 +171,12 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     dynamics::RemovalTrainOptions train_options;
     train_options.train.epochs = options.removal_epochs;
     train_options.train.batch_size = options.removal_batch;
+    train_options.train.learning_rate = options.learning_rate;
     train_options.targets = targets;
     train_options.window_s = options.window_s;
     train_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
+    train_options.learn_propagation = options.removal_learned_propagation;
+    train_options.propagation.prior_weight = options.propagation_prior_weight;
     train_options.train.seed = options.seed;
     train_options.train.num_threads = options.threads;
     train_options.train.show_progress = options.show_progress;
@@ -318,6 +323,10 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                      {"final_learning_rate_fraction", options.final_learning_rate_fraction},
                      {"removal_epochs", options.removal_epochs},
                      {"removal_batch", options.removal_batch},
+                     {"learning_rate", options.learning_rate},
+                     {"removal_learned_propagation", options.removal_learned_propagation},
+                     {"synthesis_learned_propagation", options.synthesis_learned_propagation},
+                     {"propagation_prior_weight", options.propagation_prior_weight},
                      {"simulate_s", Round4(simulate_s)},
                      {"error_metric",
                       "per-vertex |prediction - exact quasistatic| in mm over frames away from "
@@ -345,6 +354,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
         subset_options.train.epochs =
             options.subset_epochs > 0 ? options.subset_epochs : options.removal_epochs;
         subset_options.train.batch_size = options.removal_batch;
+        subset_options.train.learning_rate = options.learning_rate;
         subset_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
         subset_options.train.seed = options.seed;
         subset_options.train.num_threads = options.threads;
@@ -408,6 +418,8 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     synthesis_options.train.show_progress = options.show_progress;
     synthesis_options.window_s = options.window_s;
     synthesis_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
+    synthesis_options.learn_propagation = options.synthesis_learned_propagation;
+    synthesis_options.propagation.prior_weight = options.propagation_prior_weight;
     spdlog::info("training synthesis network ({} takes, {} epochs)", decomposed.size(),
                  synthesis_options.train.epochs);
     dynamics::MlpTrainSummary synthesis_summary;

@@ -41,6 +41,7 @@ struct DynamicsStudyOptions {
   double final_learning_rate_fraction = 0.05;  // learning-rate decay of both networks (mlp.h)
   int removal_epochs = 40;
   int removal_batch = 10000;           // the paper's
+  double learning_rate = 1e-3;         // Adam, both networks (the paper's)
   int synthesis_epochs = 30;           // the paper's
   int synthesis_batch = 50;            // the paper's
   bool moving_average_targets = true;  // also train F on the paper's moving-average targets
@@ -48,6 +49,11 @@ struct DynamicsStudyOptions {
   // moving average), and report that filter itself as a method beside the baselines.
   bool platform_targets = true;
   bool synthesis = true;
+  // Propagation of each network: learned from its training offsets (propagation.h) or the
+  // rig's Laplacian.
+  bool removal_learned_propagation = true;
+  bool synthesis_learned_propagation = true;
+  double propagation_prior_weight = 1e-3;  // PropagationLearnOptions::prior_weight, both
   // Paper Fig. 5: also train F (exact targets) on the first 1, 2, ... n-1 training frequencies
   // and test each on the first test take; the full set is the main model.
   bool frequency_subsets = false;

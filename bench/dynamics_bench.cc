@@ -12,9 +12,13 @@
 //   dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs N] [--seconds S]
 //                  [--hz 6,7,...] [--expressions a,b] [--speech-hz F] [--no-train-speech]
 //                  [--lr-final F] [--window-ms MS] [--no-moving-average] [--no-platform-targets]
+//                  [--laplacian-removal] [--laplacian-synthesis] [--batch N] [--lr LR]
+//                  [--no-synthesis] [--propagation-prior W]
 //
 // --no-moving-average / --no-platform-targets skip F trained on the paper's moving-average
 // targets / on platform-synchronous targets (each is one more training run).
+// --laplacian-removal / --laplacian-synthesis propagate that network's samples with the rig's
+// Laplacian instead of the propagation learned from its training offsets (for comparison).
 
 #include <spdlog/spdlog.h>
 
@@ -143,6 +147,18 @@ int main(int argc, char** argv) {
       options.moving_average_targets = false;
     } else if (arg == "--no-platform-targets") {
       options.platform_targets = false;
+    } else if (arg == "--batch") {
+      options.removal_batch = std::atoi(next());
+    } else if (arg == "--lr") {
+      options.learning_rate = std::atof(next());
+    } else if (arg == "--propagation-prior") {
+      options.propagation_prior_weight = std::atof(next());
+    } else if (arg == "--no-synthesis") {
+      options.synthesis = false;
+    } else if (arg == "--laplacian-removal") {
+      options.removal_learned_propagation = false;
+    } else if (arg == "--laplacian-synthesis") {
+      options.synthesis_learned_propagation = false;
     } else if (arg == "--seconds") {
       options.seconds = std::atof(next());
     } else {
@@ -150,7 +166,8 @@ int main(int argc, char** argv) {
                    "usage: dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs "
                    "N] [--seconds S] [--hz 6,7,...] [--expressions a,b] [--speech-hz F] "
                    "[--no-train-speech] [--lr-final F] [--window-ms MS] [--no-moving-average] "
-                   "[--no-platform-targets]\n");
+                   "[--no-platform-targets] [--laplacian-removal] [--laplacian-synthesis] [--batch N] "
+                   "[--lr LR] [--no-synthesis] [--propagation-prior W]\n");
       return 2;
     }
   }

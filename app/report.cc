@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iterator>
@@ -37,18 +38,6 @@ std::string Escape(const std::string& text) {
   return out;
 }
 
-// Bars for the methods of one removal test take, in a fixed order; the networks first.
-std::vector<std::pair<std::string, double>> RemovalBars(const Json& entry) {
-  std::vector<std::pair<std::string, double>> bars;
-  for (const auto& [method, figures] : entry["methods"].items()) {
-    bars.emplace_back(method, figures["jiggle_mean_mm"].get<double>());
-  }
-  std::stable_sort(bars.begin(), bars.end(), [](const auto& a, const auto& b) {
-    return (a.first.rfind("F_", 0) == 0) > (b.first.rfind("F_", 0) == 0);
-  });
-  return bars;
-}
-
 }  // namespace
 
 std::string SvgBarChart(const std::string& title,
@@ -57,7 +46,9 @@ std::string SvgBarChart(const std::string& title,
   const int label_w = 330, bar_w = 360, row_h = 22, top = 28;
   const int height = top + row_h * static_cast<int>(bars.size()) + 8;
   double max_value = 0;
-  for (const auto& bar : bars) max_value = std::max(max_value, bar.second);
+  for (const auto& bar : bars) {
+    if (std::isfinite(bar.second)) max_value = std::max(max_value, bar.second);
+  }
   if (max_value <= 0) max_value = 1;
   std::string svg = fmt::format(
       "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" role=\"img\">"
@@ -65,162 +56,434 @@ std::string SvgBarChart(const std::string& title,
       label_w + bar_w + 90, height, Escape(title));
   for (size_t k = 0; k < bars.size(); ++k) {
     const int y = top + static_cast<int>(k) * row_h;
-    const int w = std::max(1, static_cast<int>(bar_w * bars[k].second / max_value));
-    const bool network = bars[k].first.rfind("F_", 0) == 0 || bars[k].first.rfind("H", 0) == 0;
+    const double value = bars[k].second;
+    const bool finite = std::isfinite(value) && value >= 0;
+    const int w =
+        finite ? std::max(1, static_cast<int>(bar_w * std::min(value, max_value) / max_value)) : 0;
+    // The networks (F..., H...) in red, everything they are compared with in grey.
+    const std::string& label = bars[k].first;
+    const bool network = (label.rfind("F", 0) == 0 || label.rfind("H", 0) == 0) &&
+                         (label.size() == 1 || label[1] == '_' || label[1] == ' ');
     svg += fmt::format(
         "<text x=\"{}\" y=\"{}\" font-size=\"12\" text-anchor=\"end\">{}</text>"
         "<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\"/>"
-        "<text x=\"{}\" y=\"{}\" font-size=\"12\">{:.3f} {}</text>",
-        label_w - 6, y + 14, Escape(bars[k].first), label_w, y + 2, w, row_h - 6,
-        network ? "#c0392b" : "#7f8c8d", label_w + w + 6, y + 14, bars[k].second, Escape(unit));
+        "<text x=\"{}\" y=\"{}\" font-size=\"12\">{} {}</text>",
+        label_w - 6, y + 14, Escape(label), label_w, y + 2, w, row_h - 6,
+        network ? "#c0392b" : "#7f8c8d", label_w + w + 6, y + 14,
+        finite ? fmt::format("{:.3f}", value) : std::string("n/a"), Escape(unit));
   }
   svg += "</svg>";
   return svg;
 }
+
+namespace {
+
+// A "nice" tick step (1, 2 or 5 times a power of ten) giving about `target` ticks over `span`.
+double TickStep(double span, int target) {
+  if (!(span > 0)) return 1.0;
+  const double raw = span / target;
+  const double power = std::pow(10.0, std::floor(std::log10(raw)));
+  for (double m : {1.0, 2.0, 5.0}) {
+    if (m * power >= raw) return m * power;
+  }
+  return 10.0 * power;
+}
+
+}  // namespace
+
+std::string SvgLinePlot(const std::string& title, const std::string& x_label,
+                        const std::string& y_label, const std::vector<SvgSeries>& series,
+                        const std::vector<std::pair<double, double>>& shaded) {
+  const int width = 880, height = 340, left = 60, right = 180, top = 30, bottom = 45;
+  const int plot_w = width - left - right, plot_h = height - top - bottom;
+  double x_lo = INFINITY, x_hi = -INFINITY, y_lo = INFINITY, y_hi = -INFINITY;
+  for (const SvgSeries& line : series) {
+    const size_t n = std::min(line.x.size(), line.y.size());
+    for (size_t k = 0; k < n; ++k) {
+      if (!std::isfinite(line.x[k]) || !std::isfinite(line.y[k])) continue;
+      x_lo = std::min(x_lo, line.x[k]);
+      x_hi = std::max(x_hi, line.x[k]);
+      y_lo = std::min(y_lo, line.y[k]);
+      y_hi = std::max(y_hi, line.y[k]);
+    }
+  }
+  if (!(x_hi > x_lo)) x_lo = 0, x_hi = 1;
+  if (!(y_hi >= y_lo)) y_lo = 0, y_hi = 1;
+  if (y_lo >= 0) y_lo = 0;
+  if (!(y_hi > y_lo)) y_hi = y_lo + 1;
+  const double y_step = TickStep(y_hi - y_lo, 6), x_step = TickStep(x_hi - x_lo, 10);
+  y_hi = std::ceil(y_hi / y_step) * y_step;
+  auto px = [&](double x) { return left + plot_w * (x - x_lo) / (x_hi - x_lo); };
+  auto py = [&](double y) { return top + plot_h * (1.0 - (y - y_lo) / (y_hi - y_lo)); };
+  std::string svg = fmt::format(
+      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" role=\"img\">"
+      "<text x=\"4\" y=\"18\" font-size=\"14\" font-weight=\"bold\">{}</text>",
+      width, height, Escape(title));
+  for (const auto& [a, b] : shaded) {
+    if (!std::isfinite(a) || !std::isfinite(b) || b <= a) continue;
+    svg +=
+        fmt::format("<rect x=\"{:.1f}\" y=\"{}\" width=\"{:.1f}\" height=\"{}\" fill=\"#eaf2fb\"/>",
+                    px(a), top, px(b) - px(a), plot_h);
+  }
+  for (double y = y_lo; y <= y_hi + 1e-9 * y_step; y += y_step) {
+    svg += fmt::format(
+        "<line x1=\"{}\" y1=\"{:.1f}\" x2=\"{}\" y2=\"{:.1f}\" stroke=\"#ddd\"/>"
+        "<text x=\"{}\" y=\"{:.1f}\" font-size=\"11\" text-anchor=\"end\">{:g}</text>",
+        left, py(y), left + plot_w, py(y), left - 5, py(y) + 4, std::round(y / y_step) * y_step);
+  }
+  for (double x = std::ceil(x_lo / x_step) * x_step; x <= x_hi + 1e-9 * x_step; x += x_step) {
+    svg += fmt::format(
+        "<line x1=\"{:.1f}\" y1=\"{}\" x2=\"{:.1f}\" y2=\"{}\" stroke=\"#999\"/>"
+        "<text x=\"{:.1f}\" y=\"{}\" font-size=\"11\" text-anchor=\"middle\">{:g}</text>",
+        px(x), top + plot_h, px(x), top + plot_h + 4, px(x), top + plot_h + 16,
+        std::round(x / x_step) * x_step);
+  }
+  svg += fmt::format(
+      "<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#555\"/>"
+      "<text x=\"{}\" y=\"{}\" font-size=\"12\" text-anchor=\"middle\">{}</text>"
+      "<text x=\"14\" y=\"{}\" font-size=\"12\" text-anchor=\"middle\" "
+      "transform=\"rotate(-90 14 {})\">{}</text>",
+      left, top, plot_w, plot_h, left + plot_w / 2, height - 8, Escape(x_label), top + plot_h / 2,
+      top + plot_h / 2, Escape(y_label));
+  int legend_row = 0;
+  for (const SvgSeries& line : series) {
+    const size_t n = std::min(line.x.size(), line.y.size());
+    std::string points;
+    auto flush = [&] {
+      if (points.empty()) return;
+      svg +=
+          fmt::format("<polyline fill=\"none\" stroke=\"{}\" stroke-width=\"{}\"{} points=\"{}\"/>",
+                      Escape(line.colour), line.width_px,
+                      line.dashed ? " stroke-dasharray=\"6 4\"" : "", points);
+      points.clear();
+    };
+    for (size_t k = 0; k < n; ++k) {
+      if (!std::isfinite(line.x[k]) || !std::isfinite(line.y[k])) {
+        flush();
+        continue;
+      }
+      points += fmt::format("{:.1f},{:.1f} ", px(line.x[k]), py(line.y[k]));
+    }
+    flush();
+    const int ly = top + 10 + 18 * legend_row++;
+    svg += fmt::format(
+        "<line x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"{}\" stroke-width=\"{}\"{}/>"
+        "<text x=\"{}\" y=\"{}\" font-size=\"12\">{}</text>",
+        left + plot_w + 10, ly, left + plot_w + 34, ly, Escape(line.colour),
+        std::max(2.0, line.width_px), line.dashed ? " stroke-dasharray=\"6 4\"" : "",
+        left + plot_w + 40, ly + 4, Escape(line.name));
+  }
+  svg += "</svg>";
+  return svg;
+}
+
+namespace {
+
+// A number from a JSON object, NaN when the field is missing or not a number: the report draws
+// whatever the metrics hold and shows gaps instead of failing.
+double Number(const Json& object, const std::string& key) {
+  if (!object.is_object() || !object.contains(key) || !object[key].is_number()) return NAN;
+  return object[key].get<double>();
+}
+
+std::string Text(const Json& object, const std::string& key) {
+  if (!object.is_object() || !object.contains(key)) return "";
+  const Json& value = object[key];
+  return value.is_string() ? value.get<std::string>() : value.dump();
+}
+
+const Json& Field(const Json& object, const std::string& key) {
+  static const Json kNull;
+  return object.is_object() && object.contains(key) ? object[key] : kNull;
+}
+
+std::vector<double> Numbers(const Json& array) {
+  std::vector<double> values;
+  if (!array.is_array()) return values;
+  for (const Json& v : array) values.push_back(v.is_number() ? v.get<double>() : NAN);
+  return values;
+}
+
+// A two-column table of the fields of a JSON object, in the order of `keys`.
+std::string FieldTable(const Json& object, const std::vector<std::string>& keys) {
+  std::string table = "<table>";
+  for (const std::string& key : keys) {
+    if (!object.is_object() || !object.contains(key)) continue;
+    const Json& value = object[key];
+    table += "<tr><td>" + Escape(key) + "</td><td>" +
+             (value.is_number_float() ? fmt::format("{:.4g}", value.get<double>())
+              : value.is_string()     ? Escape(value.get<std::string>())
+                                      : Escape(value.dump())) +
+             "</td></tr>";
+  }
+  return table + "</table>";
+}
+
+// Platform frequency against time over the sweep: target per step (from the step's start to the
+// end of its hold), the sensor's reading and the simulator's true frequency; holds shaded.
+std::string RigPlot(const Json& rig) {
+  const Json& series = Field(rig, "time_series");
+  if (!series.is_object()) return "";
+  SvgSeries target{"target", "#222", {}, {}, true, 1.5};
+  for (const Json& step : Field(rig, "steps")) {
+    const double start = Number(step, "start_s"), end = Number(step, "hold_end_s");
+    target.x.insert(target.x.end(), {start, end, NAN});
+    target.y.insert(target.y.end(), {Number(step, "target_hz"), Number(step, "target_hz"), NAN});
+  }
+  std::vector<std::pair<double, double>> holds;
+  for (const Json& step : Field(rig, "steps")) {
+    holds.emplace_back(Number(step, "hold_start_s"), Number(step, "hold_end_s"));
+  }
+  const std::vector<double> t = Numbers(Field(series, "t_s"));
+  return SvgLinePlot(
+      "Platform frequency during the sweep (holds shaded)", "time since the sweep started (s)",
+      "platform frequency (Hz)",
+      {SvgSeries{"measured (sensor)", "#2e86c1", t, Numbers(Field(series, "measured_hz")), false,
+                 1.5},
+       SvgSeries{"true (simulator)", "#c0392b", t, Numbers(Field(series, "true_hz")), false, 1.5},
+       target},
+      holds);
+}
+
+// Bars for a removal entry's methods; the networks first, then the baselines.
+std::vector<std::pair<std::string, double>> MethodBars(const Json& methods,
+                                                       const std::string& figure) {
+  std::vector<std::pair<std::string, double>> bars;
+  if (!methods.is_object()) return bars;
+  for (const auto& [method, figures] : methods.items()) {
+    bars.emplace_back(method, Number(figures, figure));
+  }
+  std::stable_sort(bars.begin(), bars.end(), [](const auto& a, const auto& b) {
+    return (a.first.rfind("F_", 0) == 0) > (b.first.rfind("F_", 0) == 0);
+  });
+  return bars;
+}
+
+std::string Fig5Chart(const Json& fig5, const std::string& title) {
+  std::vector<std::pair<std::string, double>> bars;
+  for (const Json& subset : Field(fig5, "subsets")) {
+    std::string label = "F on";
+    for (double hz : Numbers(Field(subset, "train_hz"))) label += fmt::format(" {:g}", hz);
+    bars.emplace_back(label + " Hz", Number(subset, "jiggle_mean_mm"));
+  }
+  for (const auto& [name, value] : Field(fig5, "baselines").items()) {
+    bars.emplace_back(name, value.is_number() ? value.get<double>() : NAN);
+  }
+  return SvgBarChart(title, bars, "mm");
+}
+
+std::string DynamicsSection(const Json& dynamics) {
+  const Json& setup = Field(dynamics, "setup");
+  std::string html = "<h2 id=\"dynamics\">Secondary dynamics, trained on reconstructed takes</h2>";
+  html += fmt::format(
+      "<p>Subject A held {} on the platform at {} Hz ({} takes of {} s); every take was "
+      "simulated, filmed by the 8 simulated cameras and reconstructed. The removal network F was "
+      "trained on the reconstructed takes with the paper's moving-average targets ({} epochs), "
+      "the synthesis network H on those takes decomposed by F ({} epochs). Errors are against the "
+      "simulator's exact truth, in mm, over the vertices where the face jiggles.</p>",
+      Escape(Text(setup, "expressions")), Escape(Text(setup, "train_hz")),
+      Escape(Text(setup, "training_takes")), Escape(Text(setup, "seconds_per_take")),
+      Escape(Text(setup, "removal_epochs")), Escape(Text(setup, "synthesis_epochs")));
+  const Json& reconstruction = Field(dynamics, "reconstruction");
+  if (reconstruction.is_array() && !reconstruction.empty()) {
+    html +=
+        "<details><summary>Reconstruction of the training takes</summary><table><tr><th>subject"
+        "</th><th>take</th><th>frames</th><th>sample RMS mm</th><th>dense fit frames/s</th></tr>";
+    for (const Json& entry : reconstruction) {
+      html +=
+          fmt::format("<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.3f}</td><td>{:.1f}</td></tr>",
+                      Escape(Text(entry, "subject")), Escape(Text(entry, "take")),
+                      Escape(Text(entry, "frames")), Number(entry, "sample_rms_mm"),
+                      Number(entry, "dense_fit_fps"));
+    }
+    html += "</table></details>";
+  }
+  const Json& removal = Field(dynamics, "removal");
+  if (removal.is_object()) {
+    html +=
+        "<h3>Removal at a platform frequency never trained on</h3>" +
+        SvgBarChart(Text(removal, "take") + fmt::format(" (mean true offset {:.3f} mm)",
+                                                        Number(removal, "mean_dynamic_offset_mm")),
+                    MethodBars(Field(removal, "methods"), "jiggle_mean_mm"), "mm");
+  }
+  const Json& fig5 = Field(dynamics, "removal_by_training_frequencies");
+  if (fig5.is_object()) {
+    html += "<h3>Removal error against the number of training frequencies (paper Fig. 5)</h3>" +
+            Fig5Chart(fig5, Text(fig5, "take") + ", never trained on");
+  }
+  const Json& synthesis = Field(dynamics, "synthesis");
+  if (synthesis.is_object()) {
+    html += "<h3>Synthesis residuals</h3>";
+    const Json& resynthesis = Field(synthesis, "resynthesis");
+    if (resynthesis.is_object()) {
+      html += SvgBarChart(
+          "Remove, then resynthesise (paper Fig. 7): " + Text(resynthesis, "take"),
+          {{"H resynthesis residual", Number(resynthesis, "resynthesis_residual_mm")},
+           {"removed, not resynthesised", Number(resynthesis, "removed_without_synthesis_mm")},
+           {"true dynamic offset", Number(resynthesis, "mean_dynamic_offset_mm")}},
+          "mm");
+    }
+    const Json& walk = Field(synthesis, "walk");
+    if (walk.is_object()) {
+      html += "<br>" +
+              SvgBarChart(
+                  "New head motion: " + Text(walk, "take") +
+                      ", dynamic-offset error vs simulated truth",
+                  {{"H synthesised", Number(Field(Field(walk, "methods"), "H"), "offset_mean_mm")},
+                   {"no dynamics",
+                    Number(Field(Field(walk, "methods"), "no_dynamics"), "offset_mean_mm")}},
+                  "mm");
+    }
+  }
+  const Json& retarget = Field(dynamics, "retarget");
+  if (retarget.is_object()) {
+    html += "<h3>Root-motion retargeting to a second subject (paper Figs. 9-10)</h3><p>" +
+            Escape(Text(retarget, "target")) +
+            ", with its own F and H trained on its own reconstructed takes, driven by subject A's "
+            "walk; compared with subject B simulated walking the same walk.</p>";
+    std::vector<std::pair<std::string, double>> bars;
+    for (const auto& [name, figures] : Field(retarget, "methods").items()) {
+      bars.emplace_back(name, Number(figures, "offset_mean_mm"));
+    }
+    html +=
+        SvgBarChart("dynamic-offset error vs truth (mean true offset " +
+                        fmt::format("{:.3f}", Number(retarget, "mean_dynamic_offset_mm")) + " mm)",
+                    bars, "mm");
+  }
+  return html;
+}
+
+// The simulated-data reference (app/dynamics_study.h): F and H on simulated takes.
+std::string ReferenceSection(const Json& reference) {
+  const Json& setup = Field(reference, "setup");
+  std::string html = fmt::format(
+      "<h2>Reference: trained on simulated takes with exact targets</h2><p>F trained on "
+      "simulated platform takes at {} Hz ({} takes, {} epochs) with the simulator's exact "
+      "quasistatic as target, which no capture has; mean error over the jiggling vertices "
+      "(mm).</p>",
+      Escape(Text(setup, "train_hz")), Escape(Text(setup, "training_takes")),
+      Escape(Text(setup, "removal_epochs")));
+  for (const Json& entry : Field(reference, "removal")) {
+    html += SvgBarChart(Text(entry, "take") + fmt::format(" simulated (mean true offset {:.3f} mm)",
+                                                          Number(entry, "mean_dynamic_offset_mm")),
+                        MethodBars(Field(entry, "methods"), "jiggle_mean_mm"), "mm") +
+            "<br>";
+  }
+  const Json& fig5 = Field(reference, "removal_by_training_frequencies");
+  if (fig5.is_object())
+    html += Fig5Chart(fig5, Text(fig5, "take") + " simulated, never trained on");
+  const Json& synthesis = Field(reference, "synthesis");
+  if (synthesis.is_object()) {
+    html +=
+        "<table><tr><th>take</th><th>mean dynamic offset mm</th><th>resynthesis residual mm</th>"
+        "<th>relative</th></tr>";
+    for (const Json& entry : Field(synthesis, "takes")) {
+      html += fmt::format("<tr><td>{}</td><td>{:.3f}</td><td>{:.3f}</td><td>{:.1f}%</td></tr>",
+                          Escape(Text(entry, "take")), Number(entry, "mean_dynamic_offset_mm"),
+                          Number(entry, "resynthesis_residual_mm"),
+                          100 * Number(entry, "relative_to_offset"));
+    }
+    html += "</table>";
+  }
+  return html;
+}
+
+}  // namespace
 
 Status WriteDemoReport(const Json& metrics, const std::string& path) {
   std::string html =
       "<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>facedyn demo report</title>"
       "<style>body{font-family:sans-serif;max-width:960px;margin:2em auto;color:#222}"
       "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}"
-      "th{background:#f4f4f4}td:first-child{text-align:left}</style></head><body>"
+      "th{background:#f4f4f4}td:first-child{text-align:left}figure img{width:180px}"
+      "figcaption{font-size:11px;max-width:180px}</style></head><body>"
       "<h1>facedyn demo report</h1><p>Everything below ran on the simulated stage; errors are "
-      "measured against the simulator's exact quasistatic skin. Figures are also in "
+      "measured against the simulator's exact ground truth. Figures are also in "
       "metrics.json beside this file.</p>";
   if (metrics.contains("rig")) {
     const Json& rig = metrics["rig"];
-    html +=
-        "<h2>Platform: simulated drive over Modbus TCP, scripted sweep</h2><table><tr>"
-        "<th>step</th><th>target Hz</th><th>measured Hz</th><th>true platform Hz</th>"
-        "<th>max |error| Hz</th><th>hold s</th><th>prompt</th></tr>";
+    html += "<h2>Platform: simulated drive over Modbus TCP, scripted sweep</h2>" + RigPlot(rig) +
+            "<table><tr><th>step</th><th>target Hz</th><th>measured Hz</th>"
+            "<th>true platform Hz</th><th>max |error| Hz</th><th>hold s</th><th>prompt</th></tr>";
     int index = 0;
-    for (const Json& step : rig["steps"]) {
+    for (const Json& step : Field(rig, "steps")) {
       html += fmt::format(
           "<tr><td>{}</td><td>{:.2f}</td><td>{:.3f}</td><td>{:.3f}</td>"
           "<td>{:.3f}</td><td>{:.1f}</td><td>{}</td></tr>",
-          ++index, step["target_hz"].get<double>(), step["measured_mean_hz"].get<double>(),
-          step["true_platform_hz"].is_number() ? step["true_platform_hz"].get<double>() : 0.0,
-          step["max_abs_error_hz"].get<double>(), step["hold_s"].get<double>(),
-          Escape(step["prompt"].get<std::string>()));
+          ++index, Number(step, "target_hz"), Number(step, "measured_mean_hz"),
+          Number(step, "true_platform_hz"), Number(step, "max_abs_error_hz"),
+          Number(step, "hold_s"), Escape(Text(step, "prompt")));
     }
     html += "</table>";
   }
-  // A two-column table of the numeric and string fields of a JSON object, in its order.
-  auto field_table = [](const Json& object, const std::vector<std::string>& keys) {
-    std::string table = "<table>";
-    for (const std::string& key : keys) {
-      if (!object.contains(key)) continue;
-      const Json& value = object[key];
-      table += "<tr><td>" + Escape(key) + "</td><td>" +
-               (value.is_number_float() ? fmt::format("{:.4g}", value.get<double>())
-                : value.is_string()     ? Escape(value.get<std::string>())
-                                        : Escape(value.dump())) +
-               "</td></tr>";
-    }
-    return table + "</table>";
-  };
   if (metrics.contains("capture")) {
     html += "<h2>Capture: simulated trigger-synchronised cameras</h2>" +
-            field_table(metrics["capture"],
-                        {"status", "cameras", "fps", "triggers_requested", "triggers_emitted",
-                         "platform_hz_true", "megabytes_written", "megabytes_per_s",
-                         "render_frames_per_s_per_thread", "backpressure", "session_complete"});
+            FieldTable(metrics["capture"],
+                       {"status", "cameras", "fps", "triggers_requested", "triggers_emitted",
+                        "platform_hz_true", "megabytes_written", "megabytes_per_s",
+                        "render_frames_per_s_per_thread", "backpressure", "session_complete"});
   }
   if (metrics.contains("reconstruct")) {
-    html += "<h2>Reconstruction of the simulated 11 Hz take against ground truth</h2>" +
-            field_table(metrics["reconstruct"],
-                        {"calibration_rms_px", "calibration_worst_centre_error_mm",
-                         "skull_origin_rms_mm", "skull_origin_max_mm", "skull_rotation_rms_deg",
-                         "skull_rotation_max_deg", "sample_rms_mm", "dynamic_offset_correlation",
-                         "triangulate_fps", "dense_fit_fps"});
-  }
-  if (metrics.contains("dynamics")) {
-    const Json& dynamics = metrics["dynamics"];
-    const Json& setup = dynamics["setup"];
-    html += "<h2>Secondary dynamics removal at a frequency never trained on</h2>";
-    html += fmt::format(
-        "<p>Removal network F trained on platform takes at {} Hz ({} takes, {} "
-        "epochs); mean error over the jiggling vertices (mm).</p>",
-        Escape(setup["train_hz"].dump()), setup["training_takes"].dump(),
-        setup["removal_epochs"].dump());
-    for (const Json& entry : dynamics["removal"]) {
-      html += SvgBarChart(entry["take"].get<std::string>() + " (mean true offset " +
-                              fmt::format("{:.3f}", entry["mean_dynamic_offset_mm"].get<double>()) +
-                              " mm)",
-                          RemovalBars(entry), "mm");
-      html += "<br>";
-    }
-    if (dynamics.contains("removal_by_training_frequencies")) {
-      const Json& fig5 = dynamics["removal_by_training_frequencies"];
-      std::vector<std::pair<std::string, double>> bars;
-      for (const Json& subset : fig5["subsets"]) {
-        std::string label = "F on";
-        for (const Json& hz : subset["train_hz"]) label += fmt::format(" {:g}", hz.get<double>());
-        bars.emplace_back(label + " Hz", subset["jiggle_mean_mm"].get<double>());
-      }
-      for (const auto& [name, value] : fig5["baselines"].items()) {
-        bars.emplace_back(name, value.get<double>());
-      }
-      html += "<h3>Error against the number of training frequencies (paper Fig. 5)</h3>" +
-              SvgBarChart(fig5["take"].get<std::string>() + ", never trained on", bars, "mm");
-    }
-    if (dynamics.contains("synthesis")) {
-      html +=
-          "<h2>Remove, then resynthesise (paper Fig. 7)</h2><table><tr><th>take</th>"
-          "<th>mean dynamic offset mm</th><th>resynthesis residual mm</th><th>relative</th></tr>";
-      for (const Json& entry : dynamics["synthesis"]["takes"]) {
-        html += fmt::format("<tr><td>{}</td><td>{:.3f}</td><td>{:.3f}</td><td>{:.1f}%</td></tr>",
-                            Escape(entry["take"].get<std::string>()),
-                            entry["mean_dynamic_offset_mm"].get<double>(),
-                            entry["resynthesis_residual_mm"].get<double>(),
-                            100 * entry["relative_to_offset"].get<double>());
-      }
-      html += "</table>";
-    }
-  }
-  if (metrics.contains("end_to_end")) {
-    std::vector<std::pair<std::string, double>> bars;
-    for (const auto& [name, figures] : metrics["end_to_end"]["methods"].items()) {
-      bars.emplace_back(name, figures["mean_mm"].get<double>());
-    }
+    const Json& reconstruct = metrics["reconstruct"];
     html +=
-        "<h2>End to end: cameras, reconstruction, removal</h2><p>The 11 Hz take filmed by the "
-        "simulated cameras and reconstructed, its dynamics removed by F; mean error over the "
-        "face against the exact quasistatic of the simulation that was filmed.</p>" +
-        SvgBarChart("reconstructed neutral@11Hz", bars, "mm");
+        "<h2>Calibration and reconstruction of the simulated 11 Hz take against ground "
+        "truth</h2>";
+    const Json& per_camera = Field(reconstruct, "calibration_per_camera");
+    if (per_camera.is_array() && !per_camera.empty()) {
+      std::vector<std::pair<std::string, double>> bars;
+      for (const Json& camera : per_camera) {
+        bars.emplace_back(Text(camera, "camera") + " (" + Text(camera, "corners") + " corners)",
+                          Number(camera, "rms_px"));
+      }
+      html += SvgBarChart("Reprojection RMS per camera after bundle adjustment", bars, "px");
+    }
+    html += FieldTable(
+        reconstruct,
+        {"calibration_rms_px", "calibration_worst_centre_error_mm", "skull_origin_rms_mm",
+         "skull_origin_max_mm", "skull_rotation_rms_deg", "skull_rotation_max_deg", "sample_rms_mm",
+         "dynamic_offset_correlation", "triangulate_fps", "dense_fit_fps"});
   }
+  if (metrics.contains("dynamics")) html += DynamicsSection(metrics["dynamics"]);
   if (metrics.contains("renders")) {
     const Json& renders = metrics["renders"];
-    html += "<h2>Signed dynamic offset, " + Escape(renders["take"].get<std::string>()) +
-            "</h2><p>Red: out of the skin, green: into it, saturating at &plusmn;" +
-            fmt::format("{:g}", renders["range_mm"].get<double>()) +
-            " mm (as in Zoss et al. 2020). Rendered by facedyn.</p><table>";
-    // One row per frame, one column per view, in the order the demo rendered them.
-    int last_frame = -1;
-    for (const Json& image : renders["images"]) {
-      std::ifstream in(image["path"].get<std::string>(), std::ios::binary);
+    html +=
+        "<h2 id=\"renders\">Signed dynamic offset</h2><p>Red: out of the skin, green: into "
+        "it, saturating at the &plusmn;range given per row (as in Zoss et al. 2020). Rendered "
+        "by facedyn.</p><table>";
+    // One row per (group, frame), one column per view, in the order the demo rendered them.
+    std::string last_row;
+    for (const Json& image : Field(renders, "images")) {
+      const std::string image_path = Text(image, "path");
+      std::ifstream in(image_path, std::ios::binary);
       const std::vector<unsigned char> png((std::istreambuf_iterator<char>(in)),
                                            std::istreambuf_iterator<char>());
-      if (png.empty()) {
-        return DataLossError(image["path"].get<std::string>() + ": render missing or empty");
-      }
-      const int frame = image["frame"].get<int>();
-      if (frame != last_frame) {
-        html += (last_frame >= 0 ? "</tr>" : "") + fmt::format("<tr><td>frame {}</td>", frame);
-        last_frame = frame;
+      if (png.empty()) return DataLossError(image_path + ": render missing or empty");
+      const std::string group = Text(image, "group");
+      const std::string row = group + "\n" + Text(image, "frame");
+      if (row != last_row) {
+        const double range_mm = std::isfinite(Number(image, "range_mm"))
+                                    ? Number(image, "range_mm")
+                                    : Number(renders, "range_mm");
+        html += (last_row.empty() ? "" : "</tr>") +
+                fmt::format("<tr><td>{}{}frame {}<br>&plusmn;{:g} mm</td>", Escape(group),
+                            group.empty() ? "" : "<br>", Escape(Text(image, "frame")), range_mm);
+        last_row = row;
       }
       html += fmt::format(
           "<td><figure style=\"margin:2px\"><img alt=\"{0}\" src=\"data:image/png;base64,{1}\">"
           "<figcaption>{0}</figcaption></figure></td>",
-          Escape(image["view"].get<std::string>()), Base64(png));
+          Escape(Text(image, "view")), Base64(png));
     }
-    if (last_frame >= 0) html += "</tr>";
+    if (!last_row.empty()) html += "</tr>";
     html += "</table>";
+  }
+  if (metrics.contains("simulated_reference")) {
+    html += ReferenceSection(metrics["simulated_reference"]);
   }
   if (metrics.contains("stages_s")) {
     std::vector<std::pair<std::string, double>> bars;
     for (const Json& stage : metrics["stages_s"]) {
-      bars.emplace_back(stage["stage"].get<std::string>(), stage["seconds"].get<double>());
+      bars.emplace_back(Text(stage, "stage"), Number(stage, "seconds"));
     }
     html += "<h2>Time per stage</h2>" + SvgBarChart("wall time", bars, "s");
   }

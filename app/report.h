@@ -21,4 +21,21 @@ std::string SvgBarChart(const std::string& title,
                         const std::vector<std::pair<std::string, double>>& bars,
                         const std::string& unit);
 
+// One line of a line plot: points (x[k], y[k]); a non-finite y breaks the line there.
+struct SvgSeries {
+  std::string name;    // legend text
+  std::string colour;  // any SVG colour, e.g. "#c0392b"
+  std::vector<double> x, y;
+  bool dashed = false;
+  double width_px = 1.5;
+};
+
+// A line plot as an inline SVG element with axes, ticks, labels and a legend; `shaded` are
+// x-intervals drawn as light bands behind the lines (e.g. the holds of a sweep). The axes span
+// the finite data (y from 0 when all y >= 0). Escapes text. Series with mismatched x and y
+// sizes are drawn up to the shorter.
+std::string SvgLinePlot(const std::string& title, const std::string& x_label,
+                        const std::string& y_label, const std::vector<SvgSeries>& series,
+                        const std::vector<std::pair<double, double>>& shaded = {});
+
 }  // namespace facedyn::app

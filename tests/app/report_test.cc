@@ -7,6 +7,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -80,18 +81,34 @@ std::string WriteReport(const testing::TempDir& dir) {
                                           {"max_abs_error_hz", 0.01},
                                           {"hold_s", 2.0},
                                           {"prompt", "smile <& hold>"}}});
+  metrics["rig"]["steps"][0]["start_s"] = 0.0;
+  metrics["rig"]["steps"][0]["hold_start_s"] = 2.0;
+  metrics["rig"]["steps"][0]["hold_end_s"] = 4.0;
+  metrics["rig"]["time_series"] = {{"t_s", {0.0, 1.0, 2.0, 3.0, 4.0}},
+                                   {"measured_hz", {0.0, 5.0, 7.9, 8.0, 8.0}},
+                                   {"true_hz", {0.0, 5.5, 8.0, 8.0, 8.0}}};
+  metrics["reconstruct"]["calibration_per_camera"] =
+      Json::array({{{"camera", "cam0"}, {"rms_px", 0.21}, {"corners", 900}},
+                   {{"camera", "cam1"}, {"rms_px", 0.35}, {"corners", 700}}});
   metrics["dynamics"]["setup"] = {
       {"train_hz", {6, 7}}, {"training_takes", 2}, {"removal_epochs", 3}};
-  metrics["dynamics"]["removal"] = Json::array({{{"take", "neutral@11Hz"},
-                                                 {"mean_dynamic_offset_mm", 1.4},
-                                                 {"methods",
-                                                  {{"F_exact_targets", {{"jiggle_mean_mm", 0.06}}},
-                                                   {"lowpass", {{"jiggle_mean_mm", 0.03}}},
-                                                   {"no_removal", {{"jiggle_mean_mm", 1.4}}}}}}});
+  metrics["dynamics"]["removal"] = {{"take", "neutral@11Hz reconstructed"},
+                                    {"mean_dynamic_offset_mm", 1.4},
+                                    {"methods",
+                                     {{"F_moving_average_targets", {{"jiggle_mean_mm", 0.06}}},
+                                      {"lowpass", {{"jiggle_mean_mm", 0.03}}},
+                                      {"no_removal", {{"jiggle_mean_mm", 1.4}}}}}};
+  metrics["dynamics"]["retarget"] = {{"target", "subject B"},
+                                     {"mean_dynamic_offset_mm", 0.8},
+                                     {"methods",
+                                      {{"H_B_retarget", {{"offset_mean_mm", 0.3}}},
+                                       {"naive_delta_transfer", {{"offset_mean_mm", 0.5}}}}}};
   metrics["renders"] = {
       {"take", "neutral@11Hz"},
       {"range_mm", 5.0},
-      {"images", Json::array({{{"frame", 3}, {"view", "cheeks"}, {"path", png_path}}})}};
+      {"images",
+       Json::array(
+           {{{"group", "held-out"}, {"frame", 3}, {"view", "cheeks"}, {"path", png_path}}})}};
   metrics["stages_s"] = Json::array({{{"stage", "rig"}, {"seconds", 1.5}}});
   const std::string report = dir.Join("report.html");
   EXPECT_TRUE(WriteDemoReport(metrics, report).ok());
@@ -104,7 +121,36 @@ TEST(WriteDemoReport, EmbedsEverythingAndEscapesText) {
   EXPECT_THAT(html, HasSubstr("data:image/png;base64,iVBORw0KGgo"));  // PNG signature
   EXPECT_THAT(html, HasSubstr("<svg"));
   EXPECT_THAT(html, HasSubstr("smile &lt;&amp; hold&gt;"));
-  EXPECT_THAT(html, HasSubstr("F_exact_targets"));
+  EXPECT_THAT(html, HasSubstr("F_moving_average_targets"));
+  EXPECT_THAT(html, HasSubstr("naive_delta_transfer"));
+  EXPECT_THAT(html, HasSubstr("<polyline"));           // the sweep's frequency plot
+  EXPECT_THAT(html, HasSubstr("cam1 (700 corners)"));  // the per-camera chart
+}
+
+// A report from metrics missing most fields draws what there is instead of failing.
+TEST(WriteDemoReport, PartialMetricsStillWrite) {
+  testing::TempDir dir;
+  Json metrics;
+  metrics["rig"]["steps"] = Json::array({{{"target_hz", 8.0}}});
+  metrics["dynamics"]["removal"] = {{"methods", {{"lowpass", Json::object()}}}};
+  metrics["reconstruct"]["calibration_per_camera"] = Json::array({Json::object()});
+  ASSERT_TRUE(WriteDemoReport(metrics, dir.Join("report.html")).ok());
+  EXPECT_THAT(testing::ReadBytes(dir.Join("report.html")), HasSubstr("n/a"));
+}
+
+TEST(SvgLinePlot, BreaksLinesAtGapsAndEscapes) {
+  const std::string svg = SvgLinePlot(
+      "f <vs> t", "t (s)", "f (Hz)",
+      {SvgSeries{"a&b", "#c0392b", {0, 1, 2, 3, 4}, {1, 2, NAN, 3, 4}, false, 1.5}}, {{1, 2}});
+  EXPECT_THAT(svg, HasSubstr("f &lt;vs&gt; t"));
+  EXPECT_THAT(svg, HasSubstr("a&amp;b"));
+  size_t polylines = 0;
+  for (size_t at = svg.find("<polyline"); at != std::string::npos;
+       at = svg.find("<polyline", at + 1)) {
+    ++polylines;
+  }
+  EXPECT_EQ(polylines, 2u) << "one line on each side of the gap";
+  EXPECT_THAT(svg, HasSubstr("fill=\"#eaf2fb\""));  // the shaded band
 }
 
 TEST(WriteDemoReport, MissingRenderIsAnError) {

@@ -214,15 +214,18 @@ JawPoseResult JawPoseEstimator::Estimate(const Eigen::Matrix3Xd& markers_in_skul
     d.col(i) = markers_in_skull.col(m) - c;
     base[i] = prior_weights_[used[i]] * confidence[m];
   }
-  // Parameters x = (theta, omega, t, d1, d2); those switched off by the options stay zero.
+  // Parameters x = (theta, omega, t, d1, d2); those switched off stay zero. Each deflection
+  // term needs markers to spare, or it absorbs the rotation and the noise: with few markers
+  // visible the model falls back to fewer terms.
+  constexpr int kMarkersPerDeflectionTerm = 6;
   constexpr int kParams = 13;
   std::array<bool, kParams> active{};
   active[0] = true;
   for (int k = 0; k < 3; ++k) {
     active[1 + k] = options_.extra_rotation_prior_rad > 0;
     active[4 + k] = options_.translation_prior_mm > 0;
-    active[7 + k] = options_.deflection_terms >= 1;
-    active[10 + k] = options_.deflection_terms >= 2;
+    active[7 + k] = options_.deflection_terms >= 1 && n >= kMarkersPerDeflectionTerm;
+    active[10 + k] = options_.deflection_terms >= 2 && n >= 2 * kMarkersPerDeflectionTerm;
   }
   double theta = 0.0;
   Eigen::Matrix3d extra_rotation = Eigen::Matrix3d::Identity();  // R(omega)

@@ -40,16 +40,17 @@
 // inverse variance of a deflection whose amplitude grows as t^2 (thin chin skin counts most),
 // x a Huber weight on the residual, which discounts a marker that an expression slid off the
 // bone (a smile pulls the cheeks, the lower lip drags the skin under it). Measured on the
-// simulator with the true skull pose and noise-free markers (jaw_open / speech, 11 Hz): hinge
-// only 0.29 / 0.45 deg RMS; + d1 0.14 / 0.31; + d2 and t^-4 weights 0.11 / 0.15; without head
-// motion all variants are within 0.02-0.08 deg. On real faces the condyle also translates a
-// few millimetres in wide opening, which a handful of skin markers 60-100 mm away cannot
-// separate from the rotation without a prior: hence the regularised omega and t, for a real
-// subject, off by default.
-// Markers used: those whose surface point lies entirely in the rig's jaw region AND in its
-// "chin" or "cheeks" regions (the rigidly-following part, the same rule the rig generators use
-// to fit the hinge; lips and the soft neck are left out), or the whole jaw region when that
-// intersection holds fewer than min_markers markers.
+// simulator with the true skull pose and noise-free markers (jaw_open / speech, 11 Hz, hinge
+// RMS error): hinge only, t^-2 weights 0.29 / 0.45 deg; t^-4 weights 0.25 / 0.38; + d1 0.13 /
+// 0.29; + d2 0.11 / 0.15 (without head motion every variant is within 0.02-0.09 deg, and a
+// held smile, pucker, cheek puff, ... within 0.05). Through 8 cameras at 0.2 px, tracking and
+// the estimated skull pose: 0.19 / 0.21 deg (tests/reconstruct/jaw_pose_test.cc). On real faces the
+// condyle also translates a few millimetres in wide opening, which a handful of skin markers 60-100
+// mm away cannot separate from the rotation without a prior: hence the regularised omega and t, for
+// a real subject, off by default. Markers used: those whose surface point lies entirely in the
+// rig's jaw region AND in its "chin" or "cheeks" regions (the rigidly-following part, the same rule
+// the rig generators use to fit the hinge; lips and the soft neck are left out), or the whole jaw
+// region when that intersection holds fewer than min_markers markers.
 #pragma once
 
 #include <Eigen/Core>
@@ -74,7 +75,9 @@ struct JawPoseOptions {
   double huber_mm = 0.4;        // beyond this residual a marker's weight is huber_mm / residual
   int iterations = 8;           // reweighting iterations
   bool thickness_prior = true;  // weight (t_min / t)^4; otherwise 1
-  int deflection_terms = 2;     // 0: none; 1: d1 (t^2); 2: d1 and d2 (t^2 and t^4)
+  // 0: none; 1: d1 (t^2); 2: d1 and d2 (t^2 and t^4). A frame uses d1 only with at least 6
+  // usable jaw markers and d2 only with at least 12 (fewer cannot separate them from theta).
+  int deflection_terms = 2;
   double normal_deflection_ratio = 0.1;  // r: normal over tangential compliance of the layer
   // Priors on the extra DoF: at |t| = translation_prior_mm (|omega| =
   // extra_rotation_prior_rad) the prior costs as much as one marker of mean weight 1 mm off.

@@ -103,7 +103,8 @@ JawPoseEstimator::JawPoseEstimator(const FaceRig& rig, const JawPoseOptions& opt
   has_jaw_ = true;
   if (!(rig.jaw.axis_in_skull.norm() > 1e-9) || !rig.jaw.axis_in_skull.allFinite() ||
       !rig.jaw.pivot_in_skull.allFinite()) {
-    status_ = InvalidArgumentError("the face rig's jaw hinge axis is zero or not finite");
+    status_ = InvalidArgumentError(
+        "the face rig's jaw hinge axis is zero, or its axis or pivot is not finite");
     return;
   }
   jaw_.axis_in_skull = rig.jaw.axis_in_skull.normalized();

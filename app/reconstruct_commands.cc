@@ -77,6 +77,10 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
           reconstruct::Reconstruction result,
           reconstruct::ReconstructTake(rig, input.cameras, input.detections, input.fps,
                                        reconstruct::ReconstructionOptions()));
+      if (!result.jaw_status.ok()) {
+        spdlog::warn("jaw not estimated (the take has no jaw.csv): {}",
+                     result.jaw_status.message());
+      }
       result.take.info.metadata["session"] = options->session;
       result.take.info.metadata["session_take"] = options->take;
       FACEDYN_RETURN_IF_ERROR(SaveTake(result.take, options->out));
@@ -88,6 +92,9 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
       report["cameras"] = Json::array();
       for (const auto& camera : input.cameras) report["cameras"].push_back(camera.name);
       report["take_problems"] = input.take_problems;
+      report["jaw"] = result.jaw_status.ok()
+                          ? Json(result.take.skull_from_jaw.empty() ? "rig has no jaw" : "estimated")
+                          : Json("not estimated: " + result.jaw_status.message());
       report["frames"] = result.take.frame_count();
       report["seconds"] = {{"detect", input.detect_s},
                            {"triangulate", result.timings.triangulate_s},
@@ -116,6 +123,10 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
                                        {"unlabelled_points", q.unlabelled_points},
                                        {"skull_rms_mm", q.skull_rms_mm},
                                        {"fit_marker_rms_mm", q.fit_marker_rms_mm},
+                                       {"jaw_markers", q.jaw_markers},
+                                       {"jaw_rms_mm", q.jaw_rms_mm},
+                                       {"jaw_angle_rad", q.jaw_angle_rad},
+                                       {"jaw_carried", q.jaw_carried},
                                        {"problem", problem}});
       }
       report["summary"] = {{"frames_with_problems", problem_frames},

@@ -121,6 +121,11 @@ TEST(ReconstructCommand, SessionWithDroppedLateAndUncalibratedCameras) {
   EXPECT_THAT(frames[kDropTrigger]["problem"].get<std::string>(), HasSubstr("cam2: no frame"));
   EXPECT_THAT(frames[kLateTrigger]["problem"].get<std::string>(), HasSubstr("cam5: out of sync"));
   EXPECT_EQ(frames[0]["problem"].get<std::string>(), "");
+  // The procedural face has a jaw: it is estimated, written (jaw.csv) and reported per frame.
+  EXPECT_EQ(report["jaw"], "estimated");
+  EXPECT_EQ(take->skull_from_jaw.size(), static_cast<size_t>(truth.frame_count()));
+  EXPECT_GT(frames[0]["jaw_markers"].get<int>(), 0);
+  EXPECT_TRUE(frames[0].contains("jaw_angle_rad"));
   const FaceRig& rig = testing::ProceduralFace();
   double sq = 0.0;
   int n = 0;

@@ -81,6 +81,7 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
         spdlog::warn("jaw not estimated (the take has no jaw.csv): {}",
                      result.jaw_status.message());
       }
+      if (input.platform_hz) result.take.info.platform_hz = input.platform_hz;
       result.take.info.metadata["session"] = options->session;
       result.take.info.metadata["session_take"] = options->take;
       FACEDYN_RETURN_IF_ERROR(SaveTake(result.take, options->out));

@@ -74,6 +74,16 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
   }
   SessionDetections out;
   out.fps = take->fps;
+  if (take->manifest.is_object() && take->manifest.contains("platform") &&
+      take->manifest["platform"].is_object()) {
+    const Json& platform = take->manifest["platform"];
+    for (const char* key : {"measured_hz_at_start", "target_hz"}) {
+      if (platform.contains(key) && platform[key].is_number() && platform[key].get<double>() > 0) {
+        out.platform_hz = platform[key].get<double>();
+        break;
+      }
+    }
+  }
   std::vector<std::unique_ptr<capture::FrameFileReader>> readers;
   int64_t last_trigger = -1;
   for (const capture::SessionTakeCamera& camera : take->cameras) {

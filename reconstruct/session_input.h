@@ -9,6 +9,7 @@
 // file cannot be opened, is left out of the whole take (reported once).
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,10 @@ struct SessionInputOptions {
 struct SessionDetections {
   std::vector<Camera> cameras;  // the cameras used, calibrated
   double fps = 0.0;
+  // The platform frequency the rig measured when the take started (capture.json
+  // "platform.measured_hz_at_start", else its target_hz), when the take was on a platform: what
+  // platform-synchronous quasistatic extraction needs (dynamics/quasistatic.h).
+  std::optional<double> platform_hz;
   // detections[f][c]: frame f (trigger index f), camera c of `cameras`.
   std::vector<std::vector<std::vector<ImageObservation>>> detections;
   std::vector<std::vector<std::string>> frame_problems;  // per frame

@@ -60,6 +60,8 @@ Take WriteSession(const std::string& dir) {
   result.status = "complete";
   result.fps = 128.0;
   result.triggers_requested = result.triggers_emitted = frames;
+  // What `facedyn capture` records for a take on the platform.
+  result.extra["platform"] = {{"target_hz", 11.0}, {"measured_hz_at_start", 10.998}};
   for (size_t c = 0; c < cameras.size(); ++c) {
     auto writer = capture::FrameFileWriter::Create(take_dir + "/cam" + std::to_string(c) + "/" +
                                                    capture::kFrameFileName)
@@ -123,6 +125,10 @@ TEST(ReconstructCommand, SessionWithDroppedLateAndUncalibratedCameras) {
   EXPECT_EQ(frames[0]["problem"].get<std::string>(), "");
   // The procedural face has a jaw: it is estimated, written (jaw.csv) and reported per frame.
   EXPECT_EQ(report["jaw"], "estimated");
+  // The platform frequency the rig measured goes into the take (for platform-synchronous
+  // quasistatic extraction).
+  ASSERT_TRUE(take->info.platform_hz.has_value());
+  EXPECT_DOUBLE_EQ(*take->info.platform_hz, 10.998);
   EXPECT_EQ(take->skull_from_jaw.size(), static_cast<size_t>(truth.frame_count()));
   EXPECT_GT(frames[0]["jaw_markers"].get<int>(), 0);
   EXPECT_TRUE(frames[0].contains("jaw_angle_rad"));

@@ -1,0 +1,842 @@
+#include "app/demo_dynamics.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <utility>
+
+#include "app/face_render.h"
+#include "core/file_util.h"
+#include "dynamics/baselines.h"
+#include "dynamics/evaluate.h"
+#include "dynamics/features.h"
+#include "dynamics/mlp.h"
+#include "dynamics/synthesis_model.h"
+#include "sim/performance.h"
+#include "sim/skull_motion.h"
+
+namespace facedyn::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+double Round4(double x) { return std::round(x * 1e4) / 1e4; }
+
+std::string TakeName(const std::string& expression, double hz) {
+  return fmt::format("{}@{:g}Hz", expression, hz);
+}
+
+// The vertices "where the face jiggles" (issue 4): those whose mean |true dynamic offset| over
+// frames [skip, F - skip) reaches 20% of the largest vertex's. Without it the forehead and the
+// nose bridge, which hardly move against the skull, dilute every figure.
+std::vector<int> JigglingVertices(const PointCache& true_offsets, int skip) {
+  const int frames = true_offsets.frame_count();
+  Eigen::VectorXd mean_norm = Eigen::VectorXd::Zero(true_offsets.vertex_count);
+  for (int t = skip; t < frames - skip; ++t) {
+    mean_norm += true_offsets.Frame(t).colwise().norm().transpose().cast<double>();
+  }
+  std::vector<int> vertices;
+  const double threshold = 0.2 * mean_norm.maxCoeff();
+  for (int v = 0; v < mean_norm.size(); ++v) {
+    if (mean_norm[v] > 0 && mean_norm[v] >= threshold) vertices.push_back(v);
+  }
+  return vertices;
+}
+
+// Mean |a - b| (mm) over `vertices` and frames [skip, F - skip); both caches in one frame.
+double MeanDistance(const PointCache& a, const PointCache& b, const std::vector<int>& vertices,
+                    int skip) {
+  double sum = 0.0;
+  long count = 0;
+  for (int t = skip; t < a.frame_count() - skip; ++t) {
+    const auto frame_a = a.Frame(t);
+    const auto frame_b = b.Frame(t);
+    for (int v : vertices) sum += (frame_a.col(v) - frame_b.col(v)).norm();
+    count += static_cast<long>(vertices.size());
+  }
+  return count > 0 ? sum / count : 0.0;
+}
+
+// Mean |offset| (mm) over `vertices` and frames [skip, F - skip).
+double MeanNorm(const PointCache& offsets, const std::vector<int>& vertices, int skip) {
+  PointCache zero = offsets;
+  zero.positions.setZero();
+  return MeanDistance(offsets, zero, vertices, skip);
+}
+
+// The held shape of a take in the skull frame (3 x V): mean over frames [skip, F - skip) of
+// T(t)^-1 x(t). For a quasistatic estimate of a held expression this is the expression's shape;
+// the demo carries it along a new head motion.
+Eigen::Matrix3Xd MeanShapeInSkull(const Take& take, int skip) {
+  Eigen::Matrix3Xd sum = Eigen::Matrix3Xd::Zero(3, take.vertex_count());
+  int count = 0;
+  for (int t = skip; t < take.frame_count() - skip; ++t, ++count) {
+    sum += take.world_from_skull[t].Inverse().Apply(take.FramePositions(t));
+  }
+  return sum / std::max(count, 1);
+}
+
+// A FaceRig of another shape: every position the rig stores in the skull frame (skin, skull,
+// expression deltas, landmarks, jaw pivot) scaled per axis. Samples, markers and regions are
+// defined on vertices, so they follow. Tissue thickness scales with the face, as it would
+// between a smaller and a larger head.
+StatusOr<FaceRig> ScaledFaceRig(const FaceRig& rig, const Eigen::Vector3d& scale,
+                                const std::string& name) {
+  FaceRig scaled = rig;
+  scaled.name = name;
+  const Eigen::DiagonalMatrix<double, 3> s(scale);
+  scaled.neutral.positions_mm = s * rig.neutral.positions_mm;
+  scaled.skull.positions_mm = s * rig.skull.positions_mm;
+  for (Eigen::Matrix3Xd& delta : scaled.blendshape_deltas_mm) delta = s * delta;
+  for (SkullLandmark& landmark : scaled.skull_landmarks) {
+    landmark.position_in_skull = s * landmark.position_in_skull;
+  }
+  scaled.jaw.pivot_in_skull = s * rig.jaw.pivot_in_skull;
+  FACEDYN_RETURN_IF_ERROR(scaled.Validate());
+  return scaled;
+}
+
+// One subject's takes: simulated (with the exact channels) and reconstructed.
+struct SubjectTakes {
+  std::vector<std::string> names;
+  std::vector<double> hz;
+  std::vector<Take> simulated;
+  std::vector<Take> reconstructed;
+  Json reconstruction = Json::array();  // per take: errors of the reconstruction
+};
+
+sim::MotionOptions PlatformMotion(double hz, uint64_t seed) {
+  sim::MotionOptions motion;
+  motion.kind = sim::MotionKind::kPlatform;
+  motion.platform_hz = hz;
+  motion.seed = seed;
+  return motion;
+}
+
+StatusOr<Take> Simulate(const FaceRig& face, const std::string& expression,
+                        const sim::MotionOptions& motion, double seconds,
+                        const sim::TissueOptions& tissue, uint64_t seed) {
+  sim::PerformanceOptions perform;
+  perform.expression = expression;
+  perform.motion = motion;
+  perform.seconds = seconds;
+  perform.seed = seed;
+  perform.tissue = tissue;
+  return sim::SimulatePerformance(face, perform);
+}
+
+// RMS distance (mm) of the reconstructed skin samples from the simulated dynamic ones, after
+// the motion's fade-in (first 0.5 s).
+double SampleRmsMm(const FaceRig& face, const Take& reconstructed, const Take& simulated) {
+  const int skip = std::min(simulated.frame_count() - 1,
+                            static_cast<int>(std::lround(0.5 * simulated.info.fps)));
+  double sum_sq = 0.0;
+  long count = 0;
+  for (int f = skip; f < simulated.frame_count(); ++f) {
+    const Eigen::Matrix3Xd fitted = face.SamplePositions(reconstructed.FramePositions(f));
+    const Eigen::Matrix3Xd truth = face.SamplePositions(simulated.FramePositions(f));
+    sum_sq += (fitted - truth).colwise().squaredNorm().sum();
+    count += fitted.cols();
+  }
+  return count > 0 ? std::sqrt(sum_sq / count) : 0.0;
+}
+
+// One take to simulate: an expression held under a head motion.
+struct TakeSpec {
+  std::string name;
+  std::string expression;
+  sim::MotionOptions motion;
+  double platform_hz = 0.0;  // 0 for motions other than the platform
+};
+
+// A walk in place (sim/skull_motion.h kWalk with no forward speed): walking at constant speed
+// is the same to the tissue (an inertial frame), but the skull descriptor B(t) holds
+// velocities, and 1.3 m/s of forward speed would put every walk far outside the platform takes.
+sim::MotionOptions WalkInPlace(double step_hz, uint64_t seed) {
+  sim::MotionOptions motion;
+  motion.kind = sim::MotionKind::kWalk;
+  motion.walk_step_hz = step_hz;
+  motion.walk_speed_mm_per_s = 0;
+  motion.seed = seed;
+  return motion;
+}
+
+// Every expression at every frequency on the platform, then a neutral walk in place at each
+// training step rate.
+std::vector<TakeSpec> TrainingSpecs(const std::vector<double>& hz_list,
+                                    const std::vector<std::string>& expressions,
+                                    const std::vector<double>& walk_step_hz, uint64_t* seed) {
+  std::vector<TakeSpec> specs;
+  for (double hz : hz_list) {
+    for (const std::string& expression : expressions) {
+      specs.push_back({TakeName(expression, hz), expression, PlatformMotion(hz, ++*seed), hz});
+    }
+  }
+  for (double step_hz : walk_step_hz) {
+    specs.push_back({fmt::format("neutral walk {:g} steps/s", step_hz), "neutral",
+                     WalkInPlace(step_hz, ++*seed), 0.0});
+  }
+  return specs;
+}
+
+// Simulates every take of `specs` on `face` and reconstructs it through the demo's cameras.
+// *done counts takes across subjects for the progress lines.
+Status SimulateAndReconstruct(const FaceRig& face, const DemoCameraRig& cameras,
+                              const std::vector<TakeSpec>& specs, double seconds,
+                              const sim::TissueOptions& tissue, const std::string& subject,
+                              int* done, int total, SubjectTakes* takes) {
+  for (const TakeSpec& spec : specs) {
+    ++*done;
+    std::printf(
+        "  [%d/%d] subject %s, %s: simulating %.1f s, filming with 8 cameras, "
+        "reconstructing\n",
+        *done, total, subject.c_str(), spec.name.c_str(), seconds);
+    std::fflush(stdout);
+    FACEDYN_ASSIGN_OR_RETURN(Take simulated, Simulate(face, spec.expression, spec.motion, seconds,
+                                                      tissue, spec.motion.seed));
+    FACEDYN_ASSIGN_OR_RETURN(
+        reconstruct::Reconstruction result,
+        ReconstructSimulatedTake(face, cameras, simulated, 7000 + spec.motion.seed));
+    const double frames = simulated.frame_count();
+    takes->reconstruction.push_back(
+        {{"subject", subject},
+         {"take", spec.name},
+         {"frames", simulated.frame_count()},
+         {"sample_rms_mm", Round4(SampleRmsMm(face, result.take, simulated))},
+         {"dense_fit_fps", Round4(frames / std::max(1e-9, result.timings.dense_s))}});
+    takes->names.push_back(spec.name);
+    takes->hz.push_back(spec.platform_hz);
+    takes->simulated.push_back(std::move(simulated));
+    takes->reconstructed.push_back(std::move(result.take));
+  }
+  return Status::Ok();
+}
+
+Json TrainingJson(const dynamics::MlpTrainSummary& summary, int epochs) {
+  return {{"epochs", epochs},
+          {"training_rows", summary.training_rows},
+          {"validation_rows", summary.validation_rows},
+          {"final_train_loss", summary.train_loss.empty() ? 0.0 : summary.train_loss.back()},
+          {"final_validation_loss",
+           summary.validation_loss.empty() ? 0.0 : summary.validation_loss.back()},
+          {"train_s", Round4(summary.train_s)},
+          {"rows_per_s", std::round(summary.rows_per_s)}};
+}
+
+// F on reconstructed takes: moving-average targets, the only ones a capture has.
+StatusOr<dynamics::RemovalModel> TrainF(const std::vector<Take>& takes, const FaceRig& face,
+                                        int epochs, uint64_t seed, const std::string& label,
+                                        dynamics::MlpTrainSummary* summary) {
+  std::vector<dynamics::TrainingTake> training;
+  for (const Take& take : takes) training.push_back({&take, &face});
+  dynamics::RemovalTrainOptions options;
+  options.targets = dynamics::RemovalTargets::kMovingAverage;
+  options.train.epochs = epochs;
+  options.train.seed = seed;
+  options.train.final_learning_rate_fraction = 0.05;
+  options.train.progress_label = label;
+  spdlog::info("training {} on {} reconstructed takes ({} epochs, moving-average targets)", label,
+               takes.size(), epochs);
+  return dynamics::TrainRemoval(training, options, summary);
+}
+
+// H on takes decomposed by F (positions = F's quasistatic, channel dynamic_offset = F's dx).
+StatusOr<dynamics::SynthesisModel> TrainH(const std::vector<Take>& decomposed, const FaceRig& face,
+                                          int epochs, uint64_t seed, const std::string& label,
+                                          dynamics::MlpTrainSummary* summary) {
+  std::vector<dynamics::TrainingTake> training;
+  for (const Take& take : decomposed) training.push_back({&take, &face});
+  dynamics::SynthesisTrainOptions options;
+  options.train.epochs = epochs;
+  options.train.seed = seed;
+  options.train.final_learning_rate_fraction = 0.05;
+  options.train.progress_label = label;
+  spdlog::info("training {} on {} takes decomposed by F ({} epochs)", label, decomposed.size(),
+               epochs);
+  return dynamics::TrainSynthesis(training, options, summary);
+}
+
+// Errors of a synthesised take against a simulated truth of the same motion over `vertices`:
+// positions (world) and dynamic offsets (skull frame) — the second isolates the dynamics from
+// the quasistatic estimate's own error.
+Json SynthesisErrors(const Take& synthesised, const Take& truth, const std::vector<int>& vertices,
+                     int skip) {
+  const PointCache& truth_offsets = truth.channels.at("dynamic_offset");
+  return {{"position_mean_mm",
+           Round4(MeanDistance(synthesised.positions, truth.positions, vertices, skip))},
+          {"offset_mean_mm", Round4(MeanDistance(synthesised.channels.at("dynamic_offset"),
+                                                 truth_offsets, vertices, skip))}};
+}
+
+// The same figures for a take without dynamics: its positions are the quasistatic itself.
+Json NoDynamicsErrors(const Take& quasistatic, const Take& truth, const std::vector<int>& vertices,
+                      int skip) {
+  const PointCache& truth_offsets = truth.channels.at("dynamic_offset");
+  return {{"position_mean_mm",
+           Round4(MeanDistance(quasistatic.positions, truth.positions, vertices, skip))},
+          {"offset_mean_mm", Round4(MeanNorm(truth_offsets, vertices, skip))}};
+}
+
+void PrintRow(const std::string& what, const std::string& method, double mm, double of) {
+  std::printf("  %-28s %-30s %8.3f mm %7.1f%%\n", what.c_str(), method.c_str(), mm, 100 * of);
+}
+
+}  // namespace
+
+DemoDynamicsOptions DemoDynamicsOptions::ForDemo(bool quick) {
+  DemoDynamicsOptions options;
+  if (quick) {
+    options.train_hz = {8, 10};
+    options.expressions = {"neutral"};
+    options.second_subject_hz = {9};
+    options.second_subject_expressions = {"neutral"};
+    options.training_walk_step_hz = {1.5};
+    options.seconds = 1.25;
+    options.walk_seconds = 1.5;
+    options.removal_epochs = 8;
+    options.synthesis_epochs = 30;
+    options.subset_epochs = 6;
+  }
+  return options;
+}
+
+Status DemoDynamicsOptions::Check() const {
+  auto hz_ok = [](double hz) { return hz >= 0.5 && hz <= 30; };
+  if (train_hz.size() < 2) return InvalidArgumentError("train_hz: at least two frequencies");
+  for (double hz : train_hz) {
+    if (!hz_ok(hz)) return InvalidArgumentError(fmt::format("train_hz: {} not in 0.5..30", hz));
+  }
+  if (second_subject_hz.empty()) {
+    return InvalidArgumentError("second_subject_hz: at least one frequency");
+  }
+  for (double hz : second_subject_hz) {
+    if (!hz_ok(hz)) {
+      return InvalidArgumentError(fmt::format("second_subject_hz: {} not in 0.5..30", hz));
+    }
+  }
+  if (expressions.empty()) return InvalidArgumentError("expressions: at least one");
+  for (double step_hz : training_walk_step_hz) {
+    if (!(step_hz >= 0.5 && step_hz <= 4)) {
+      return InvalidArgumentError(fmt::format("training_walk_step_hz: {} not in 0.5..4", step_hz));
+    }
+    if (std::abs(step_hz - test_walk_step_hz) < 1e-9) {
+      return InvalidArgumentError(fmt::format(
+          "training_walk_step_hz: {} is the test walk's step rate (it must be new)", step_hz));
+    }
+  }
+  if (!(test_walk_step_hz >= 0.5 && test_walk_step_hz <= 4)) {
+    return InvalidArgumentError("test_walk_step_hz must be in 0.5..4");
+  }
+  if (second_subject_expressions.empty() || second_subject_expressions.front() != "neutral") {
+    return InvalidArgumentError("second_subject_expressions: must start with \"neutral\"");
+  }
+  if (!(seconds >= 1.0)) return InvalidArgumentError("seconds must be >= 1");
+  if (!(walk_seconds >= 1.0)) return InvalidArgumentError("walk_seconds must be >= 1");
+  if (removal_epochs < 1) return InvalidArgumentError("removal_epochs must be >= 1");
+  if (synthesis_epochs < 1) return InvalidArgumentError("synthesis_epochs must be >= 1");
+  if (subset_epochs < 0) return InvalidArgumentError("subset_epochs must be >= 0");
+  for (double s : {second_subject_scale_x, second_subject_scale_y, second_subject_scale_z}) {
+    if (!(s >= 0.7 && s <= 1.3)) {
+      return InvalidArgumentError(fmt::format("second_subject_scale: {} not in 0.7..1.3", s));
+    }
+  }
+  if (!(second_subject_fundamental_hz >= 3 && second_subject_fundamental_hz <= 30)) {
+    return InvalidArgumentError("second_subject_fundamental_hz must be in 3..30");
+  }
+  if (!(second_subject_damping_ratio > 0 && second_subject_damping_ratio <= 1)) {
+    return InvalidArgumentError("second_subject_damping_ratio must be in (0, 1]");
+  }
+  return Status::Ok();
+}
+
+Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
+                            const Take& test_simulated, const Take& test_reconstructed,
+                            const DemoDynamicsOptions& options, const std::string& out_dir,
+                            const dynamics::RemovalModel* reference_removal, Json* metrics,
+                            DemoDynamicsArtifacts* artifacts) {
+  FACEDYN_RETURN_IF_ERROR(options.Check());
+  const double test_hz = test_simulated.info.platform_hz.value_or(0.0);
+  for (double hz : options.train_hz) {
+    if (std::abs(hz - test_hz) < 1e-9) {
+      return InvalidArgumentError(
+          fmt::format("train_hz: {} Hz is the held-out take's frequency", hz));
+    }
+  }
+  for (const char* channel : {"quasistatic", "dynamic_offset"}) {
+    if (test_simulated.channels.count(channel) == 0) {
+      return FailedPreconditionError(
+          fmt::format("the held-out simulated take has no \"{}\" channel", channel));
+    }
+  }
+  if (test_reconstructed.frame_count() != test_simulated.frame_count() ||
+      test_reconstructed.vertex_count() != test_simulated.vertex_count()) {
+    return FailedPreconditionError(fmt::format(
+        "the held-out reconstructed take ({} frames, {} vertices) does not match its simulation "
+        "({} frames, {} vertices)",
+        test_reconstructed.frame_count(), test_reconstructed.vertex_count(),
+        test_simulated.frame_count(), test_simulated.vertex_count()));
+  }
+  const auto stage_start = Clock::now();
+  const std::string models_dir = JoinPath(out_dir, "models");
+  FACEDYN_RETURN_IF_ERROR(MakeDirectories(models_dir));
+  const double fps = test_simulated.info.fps;
+  const int skip = dynamics::WindowFrames(0.08, fps);
+  Json result;
+  Json training = Json::object();
+
+  // Subject B: another shape and another tissue.
+  FACEDYN_ASSIGN_OR_RETURN(
+      const FaceRig face_b,
+      ScaledFaceRig(face,
+                    Eigen::Vector3d(options.second_subject_scale_x, options.second_subject_scale_y,
+                                    options.second_subject_scale_z),
+                    face.name + "-b"));
+  sim::TissueOptions tissue_a;
+  sim::TissueOptions tissue_b;
+  tissue_b.fundamental_hz = options.second_subject_fundamental_hz;
+  tissue_b.damping_ratio = options.second_subject_damping_ratio;
+
+  // --- 1. data: simulate, film, reconstruct ---
+  const auto data_start = Clock::now();
+  uint64_t seed = options.seed + 100;
+  const std::vector<TakeSpec> specs_a =
+      TrainingSpecs(options.train_hz, options.expressions, options.training_walk_step_hz, &seed);
+  const std::vector<TakeSpec> specs_b =
+      TrainingSpecs(options.second_subject_hz, options.second_subject_expressions,
+                    options.training_walk_step_hz, &seed);
+  const int total = static_cast<int>(specs_a.size() + specs_b.size());
+  std::printf("\nDynamics on reconstructed takes: %d takes to simulate and reconstruct\n", total);
+  int done = 0;
+  SubjectTakes a, b;
+  FACEDYN_RETURN_IF_ERROR(SimulateAndReconstruct(face, cameras, specs_a, options.seconds, tissue_a,
+                                                 "A", &done, total, &a));
+  FACEDYN_RETURN_IF_ERROR(SimulateAndReconstruct(face_b, cameras, specs_b, options.seconds,
+                                                 tissue_b, "B", &done, total, &b));
+  Json reconstruction = a.reconstruction;
+  for (const Json& entry : b.reconstruction) reconstruction.push_back(entry);
+  const double data_s = SecondsSince(data_start);
+
+  // --- 2. removal F on A's reconstructed takes, tested on the held-out frequency ---
+  dynamics::MlpTrainSummary f_summary;
+  FACEDYN_ASSIGN_OR_RETURN(
+      const dynamics::RemovalModel f_model,
+      TrainF(a.reconstructed, face, options.removal_epochs, options.seed, "F", &f_summary));
+  FACEDYN_RETURN_IF_ERROR(f_model.Save(JoinPath(models_dir, "F.pt")));
+  training["F"] = TrainingJson(f_summary, options.removal_epochs);
+
+  const PointCache& test_truth = test_simulated.channels.at("quasistatic");
+  const std::vector<int> jiggle =
+      JigglingVertices(test_simulated.channels.at("dynamic_offset"), skip);
+  const double test_offset_mm =
+      MeanNorm(test_simulated.channels.at("dynamic_offset"), jiggle, skip);
+  FACEDYN_ASSIGN_OR_RETURN(Take removed,
+                           dynamics::RemoveDynamics(f_model, test_reconstructed, face));
+  dynamics::EvaluateOptions evaluate;
+  evaluate.skip_edge_frames = skip;
+  FACEDYN_ASSIGN_OR_RETURN(
+      const dynamics::Evaluation evaluation,
+      dynamics::Evaluate(removed, test_simulated, &test_reconstructed, &face, evaluate));
+  Json methods = Json::object();
+  auto add_method = [&](const std::string& name, const PointCache& predicted,
+                        const dynamics::ErrorStats& face_stats) {
+    const double error_mm = MeanDistance(predicted, test_truth, jiggle, skip);
+    methods[name] = {
+        {"mean_mm", Round4(face_stats.mean_mm)},
+        {"p95_mm", Round4(face_stats.p95_mm)},
+        {"max_mm", Round4(face_stats.max_mm)},
+        {"jiggle_mean_mm", Round4(error_mm)},
+        {"relative_to_offset", Round4(test_offset_mm > 0 ? error_mm / test_offset_mm : 0.0)}};
+  };
+  add_method("F_moving_average_targets", removed.positions, evaluation.reports.front().face);
+  if (reference_removal != nullptr) {
+    FACEDYN_ASSIGN_OR_RETURN(
+        const Take by_reference,
+        dynamics::RemoveDynamics(*reference_removal, test_reconstructed, face));
+    FACEDYN_ASSIGN_OR_RETURN(
+        const dynamics::Evaluation reference_evaluation,
+        dynamics::Evaluate(by_reference, test_simulated, nullptr, &face, evaluate));
+    add_method("F_exact_targets_simulated", by_reference.positions,
+               reference_evaluation.reports.front().face);
+  }
+  for (size_t r = 1; r < evaluation.reports.size(); ++r) {
+    const std::string& name = evaluation.reports[r].name;
+    dynamics::BaselineKind kind = dynamics::BaselineKind::kMovingAverage;
+    for (dynamics::BaselineKind k :
+         {dynamics::BaselineKind::kNoRemoval, dynamics::BaselineKind::kLowPass,
+          dynamics::BaselineKind::kMovingAverage}) {
+      if (name == dynamics::BaselineName(k)) kind = k;
+    }
+    FACEDYN_ASSIGN_OR_RETURN(
+        const PointCache baseline,
+        dynamics::ComputeBaseline(test_reconstructed, kind, evaluate.baselines));
+    add_method(name, baseline, evaluation.reports[r].face);
+  }
+  const std::string test_name = TakeName(test_simulated.info.expression, test_hz);
+  const double f_mm = methods["F_moving_average_targets"]["jiggle_mean_mm"].get<double>();
+  const double lowpass_mm = methods["lowpass"]["jiggle_mean_mm"].get<double>();
+  result["removal"] = {{"take", test_name + " reconstructed"},
+                       {"truth", "exact quasistatic of the simulation that was filmed"},
+                       {"jiggle_vertices", jiggle.size()},
+                       {"mean_dynamic_offset_mm", Round4(test_offset_mm)},
+                       {"methods", methods},
+                       {"lowpass_over_F", Round4(f_mm > 0 ? lowpass_mm / f_mm : 0.0)}};
+  std::printf(
+      "\nRemoval on the reconstructed %s take (never trained on), error vs the exact "
+      "quasistatic over the jiggling vertices (mean true offset %.3f mm):\n",
+      test_name.c_str(), test_offset_mm);
+  for (const auto& [name, figures] : methods.items()) {
+    PrintRow(test_name + " reconstructed", name, figures["jiggle_mean_mm"].get<double>(),
+             figures["relative_to_offset"].get<double>());
+  }
+
+  // Paper Fig. 5: F trained on the slowest 1 .. n frequencies.
+  if (options.subset_epochs > 0) {
+    Json subsets = Json::array();
+    const size_t per_frequency = options.expressions.size();
+    for (size_t k = 1; k <= options.train_hz.size(); ++k) {
+      double error_mm = f_mm;
+      if (k < options.train_hz.size()) {
+        std::vector<Take> subset(a.reconstructed.begin(),
+                                 a.reconstructed.begin() + k * per_frequency);
+        const size_t platform_takes = options.train_hz.size() * per_frequency;
+        subset.insert(subset.end(), a.reconstructed.begin() + platform_takes,
+                      a.reconstructed.end());
+        FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel model,
+                                 TrainF(subset, face, options.subset_epochs, options.seed,
+                                        fmt::format("F on {} frequencies", k), nullptr));
+        FACEDYN_ASSIGN_OR_RETURN(const Take subset_removed,
+                                 dynamics::RemoveDynamics(model, test_reconstructed, face));
+        error_mm = MeanDistance(subset_removed.positions, test_truth, jiggle, skip);
+      }
+      subsets.push_back(
+          {{"train_hz",
+            std::vector<double>(options.train_hz.begin(), options.train_hz.begin() + k)},
+           {"training_walk_step_hz", options.training_walk_step_hz},
+           {"epochs", k < options.train_hz.size() ? options.subset_epochs : options.removal_epochs},
+           {"jiggle_mean_mm", Round4(error_mm)},
+           {"relative_to_offset", Round4(test_offset_mm > 0 ? error_mm / test_offset_mm : 0)}});
+    }
+    result["removal_by_training_frequencies"] = {
+        {"take", test_name + " reconstructed"},
+        {"mean_dynamic_offset_mm", Round4(test_offset_mm)},
+        {"subsets", subsets},
+        {"baselines",
+         {{"lowpass", methods["lowpass"]["jiggle_mean_mm"]},
+          {"moving_average", methods["moving_average"]["jiggle_mean_mm"]},
+          {"no_removal", methods["no_removal"]["jiggle_mean_mm"]}}}};
+  }
+
+  // --- 3. synthesis H on A's takes decomposed by F ---
+  std::vector<Take> decomposed_a;
+  for (const Take& take : a.reconstructed) {
+    FACEDYN_ASSIGN_OR_RETURN(Take decomposed, dynamics::RemoveDynamics(f_model, take, face));
+    decomposed_a.push_back(std::move(decomposed));
+  }
+  dynamics::MlpTrainSummary h_summary;
+  FACEDYN_ASSIGN_OR_RETURN(
+      const dynamics::SynthesisModel h_model,
+      TrainH(decomposed_a, face, options.synthesis_epochs, options.seed, "H", &h_summary));
+  FACEDYN_RETURN_IF_ERROR(h_model.Save(JoinPath(models_dir, "H.pt")));
+  training["H"] = TrainingJson(h_summary, options.synthesis_epochs);
+  decomposed_a.clear();
+
+  // Fig. 7: remove, then resynthesise the held-out take with its own head motion.
+  FACEDYN_ASSIGN_OR_RETURN(
+      Take resynthesised,
+      dynamics::SynthesizeDynamics(h_model, removed, test_reconstructed.world_from_skull,
+                                   test_reconstructed.info.motion, face));
+  const double residual_mm =
+      MeanDistance(resynthesised.positions, test_reconstructed.positions, jiggle, skip);
+  const double removed_only_mm =
+      MeanDistance(removed.positions, test_reconstructed.positions, jiggle, skip);
+  const double vs_simulated_mm =
+      MeanDistance(resynthesised.positions, test_simulated.positions, jiggle, skip);
+  Json synthesis;
+  synthesis["resynthesis"] = {
+      {"take", test_name + " reconstructed"},
+      {"mean_dynamic_offset_mm", Round4(test_offset_mm)},
+      {"resynthesis_residual_mm", Round4(residual_mm)},
+      {"relative_to_offset", Round4(test_offset_mm > 0 ? residual_mm / test_offset_mm : 0.0)},
+      {"removed_without_synthesis_mm", Round4(removed_only_mm)},
+      {"resynthesised_vs_simulated_dynamic_mm", Round4(vs_simulated_mm)}};
+  std::printf("\nSynthesis (H trained on %zu takes decomposed by F):\n", a.reconstructed.size());
+  PrintRow(test_name + " reconstructed", "remove+resynthesise residual", residual_mm,
+           test_offset_mm > 0 ? residual_mm / test_offset_mm : 0.0);
+  PrintRow(test_name + " reconstructed", "removed, not resynthesised", removed_only_mm,
+           test_offset_mm > 0 ? removed_only_mm / test_offset_mm : 0.0);
+
+  // A new head motion: A walking. The quasistatic is F's estimate of the held-out take's shape.
+  // Another step rate and another seed than every training walk.
+  const sim::MotionOptions walk = WalkInPlace(options.test_walk_step_hz, options.seed + 50);
+  std::printf("  simulating subject A walking (%.1f s) for the truth\n", options.walk_seconds);
+  std::fflush(stdout);
+  FACEDYN_ASSIGN_OR_RETURN(
+      Take walk_truth, Simulate(face, test_simulated.info.expression, walk, options.walk_seconds,
+                                tissue_a, options.seed + 50));
+  const Eigen::Matrix3Xd shape_a = MeanShapeInSkull(removed, skip);
+  const Take walk_quasistatic =
+      dynamics::HeldShapeTake(face, shape_a, walk_truth.world_from_skull, fps);
+  FACEDYN_ASSIGN_OR_RETURN(Take walk_synthesised,
+                           dynamics::SynthesizeDynamics(h_model, walk_quasistatic,
+                                                        walk_truth.world_from_skull, "walk", face));
+  const std::vector<int> walk_jiggle =
+      JigglingVertices(walk_truth.channels.at("dynamic_offset"), skip);
+  const double walk_offset_mm =
+      MeanNorm(walk_truth.channels.at("dynamic_offset"), walk_jiggle, skip);
+  Json walk_methods = {
+      {"H", SynthesisErrors(walk_synthesised, walk_truth, walk_jiggle, skip)},
+      {"no_dynamics", NoDynamicsErrors(walk_quasistatic, walk_truth, walk_jiggle, skip)}};
+  synthesis["walk"] = {{"take", test_simulated.info.expression + " walking, subject A"},
+                       {"truth", "subject A simulated walking"},
+                       {"quasistatic", "mean shape of F's removal of the held-out take"},
+                       {"jiggle_vertices", walk_jiggle.size()},
+                       {"mean_dynamic_offset_mm", Round4(walk_offset_mm)},
+                       {"methods", walk_methods}};
+  for (const auto& [name, figures] : walk_methods.items()) {
+    PrintRow("walk (new head motion)", name + ": offset error",
+             figures["offset_mean_mm"].get<double>(),
+             walk_offset_mm > 0 ? figures["offset_mean_mm"].get<double>() / walk_offset_mm : 0);
+  }
+  result["synthesis"] = synthesis;
+
+  // --- 4. retargeting to subject B: B's own F and H, A's walk ---
+  dynamics::MlpTrainSummary fb_summary, hb_summary;
+  FACEDYN_ASSIGN_OR_RETURN(
+      const dynamics::RemovalModel fb_model,
+      TrainF(b.reconstructed, face_b, options.removal_epochs, options.seed, "F_B", &fb_summary));
+  training["F_B"] = TrainingJson(fb_summary, options.removal_epochs);
+  std::vector<Take> decomposed_b;
+  for (const Take& take : b.reconstructed) {
+    FACEDYN_ASSIGN_OR_RETURN(Take decomposed, dynamics::RemoveDynamics(fb_model, take, face_b));
+    decomposed_b.push_back(std::move(decomposed));
+  }
+  FACEDYN_ASSIGN_OR_RETURN(
+      const dynamics::SynthesisModel hb_model,
+      TrainH(decomposed_b, face_b, options.synthesis_epochs, options.seed, "H_B", &hb_summary));
+  FACEDYN_RETURN_IF_ERROR(hb_model.Save(JoinPath(models_dir, "H_B.pt")));
+  training["H_B"] = TrainingJson(hb_summary, options.synthesis_epochs);
+  // B's quasistatic: the shape of F_B's removal of B's first (neutral) take.
+  const Eigen::Matrix3Xd shape_b = MeanShapeInSkull(decomposed_b.front(), skip);
+  decomposed_b.clear();
+  std::printf("  simulating subject B walking subject A's walk (%.1f s) for the truth\n",
+              options.walk_seconds);
+  std::fflush(stdout);
+  FACEDYN_ASSIGN_OR_RETURN(
+      Take retarget_truth,
+      Simulate(face_b, "neutral", walk, options.walk_seconds, tissue_b, options.seed + 50));
+  for (int t = 0; t < retarget_truth.frame_count(); ++t) {
+    const Rigid3 d = walk_truth.world_from_skull[t].Inverse() * retarget_truth.world_from_skull[t];
+    if (d.translation().norm() > 1e-6 || d.AngleRad() > 1e-9) {
+      return InternalError(
+          fmt::format("retargeting: subject B's walk differs from subject A's at frame {}", t));
+    }
+  }
+  const Take b_quasistatic =
+      dynamics::HeldShapeTake(face_b, shape_b, walk_truth.world_from_skull, fps);
+  FACEDYN_ASSIGN_OR_RETURN(
+      Take retargeted, dynamics::SynthesizeDynamics(hb_model, b_quasistatic,
+                                                    walk_truth.world_from_skull, "walk", face_b));
+  // Naive (Fig. 10b): A's true walking offsets copied sample by sample onto B. It is given the
+  // exact source dynamics, the most it could have.
+  FACEDYN_ASSIGN_OR_RETURN(Take naive,
+                           dynamics::NaiveDeltaTransfer(walk_truth, face, b_quasistatic, face_b));
+  const std::vector<int> b_jiggle =
+      JigglingVertices(retarget_truth.channels.at("dynamic_offset"), skip);
+  const double b_offset_mm = MeanNorm(retarget_truth.channels.at("dynamic_offset"), b_jiggle, skip);
+  Json retarget_methods = {
+      {"H_B_retarget", SynthesisErrors(retargeted, retarget_truth, b_jiggle, skip)},
+      {"naive_delta_transfer", SynthesisErrors(naive, retarget_truth, b_jiggle, skip)},
+      {"no_dynamics", NoDynamicsErrors(b_quasistatic, retarget_truth, b_jiggle, skip)}};
+  result["retarget"] = {
+      {"source", "subject A walking (head motion)"},
+      {"target",
+       fmt::format("subject B: procedural face scaled {:g} x {:g} x {:g}, tissue "
+                   "{:g} Hz, damping {:g} (A: {:g} Hz, {:g})",
+                   options.second_subject_scale_x, options.second_subject_scale_y,
+                   options.second_subject_scale_z, tissue_b.fundamental_hz, tissue_b.damping_ratio,
+                   tissue_a.fundamental_hz, tissue_a.damping_ratio)},
+      {"truth", "subject B simulated walking the same walk"},
+      {"training_takes", b.reconstructed.size()},
+      {"jiggle_vertices", b_jiggle.size()},
+      {"mean_dynamic_offset_mm", Round4(b_offset_mm)},
+      {"methods", retarget_methods}};
+  std::printf("\nRetargeting A's walk to subject B (mean true offset %.3f mm):\n", b_offset_mm);
+  for (const auto& [name, figures] : retarget_methods.items()) {
+    PrintRow("B walking", name + ": offset error", figures["offset_mean_mm"].get<double>(),
+             b_offset_mm > 0 ? figures["offset_mean_mm"].get<double>() / b_offset_mm : 0);
+  }
+
+  Json train_hz_json = options.train_hz;
+  result["setup"] = {
+      {"data", "simulated takes filmed by 8 simulated cameras and reconstructed"},
+      {"targets", "moving average (Eq. 5-6); reconstructed takes have no exact channel"},
+      {"train_hz", train_hz_json},
+      {"expressions", options.expressions},
+      {"training_walk_step_hz", options.training_walk_step_hz},
+      {"test_walk_step_hz", options.test_walk_step_hz},
+      {"test_take", test_name},
+      {"test_hz", test_hz},
+      {"seconds_per_take", options.seconds},
+      {"training_takes", a.reconstructed.size()},
+      {"second_subject_hz", options.second_subject_hz},
+      {"second_subject_expressions", options.second_subject_expressions},
+      {"removal_epochs", options.removal_epochs},
+      {"synthesis_epochs", options.synthesis_epochs},
+      {"subset_epochs", options.subset_epochs},
+      {"data_s", Round4(data_s)},
+      {"error_metric",
+       "per-vertex |prediction - truth| in mm over frames away from the feature window at the "
+       "ends; jiggle_mean_mm over vertices whose mean true offset is >= 20% of the largest"}};
+  result["reconstruction"] = reconstruction;
+  result["training"] = training;
+  result["total_s"] = Round4(SecondsSince(stage_start));
+  if (metrics != nullptr) *metrics = result;
+  if (artifacts != nullptr) {
+    artifacts->test_simulated = test_simulated;
+    artifacts->test_reconstructed = test_reconstructed;
+    artifacts->test_removed = std::move(removed);
+    artifacts->test_resynthesised = std::move(resynthesised);
+    artifacts->walk_truth = std::move(walk_truth);
+    artifacts->walk_step_hz = options.test_walk_step_hz;
+    artifacts->walk_synthesised = std::move(walk_synthesised);
+    artifacts->second_face = face_b;
+    artifacts->retarget_truth = std::move(retarget_truth);
+    artifacts->retargeted = std::move(retargeted);
+    artifacts->naive = std::move(naive);
+  }
+  return Status::Ok();
+}
+
+namespace {
+
+// Positions of frame t in the skull frame (3 x V): T(t)^-1 x(t).
+Eigen::Matrix3Xf InSkull(const Take& take, const PointCache& cache, int t) {
+  return take.world_from_skull[t].Inverse().Apply(cache.Frame(t).cast<double>()).cast<float>();
+}
+
+// The frame of largest mean |offset| in the second half (away from the end window), and one
+// `period_frames` / 2 later: two opposite extremes of an oscillation.
+std::vector<int> ExtremalFrames(const PointCache& offsets, int skip, int period_frames) {
+  const int frames = offsets.frame_count();
+  int peak = frames / 2;
+  double best = -1.0;
+  for (int t = frames / 2; t < frames - skip; ++t) {
+    const double mean = offsets.Frame(t).colwise().norm().mean();
+    if (mean > best) best = mean, peak = t;
+  }
+  const int later = peak + std::max(1, period_frames / 2);
+  return {peak, later < frames ? later : std::max(0, peak - std::max(1, period_frames / 2))};
+}
+
+Status WriteBytes(const std::string& path, const std::vector<unsigned char>& bytes) {
+  FILE* file = std::fopen(path.c_str(), "wb");
+  if (file == nullptr) return UnavailableError(path + ": cannot open for writing");
+  const size_t written = std::fwrite(bytes.data(), 1, bytes.size(), file);
+  const bool closed = std::fclose(file) == 0;
+  if (written != bytes.size() || !closed) return UnavailableError(path + ": write failed");
+  return Status::Ok();
+}
+
+}  // namespace
+
+StatusOr<Json> RenderDemoDynamics(const FaceRig& face, const DemoDynamicsArtifacts& artifacts,
+                                  const std::string& out_dir) {
+  const std::string dir = JoinPath(out_dir, "renders");
+  FACEDYN_RETURN_IF_ERROR(MakeDirectories(dir));
+  struct View {
+    std::string name;
+    Eigen::Matrix3Xf positions_in_skull, offsets_in_skull;
+  };
+  Json images = Json::array();
+  Json groups = Json::array();
+  int image_index = 0;
+  // Small enough that 16 renders keep the self-contained report near 1 MB.
+  OffsetRenderOptions render_options;
+  render_options.width_px = 240;
+  render_options.height_px = 293;
+  // Colour ranges as in the paper's figures: +-5 mm for the platform (Fig. 3), +-2 mm for the
+  // walk (Figs. 8d, 9), whose dynamics are smaller.
+  auto render_group = [&](const std::string& group, double range_mm, const Mesh& topology,
+                          const std::vector<int>& frames,
+                          const std::function<std::vector<View>(int)>& views_at) -> Status {
+    groups.push_back({{"group", group}, {"range_mm", range_mm}});
+    render_options.range_mm = range_mm;
+    for (int t : frames) {
+      for (const View& view : views_at(t)) {
+        const std::string path =
+            JoinPath(dir, fmt::format("{:02d}_frame{:04d}.png", image_index++, t));
+        FACEDYN_RETURN_IF_ERROR(
+            WriteBytes(path, RenderSignedOffsetPng(topology, view.positions_in_skull,
+                                                   view.offsets_in_skull, render_options)));
+        images.push_back(
+            {{"group", group},
+             {"range_mm", range_mm},
+             {"frame", t},
+             {"view", view.name},
+             {"path", path},
+             {"max_abs_offset_mm", Round4(view.offsets_in_skull.colwise().norm().maxCoeff())}});
+      }
+    }
+    return Status::Ok();
+  };
+
+  const Take& simulated = artifacts.test_simulated;
+  const int skip = dynamics::WindowFrames(0.08, simulated.info.fps);
+  const double hz = simulated.info.platform_hz.value_or(11.0);
+  const std::string test_name = TakeName(simulated.info.expression, hz);
+  const std::vector<int> test_frames =
+      ExtremalFrames(simulated.channels.at("dynamic_offset"), skip,
+                     static_cast<int>(std::lround(simulated.info.fps / hz)));
+  FACEDYN_RETURN_IF_ERROR(render_group(
+      "held-out " + test_name + ", reconstructed", 5.0, face.neutral, test_frames, [&](int t) {
+        const Eigen::Matrix3Xf truth = InSkull(simulated, simulated.channels.at("quasistatic"), t);
+        const Eigen::Matrix3Xf captured =
+            InSkull(artifacts.test_reconstructed, artifacts.test_reconstructed.positions, t);
+        const Eigen::Matrix3Xf removed =
+            InSkull(artifacts.test_removed, artifacts.test_removed.positions, t);
+        const Eigen::Matrix3Xf resynthesised =
+            InSkull(artifacts.test_resynthesised, artifacts.test_resynthesised.positions, t);
+        return std::vector<View>{
+            {"reconstructed - exact quasistatic", captured, captured - truth},
+            {"after removal by F - exact quasistatic", removed, removed - truth},
+            {"resynthesised by H - removed", resynthesised, resynthesised - removed}};
+      }));
+
+  // Walk: half a stride (one step) apart.
+  const double step_hz = artifacts.walk_step_hz > 0 ? artifacts.walk_step_hz : 1.9;
+  const int step_frames = static_cast<int>(std::lround(simulated.info.fps / step_hz));
+  auto offset_view = [](const std::string& name, const Take& take, int t) {
+    return View{name, InSkull(take, take.positions, t),
+                take.channels.at("dynamic_offset").Frame(t)};
+  };
+  const std::vector<int> walk_frames =
+      ExtremalFrames(artifacts.walk_truth.channels.at("dynamic_offset"), skip, step_frames);
+  FACEDYN_RETURN_IF_ERROR(
+      render_group("walk (new head motion), subject A", 2.0, face.neutral, walk_frames, [&](int t) {
+        return std::vector<View>{
+            offset_view("synthesised by H (dynamic offset)", artifacts.walk_synthesised, t),
+            offset_view("simulated truth (dynamic offset)", artifacts.walk_truth, t)};
+      }));
+  const std::vector<int> retarget_frames =
+      ExtremalFrames(artifacts.retarget_truth.channels.at("dynamic_offset"), skip, step_frames);
+  FACEDYN_RETURN_IF_ERROR(
+      render_group("A's walk retargeted to subject B", 2.0, artifacts.second_face.neutral,
+                   retarget_frames, [&](int t) {
+                     return std::vector<View>{
+                         offset_view("B's H (dynamic offset)", artifacts.retargeted, t),
+                         offset_view("naive transfer of A's offsets", artifacts.naive, t),
+                         offset_view("B simulated walking (truth)", artifacts.retarget_truth, t)};
+                   }));
+  return Json{{"range_mm", 5.0}, {"groups", groups}, {"images", images}};
+}
+
+}  // namespace facedyn::app

@@ -1,0 +1,120 @@
+// The dynamics stage of `facedyn demo` (issue 8): Zoss et al. 2020's method run on RECONSTRUCTED
+// takes, i.e. on what the capture stage would give, while the simulator keeps the exact truth
+// the paper could only estimate.
+//
+//   1. Subject A (the demo's procedural face) holds expressions on the vibrating platform at the
+//      training frequencies, and a neutral face while walking in place at other step rates than
+//      the test walk's; every take is simulated, then filmed by the simulated 8-camera rig and
+//      reconstructed
+//      (app/reconstruct_demo.h, one calibration for all takes).
+//   2. The removal network F is trained on the reconstructed takes with the paper's
+//      moving-average targets (RemovalTargets::kMovingAverage: a reconstructed take has no exact
+//      channel), and removes the dynamics of the held-out frequency's reconstructed take; the
+//      result is compared with the simulator's exact quasistatic, next to the baselines (no
+//      removal, low-pass, moving average) and to F trained on fewer frequencies (paper Fig. 5).
+//   3. The synthesis network H is trained on the training takes decomposed by F (as in the
+//      paper); remove-then-resynthesise residual on the held-out take (Fig. 7); and synthesis
+//      for a new head motion never trained on: the held-out take's quasistatic shape carried
+//      by a walk in place (sim/skull_motion.h kWalk), against subject A simulated walking.
+//   4. Root-motion retargeting (Figs. 9-10): subject B, a procedural face of another shape
+//      (scaled) and another tissue (fundamental frequency and damping), with its own F and H
+//      trained on its own reconstructed takes; A's walk drives B's quasistatic through B's H,
+//      compared with B simulated walking the same walk, next to NaiveDeltaTransfer of A's
+//      offsets.
+//
+// It lives in app/ because it wires sim/ (data with truth), reconstruct/ (the capture path) and
+// dynamics/ (the method); none of them may depend on another.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "app/reconstruct_demo.h"
+#include "core/face_rig.h"
+#include "core/json_io.h"
+#include "core/status.h"
+#include "core/take.h"
+#include "dynamics/removal_model.h"
+
+namespace facedyn::app {
+
+struct DemoDynamicsOptions {
+  // Subject A's training takes: every expression at every frequency (Hz). The held-out take
+  // (passed to the stage) must be at a frequency not in this list.
+  std::vector<double> train_hz = {6, 7, 8, 9, 10};
+  std::vector<std::string> expressions = {"neutral", "smile"};
+  // Subject B's training takes (its first expression must be "neutral": B's quasistatic for
+  // the retargeting is taken from it).
+  std::vector<double> second_subject_hz = {7, 9};
+  std::vector<std::string> second_subject_expressions = {"neutral", "smile"};
+  // Neutral walks in place at these step rates (steps/s), added to both subjects' training
+  // takes: the paper trains on walking, running and jumping as well as the platform. The test
+  // walk has another step rate and seed, so its head motion is new.
+  std::vector<double> training_walk_step_hz = {1.5, 2.3};
+  double test_walk_step_hz = 1.9;
+  double seconds = 1.5;       // per training take
+  double walk_seconds = 2.0;  // the new head motion
+  int removal_epochs = 10;
+  int synthesis_epochs = 30;  // the paper's; H sees one row per frame, so it is cheap
+  // Paper Fig. 5: F also trained on the first 1 .. n-1 training frequencies (0: skip).
+  int subset_epochs = 4;
+  uint64_t seed = 1;
+  // Subject B: procedural face scaled by this per axis (skull frame, x = width, y = height,
+  // z = depth), tissue with this fundamental and damping (sim/soft_tissue.h TissueOptions).
+  double second_subject_scale_x = 0.92;
+  double second_subject_scale_y = 1.06;
+  double second_subject_scale_z = 0.96;
+  double second_subject_fundamental_hz = 8.5;
+  double second_subject_damping_ratio = 0.17;
+
+  // The demo's settings: quick (under 5 minutes with everything else on 2 cores) or default
+  // (under 20).
+  static DemoDynamicsOptions ForDemo(bool quick);
+  // At least two training frequencies in 0.5..30, at least one expression, the second subject's
+  // first expression "neutral", seconds and walk_seconds >= 1, epochs >= 1 (subset_epochs
+  // >= 0), scales in [0.7, 1.3], fundamental in 3..30 Hz, damping in (0, 1]. Names the field.
+  Status Check() const;
+};
+
+// What the stage made, for the renders (all takes of subject A unless named).
+struct DemoDynamicsArtifacts {
+  Take test_simulated;        // held-out take as simulated (channels quasistatic, dynamic_offset)
+  Take test_reconstructed;    // the same take reconstructed from the simulated cameras
+  Take test_removed;          // F's removal of the reconstructed take
+  Take test_resynthesised;    // H on test_removed with the take's own head motion
+  Take walk_truth;            // A simulated walking (exact channels)
+  Take walk_synthesised;      // H: A's quasistatic estimate carried by the walk
+  double walk_step_hz = 0.0;  // the test walk's step rate
+  FaceRig second_face;        // subject B
+  Take retarget_truth;        // B simulated walking A's walk
+  Take retargeted;            // B's H on B's quasistatic under A's walk
+  Take naive;                 // NaiveDeltaTransfer of A's walk offsets onto B
+};
+
+// Runs the stage for subject `face` (A) with the calibrated `cameras`; `test_simulated` and
+// `test_reconstructed` are the held-out take (the reconstruction stage's). Writes model files
+// under <out_dir>/models, prints progress and tables, and returns the figures in *metrics:
+// "setup", "reconstruction" (per take), "removal" (held-out take: every method's face mean,
+// p95, max and mean over the jiggling vertices), "removal_by_training_frequencies" (Fig. 5),
+// "synthesis" ("resynthesis", "walk"), "retarget" and "training". `reference_removal` (may be
+// null) is another removal model for A's rig, reported as "F_exact_targets_simulated" (e.g. the
+// simulated-data study's). *artifacts may be null.
+Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
+                            const Take& test_simulated, const Take& test_reconstructed,
+                            const DemoDynamicsOptions& options, const std::string& out_dir,
+                            const dynamics::RemovalModel* reference_removal, Json* metrics,
+                            DemoDynamicsArtifacts* artifacts);
+
+// Renders of the stage's artifacts coloured by signed dynamic offset (app/face_render.h), PNGs
+// under <out_dir>/renders: the held-out take at two extremal frames (reconstructed and after
+// removal, each minus the exact quasistatic; resynthesised minus removed), the walk (H's
+// synthesised offsets and the simulated truth's) and the retargeting (B's H, the naive
+// transfer, the truth); colour saturates at +-5 mm for the held-out take and +-2 mm for the
+// walks, as in the paper's figures. Returns {"range_mm" (the largest), "groups": [{group,
+// range_mm}], "images": [{group, range_mm, frame, view, path, max_abs_offset_mm}]}. Errors: a
+// file that cannot be written.
+StatusOr<Json> RenderDemoDynamics(const FaceRig& face, const DemoDynamicsArtifacts& artifacts,
+                                  const std::string& out_dir);
+
+}  // namespace facedyn::app

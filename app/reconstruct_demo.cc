@@ -33,8 +33,8 @@ StatusOr<DemoCameraRig> CalibrateDemoCameraRig(int board_views, uint64_t seed) {
   for (int v = 0; v < board_views; ++v) {
     // In front of the face, facing the cameras, tilted up to ~35 degrees.
     const Rigid3 world_from_board =
-        Rigid3::FromTranslation(Eigen::Vector3d(60 * uniform(rng), -15 + 50 * uniform(rng),
-                                                60 + 60 * uniform(rng))) *
+        Rigid3::FromTranslation(
+            Eigen::Vector3d(60 * uniform(rng), -15 + 50 * uniform(rng), 60 + 60 * uniform(rng))) *
         Rigid3::FromAxisAngle(
             Eigen::Vector3d(uniform(rng), uniform(rng), 0.3 * uniform(rng)).normalized(),
             0.6 * std::abs(uniform(rng))) *
@@ -76,8 +76,7 @@ StatusOr<DemoCameraRig> CalibrateDemoCameraRig(int board_views, uint64_t seed) {
   return rig;
 }
 
-StatusOr<Reconstruction> ReconstructSimulatedTake(const FaceRig& face,
-                                                  const DemoCameraRig& cameras,
+StatusOr<Reconstruction> ReconstructSimulatedTake(const FaceRig& face, const DemoCameraRig& cameras,
                                                   const Take& simulated, uint64_t seed) {
   if (simulated.frame_count() == 0) return InvalidArgumentError("the simulated take is empty");
   if (simulated.vertex_count() != face.vertex_count()) {
@@ -171,11 +170,10 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
   // Per-camera reprojection RMS over that camera's board corners (the report's bar chart).
   Json per_camera = Json::array();
   for (size_t c = 0; c < calibration.camera_rms_px.size(); ++c) {
-    per_camera.push_back({{"camera", "cam" + std::to_string(c)},
-                          {"rms_px", calibration.camera_rms_px[c]},
-                          {"corners", c < calibration.camera_corners.size()
-                                          ? calibration.camera_corners[c]
-                                          : 0}});
+    per_camera.push_back(
+        {{"camera", "cam" + std::to_string(c)},
+         {"rms_px", calibration.camera_rms_px[c]},
+         {"corners", c < calibration.camera_corners.size() ? calibration.camera_corners[c] : 0}});
   }
   m["calibration_per_camera"] = per_camera;
   m["skull_origin_rms_mm"] = n_pose ? std::sqrt(sq_t / n_pose) : 0.0;

@@ -163,8 +163,31 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
   }
   FACEDYN_RETURN_IF_ERROR(
       WriteJsonFile(JoinPath(stage_dir, "quality.json"), Json{{"frames", frames}}));
+  // The jaw (skull_from_jaw) against the simulator's, as the hinge angle and the chin point.
+  double sq_jaw_deg = 0, max_jaw_deg = 0, sq_chin = 0;
+  long n_jaw = 0;
+  if (!simulated.skull_from_jaw.empty() && !result.take.skull_from_jaw.empty()) {
+    const JawPoseEstimator estimator(face, ReconstructionOptions().jaw);
+    if (estimator.status().ok() && estimator.has_jaw()) {
+      for (int f = skip; f < simulated.frame_count(); ++f) {
+        const JawPoseDifference d =
+            CompareJawPoses(face.jaw, estimator.reference_point_in_skull(),
+                            result.take.skull_from_jaw[f], simulated.skull_from_jaw[f]);
+        const double deg = std::abs(d.angle_rad) * 180.0 / M_PI;
+        sq_jaw_deg += deg * deg;
+        max_jaw_deg = std::max(max_jaw_deg, deg);
+        sq_chin += d.point_mm * d.point_mm;
+        ++n_jaw;
+      }
+    }
+  }
   const int frame_count = simulated.frame_count();
   Json m;
+  if (n_jaw > 0) {
+    m["jaw_angle_rms_deg"] = std::sqrt(sq_jaw_deg / n_jaw);
+    m["jaw_angle_max_deg"] = max_jaw_deg;
+    m["jaw_chin_point_rms_mm"] = std::sqrt(sq_chin / n_jaw);
+  }
   m["calibration_rms_px"] = calibration.rms_px;
   m["calibration_worst_centre_error_mm"] = worst_centre_mm;
   // Per-camera reprojection RMS over that camera's board corners (the report's bar chart).
@@ -194,10 +217,14 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
       "\nReconstruction of the simulated take from 8 simulated cameras (0.2 px detection noise):\n"
       "  calibration RMS %.3f px, worst camera centre %.3f mm\n"
       "  skull pose error: origin %.3f mm RMS (max %.3f), rotation %.4f deg RMS (max %.4f)\n"
+      "  jaw hinge angle error %s deg RMS\n"
       "  344 skin samples: %.3f mm RMS; dynamic offsets recovered with correlation %s\n"
       "  triangulation %.0f frames/s, dense fit %.1f frames/s -> %s\n",
       calibration.rms_px, worst_centre_mm, m["skull_origin_rms_mm"].get<double>(), max_t,
-      m["skull_rotation_rms_deg"].get<double>(), max_r, m["sample_rms_mm"].get<double>(),
+      m["skull_rotation_rms_deg"].get<double>(), max_r,
+      n_jaw > 0 ? std::to_string(m["jaw_angle_rms_deg"].get<double>()).substr(0, 5).c_str()
+                : "n/a",
+      m["sample_rms_mm"].get<double>(),
       m.contains("dynamic_offset_correlation")
           ? std::to_string(m["dynamic_offset_correlation"].get<double>()).substr(0, 5).c_str()
           : "n/a",

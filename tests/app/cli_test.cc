@@ -115,6 +115,9 @@ TEST(Cli, DemoMetricsAndReport) {
   // Reconstruction: 8 cameras calibrated, each with its reprojection error.
   const auto& reconstruct = metrics["reconstruct"];
   EXPECT_GT(reconstruct["dynamic_offset_correlation"].get<double>(), 0.9);
+  // The jaw from the jaw markers, against the simulator's (reconstruct/jaw_pose.h).
+  ASSERT_TRUE(reconstruct.contains("jaw_angle_rms_deg")) << reconstruct.dump();
+  EXPECT_LT(reconstruct["jaw_angle_rms_deg"].get<double>(), 0.5);
   ASSERT_EQ(reconstruct["calibration_per_camera"].size(), 8u);
   for (const auto& camera : reconstruct["calibration_per_camera"]) {
     EXPECT_GT(camera["rms_px"].get<double>(), 0.0);

@@ -35,42 +35,11 @@ std::string TakeName(const std::string& expression, double hz) {
   return fmt::format("{}@{:g}Hz", expression, hz);
 }
 
-// The vertices "where the face jiggles" (issue 4): those whose mean |true dynamic offset| over
-// frames [skip, F - skip) reaches 20% of the largest vertex's. Without it the forehead and the
-// nose bridge, which hardly move against the skull, dilute every figure.
-std::vector<int> JigglingVertices(const PointCache& true_offsets, int skip) {
-  const int frames = true_offsets.frame_count();
-  Eigen::VectorXd mean_norm = Eigen::VectorXd::Zero(true_offsets.vertex_count);
-  for (int t = skip; t < frames - skip; ++t) {
-    mean_norm += true_offsets.Frame(t).colwise().norm().transpose().cast<double>();
-  }
-  std::vector<int> vertices;
-  const double threshold = 0.2 * mean_norm.maxCoeff();
-  for (int v = 0; v < mean_norm.size(); ++v) {
-    if (mean_norm[v] > 0 && mean_norm[v] >= threshold) vertices.push_back(v);
-  }
-  return vertices;
-}
-
-// Mean |a - b| (mm) over `vertices` and frames [skip, F - skip); both caches in one frame.
-double MeanDistance(const PointCache& a, const PointCache& b, const std::vector<int>& vertices,
-                    int skip) {
-  double sum = 0.0;
-  long count = 0;
-  for (int t = skip; t < a.frame_count() - skip; ++t) {
-    const auto frame_a = a.Frame(t);
-    const auto frame_b = b.Frame(t);
-    for (int v : vertices) sum += (frame_a.col(v) - frame_b.col(v)).norm();
-    count += static_cast<long>(vertices.size());
-  }
-  return count > 0 ? sum / count : 0.0;
-}
-
 // Mean |offset| (mm) over `vertices` and frames [skip, F - skip).
 double MeanNorm(const PointCache& offsets, const std::vector<int>& vertices, int skip) {
   PointCache zero = offsets;
   zero.positions.setZero();
-  return MeanDistance(offsets, zero, vertices, skip);
+  return dynamics::MeanDistanceOverVertices(offsets, zero, vertices, skip);
 }
 
 // The held shape of a take in the skull frame (3 x V): mean over frames [skip, F - skip) of
@@ -272,8 +241,8 @@ Json SynthesisErrors(const Take& synthesised, const Take& truth, const std::vect
                      int skip) {
   const PointCache& truth_offsets = truth.channels.at("dynamic_offset");
   return {{"position_mean_mm",
-           Round4(MeanDistance(synthesised.positions, truth.positions, vertices, skip))},
-          {"offset_mean_mm", Round4(MeanDistance(synthesised.channels.at("dynamic_offset"),
+           Round4(dynamics::MeanDistanceOverVertices(synthesised.positions, truth.positions, vertices, skip))},
+          {"offset_mean_mm", Round4(dynamics::MeanDistanceOverVertices(synthesised.channels.at("dynamic_offset"),
                                                  truth_offsets, vertices, skip))}};
 }
 
@@ -282,7 +251,7 @@ Json NoDynamicsErrors(const Take& quasistatic, const Take& truth, const std::vec
                       int skip) {
   const PointCache& truth_offsets = truth.channels.at("dynamic_offset");
   return {{"position_mean_mm",
-           Round4(MeanDistance(quasistatic.positions, truth.positions, vertices, skip))},
+           Round4(dynamics::MeanDistanceOverVertices(quasistatic.positions, truth.positions, vertices, skip))},
           {"offset_mean_mm", Round4(MeanNorm(truth_offsets, vertices, skip))}};
 }
 
@@ -435,7 +404,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
 
   const PointCache& test_truth = test_simulated.channels.at("quasistatic");
   const std::vector<int> jiggle =
-      JigglingVertices(test_simulated.channels.at("dynamic_offset"), skip);
+      dynamics::JigglingVertices(test_simulated.channels.at("dynamic_offset"), skip);
   const double test_offset_mm =
       MeanNorm(test_simulated.channels.at("dynamic_offset"), jiggle, skip);
   FACEDYN_ASSIGN_OR_RETURN(Take removed,
@@ -448,7 +417,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   Json methods = Json::object();
   auto add_method = [&](const std::string& name, const PointCache& predicted,
                         const dynamics::ErrorStats& face_stats) {
-    const double error_mm = MeanDistance(predicted, test_truth, jiggle, skip);
+    const double error_mm = dynamics::MeanDistanceOverVertices(predicted, test_truth, jiggle, skip);
     methods[name] = {
         {"mean_mm", Round4(face_stats.mean_mm)},
         {"p95_mm", Round4(face_stats.p95_mm)},
@@ -515,7 +484,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
                                         fmt::format("F on {} frequencies", k), nullptr));
         FACEDYN_ASSIGN_OR_RETURN(const Take subset_removed,
                                  dynamics::RemoveDynamics(model, test_reconstructed, face));
-        error_mm = MeanDistance(subset_removed.positions, test_truth, jiggle, skip);
+        error_mm = dynamics::MeanDistanceOverVertices(subset_removed.positions, test_truth, jiggle, skip);
       }
       subsets.push_back(
           {{"train_hz",
@@ -555,11 +524,11 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
       dynamics::SynthesizeDynamics(h_model, removed, test_reconstructed.world_from_skull,
                                    test_reconstructed.info.motion, face));
   const double residual_mm =
-      MeanDistance(resynthesised.positions, test_reconstructed.positions, jiggle, skip);
+      dynamics::MeanDistanceOverVertices(resynthesised.positions, test_reconstructed.positions, jiggle, skip);
   const double removed_only_mm =
-      MeanDistance(removed.positions, test_reconstructed.positions, jiggle, skip);
+      dynamics::MeanDistanceOverVertices(removed.positions, test_reconstructed.positions, jiggle, skip);
   const double vs_simulated_mm =
-      MeanDistance(resynthesised.positions, test_simulated.positions, jiggle, skip);
+      dynamics::MeanDistanceOverVertices(resynthesised.positions, test_simulated.positions, jiggle, skip);
   Json synthesis;
   synthesis["resynthesis"] = {
       {"take", test_name + " reconstructed"},
@@ -589,7 +558,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
                            dynamics::SynthesizeDynamics(h_model, walk_quasistatic,
                                                         walk_truth.world_from_skull, "walk", face));
   const std::vector<int> walk_jiggle =
-      JigglingVertices(walk_truth.channels.at("dynamic_offset"), skip);
+      dynamics::JigglingVertices(walk_truth.channels.at("dynamic_offset"), skip);
   const double walk_offset_mm =
       MeanNorm(walk_truth.channels.at("dynamic_offset"), walk_jiggle, skip);
   Json walk_methods = {
@@ -650,7 +619,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   FACEDYN_ASSIGN_OR_RETURN(Take naive,
                            dynamics::NaiveDeltaTransfer(walk_truth, face, b_quasistatic, face_b));
   const std::vector<int> b_jiggle =
-      JigglingVertices(retarget_truth.channels.at("dynamic_offset"), skip);
+      dynamics::JigglingVertices(retarget_truth.channels.at("dynamic_offset"), skip);
   const double b_offset_mm = MeanNorm(retarget_truth.channels.at("dynamic_offset"), b_jiggle, skip);
   Json retarget_methods = {
       {"H_B_retarget", SynthesisErrors(retargeted, retarget_truth, b_jiggle, skip)},

@@ -30,40 +30,6 @@ double SecondsSince(Clock::time_point start) {
 
 double Round4(double x) { return std::round(x * 1e4) / 1e4; }
 
-// Vertices that jiggle: mean |true dynamic offset| over the evaluated frames at least 20% of
-// the largest vertex's. "Where the face jiggles" of issue 4; the forehead and nose bridge,
-// which hardly move relative to the skull, would otherwise dilute every ratio.
-std::vector<int> JiggleMask(const PointCache& true_offsets, int skip) {
-  const int v_count = true_offsets.vertex_count;
-  Eigen::VectorXd mean = Eigen::VectorXd::Zero(v_count);
-  const int frames = true_offsets.frame_count();
-  for (int t = skip; t < frames - skip; ++t) {
-    mean += true_offsets.Frame(t).colwise().norm().transpose().cast<double>();
-  }
-  const double threshold = 0.2 * mean.maxCoeff();
-  std::vector<int> mask;
-  for (int v = 0; v < v_count; ++v) {
-    if (mean[v] >= threshold && mean[v] > 0) mask.push_back(v);
-  }
-  return mask;
-}
-
-// Mean |a - b| over the mask and evaluated frames (mm).
-double MaskedMeanDistance(const PointCache& a, const PointCache& b, const std::vector<int>& mask,
-                          int skip) {
-  double sum = 0;
-  long count = 0;
-  for (int t = skip; t < a.frame_count() - skip; ++t) {
-    const auto fa = a.Frame(t);
-    const auto fb = b.Frame(t);
-    for (int v : mask) {
-      sum += (fa.col(v) - fb.col(v)).norm();
-      ++count;
-    }
-  }
-  return count > 0 ? sum / count : 0.0;
-}
-
 Json StatsJson(const dynamics::ErrorStats& stats) {
   return {{"mean_mm", Round4(stats.mean_mm)},
           {"p95_mm", Round4(stats.p95_mm)},
@@ -207,8 +173,8 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
   std::vector<Take> removed_by_best;  // F_exact's removal of each test take (for synthesis)
   for (const SimTake& t : test) {
     const PointCache& truth = t.take.channels.at("quasistatic");
-    const std::vector<int> mask = JiggleMask(t.take.channels.at("dynamic_offset"), skip);
-    const double offset_mm = MaskedMeanDistance(t.take.positions, truth, mask, skip);
+    const std::vector<int> mask = dynamics::JigglingVertices(t.take.channels.at("dynamic_offset"), skip);
+    const double offset_mm = dynamics::MeanDistanceOverVertices(t.take.positions, truth, mask, skip);
     Json entry;
     entry["take"] = t.name;
     entry["jiggle_vertices"] = mask.size();
@@ -216,7 +182,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     Json methods = Json::object();
     auto add_method = [&](const std::string& name, const PointCache& predicted,
                           const dynamics::ErrorStats& face) {
-      const double error_mm = MaskedMeanDistance(predicted, truth, mask, skip);
+      const double error_mm = dynamics::MeanDistanceOverVertices(predicted, truth, mask, skip);
       methods[name] = StatsJson(face);
       methods[name]["jiggle_mean_mm"] = Round4(error_mm);
       methods[name]["relative_to_offset"] = Round4(offset_mm > 0 ? error_mm / offset_mm : 0.0);
@@ -279,7 +245,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
       auto floor_of = [&](const dynamics::SamplePropagation& used) {
         PointCache offsets, positions;
         dynamics::ComposeOffsets(t.take, used, exact_samples, -1.0f, &offsets, &positions);
-        return Round4(MaskedMeanDistance(positions, truth, mask, skip) / offset_mm);
+        return Round4(dynamics::MeanDistanceOverVertices(positions, truth, mask, skip) / offset_mm);
       };
       Json diagnostics;
       diagnostics["exact_samples_laplacian_relative"] = floor_of(propagation);
@@ -339,8 +305,8 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
   if (options.frequency_subsets && options.train_hz.size() > 1) {
     const SimTake& probe = test.front();
     const PointCache& truth = probe.take.channels.at("quasistatic");
-    const std::vector<int> mask = JiggleMask(probe.take.channels.at("dynamic_offset"), skip);
-    const double offset_mm = MaskedMeanDistance(probe.take.positions, truth, mask, skip);
+    const std::vector<int> mask = dynamics::JigglingVertices(probe.take.channels.at("dynamic_offset"), skip);
+    const double offset_mm = dynamics::MeanDistanceOverVertices(probe.take.positions, truth, mask, skip);
     Json subsets = Json::array();
     const size_t per_frequency = options.expressions.size();
     for (size_t k = 1; k <= options.train_hz.size(); ++k) {
@@ -366,7 +332,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                                  dynamics::TrainRemoval(subset, subset_options));
         FACEDYN_ASSIGN_OR_RETURN(const Take removed,
                                  dynamics::RemoveDynamics(model, probe.take, rig, &propagation));
-        error_mm = MaskedMeanDistance(removed.positions, truth, mask, skip);
+        error_mm = dynamics::MeanDistanceOverVertices(removed.positions, truth, mask, skip);
       }
       subsets.push_back({{"train_hz", std::vector<double>(options.train_hz.begin(),
                                                           options.train_hz.begin() + k)},
@@ -433,14 +399,14 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
           const Take resynthesised,
           dynamics::SynthesizeDynamics(synthesis, removed_by_best[k], original.world_from_skull,
                                        original.info.motion, rig, &propagation));
-      const std::vector<int> mask = JiggleMask(original.channels.at("dynamic_offset"), skip);
+      const std::vector<int> mask = dynamics::JigglingVertices(original.channels.at("dynamic_offset"), skip);
       const double offset_mm =
-          MaskedMeanDistance(original.positions, original.channels.at("quasistatic"), mask, skip);
+          dynamics::MeanDistanceOverVertices(original.positions, original.channels.at("quasistatic"), mask, skip);
       const double residual_mm =
-          MaskedMeanDistance(resynthesised.positions, original.positions, mask, skip);
+          dynamics::MeanDistanceOverVertices(resynthesised.positions, original.positions, mask, skip);
       // Without synthesis, the residual of the removed take is the dynamics themselves.
       const double removed_only_mm =
-          MaskedMeanDistance(removed_by_best[k].positions, original.positions, mask, skip);
+          dynamics::MeanDistanceOverVertices(removed_by_best[k].positions, original.positions, mask, skip);
       if (artifacts != nullptr && k == 0) artifacts->resynthesised = resynthesised;
       synthesis_json.push_back(
           {{"take", test[k].name},

@@ -226,4 +226,31 @@ std::string EvaluationToText(const Evaluation& evaluation) {
   return text;
 }
 
+std::vector<int> JigglingVertices(const PointCache& true_offsets, int skip) {
+  Eigen::VectorXd mean_norm = Eigen::VectorXd::Zero(true_offsets.vertex_count);
+  for (int t = skip; t < true_offsets.frame_count() - skip; ++t) {
+    mean_norm += true_offsets.Frame(t).colwise().norm().transpose().cast<double>();
+  }
+  std::vector<int> vertices;
+  if (mean_norm.size() == 0) return vertices;
+  const double threshold = 0.2 * mean_norm.maxCoeff();
+  for (int v = 0; v < mean_norm.size(); ++v) {
+    if (mean_norm[v] > 0 && mean_norm[v] >= threshold) vertices.push_back(v);
+  }
+  return vertices;
+}
+
+double MeanDistanceOverVertices(const PointCache& a, const PointCache& b,
+                                const std::vector<int>& vertices, int skip) {
+  double sum = 0.0;
+  long count = 0;
+  for (int t = skip; t < a.frame_count() - skip; ++t) {
+    const auto frame_a = a.Frame(t);
+    const auto frame_b = b.Frame(t);
+    for (int v : vertices) sum += (frame_a.col(v) - frame_b.col(v)).norm();
+    count += static_cast<long>(vertices.size());
+  }
+  return count > 0 ? sum / count : 0.0;
+}
+
 }  // namespace facedyn::dynamics

@@ -69,6 +69,15 @@ struct Evaluation {
 StatusOr<Evaluation> Evaluate(const Take& predicted, const Take& truth, const Take* input,
                               const FaceRig* rig, const EvaluateOptions& options);
 
+// The vertices "where the face jiggles" (issue 4): those whose mean |true dynamic offset| over
+// frames [skip, F - skip) reaches 20% of the largest vertex's. Without it the forehead and the
+// nose bridge, which hardly move against the skull, dilute every relative figure.
+std::vector<int> JigglingVertices(const PointCache& true_offsets, int skip);
+
+// Mean |a - b| (mm) over `vertices` and frames [skip, F - skip); both caches in one frame.
+double MeanDistanceOverVertices(const PointCache& a, const PointCache& b,
+                                const std::vector<int>& vertices, int skip);
+
 Json EvaluationToJson(const Evaluation& evaluation);
 std::string EvaluationToText(const Evaluation& evaluation);
 

@@ -112,33 +112,39 @@ Status PropagationLearnOptions::Check() const {
   return Status::Ok();
 }
 
-PropagationLearner::PropagationLearner(const SamplePropagation& prior,
+PropagationLearner::PropagationLearner(SamplePropagation prior,
                                        std::vector<SurfacePoint> samples,
                                        PropagationLearnOptions options)
-    : prior_(&prior), samples_(std::move(samples)), options_(options) {
-  FACEDYN_CHECK(static_cast<int>(samples_.size()) == prior.sample_count(),
+    : prior_(std::move(prior)), samples_(std::move(samples)), options_(options) {
+  FACEDYN_CHECK(static_cast<int>(samples_.size()) == prior_.sample_count(),
                 "PropagationLearner: sample count differs from the prior's");
-  sample_gram_ = Eigen::MatrixXd::Zero(prior.sample_count(), prior.sample_count());
-  vertex_sample_ = Eigen::MatrixXd::Zero(prior.vertex_count(), prior.sample_count());
+  sample_gram_ = Eigen::MatrixXd::Zero(prior_.sample_count(), prior_.sample_count());
+  vertex_sample_ = Eigen::MatrixXd::Zero(prior_.vertex_count(), prior_.sample_count());
+}
+
+StatusOr<PropagationLearner> PropagationLearner::ForRig(const FaceRig& rig,
+                                                        PropagationLearnOptions options) {
+  FACEDYN_ASSIGN_OR_RETURN(SamplePropagation prior, SamplePropagation::Build(rig));
+  return PropagationLearner(std::move(prior), rig.skin_samples, options);
 }
 
 Status PropagationLearner::Add(const PointCache& vertex_offsets, int first_frame, int last_frame) {
-  if (vertex_offsets.vertex_count != prior_->vertex_count()) {
+  if (vertex_offsets.vertex_count != prior_.vertex_count()) {
     return InvalidArgumentError("propagation: offsets have " +
                                 std::to_string(vertex_offsets.vertex_count) +
-                                " vertices, the rig " + std::to_string(prior_->vertex_count()));
+                                " vertices, the rig " + std::to_string(prior_.vertex_count()));
   }
   if (first_frame < 0 || last_frame > vertex_offsets.frame_count() || first_frame > last_frame) {
     return InvalidArgumentError("propagation: frame range [" + std::to_string(first_frame) + ", " +
                                 std::to_string(last_frame) + ") outside the take's " +
                                 std::to_string(vertex_offsets.frame_count()) + " frames");
   }
-  const int sample_count = prior_->sample_count();
+  const int sample_count = prior_.sample_count();
   const int frames = last_frame - first_frame;
   if (frames == 0) return Status::Ok();
   // Columns are (frame, component): x, y and z share W.
   Eigen::MatrixXd sample_columns(sample_count, 3L * frames);
-  Eigen::MatrixXd vertex_columns(prior_->vertex_count(), 3L * frames);
+  Eigen::MatrixXd vertex_columns(prior_.vertex_count(), 3L * frames);
   for (int t = first_frame; t < last_frame; ++t) {
     const auto frame = vertex_offsets.Frame(t);
     const Eigen::Index column = 3L * (t - first_frame);
@@ -157,11 +163,11 @@ Status PropagationLearner::Add(const PointCache& vertex_offsets, int first_frame
 StatusOr<SamplePropagation> PropagationLearner::Fit() const {
   FACEDYN_RETURN_IF_ERROR(options_.Check());
   if (frames_ == 0) return FailedPreconditionError("propagation: no training frames to learn from");
-  const int sample_count = prior_->sample_count();
+  const int sample_count = prior_.sample_count();
   Eigen::MatrixXd gram = sample_gram_.selfadjointView<Eigen::Lower>();
   const double mu = options_.prior_weight * std::max(gram.trace() / sample_count, 1e-12);
   gram.diagonal().array() += mu;
-  const Eigen::MatrixXd rhs = vertex_sample_ + mu * prior_->weights().cast<double>();
+  const Eigen::MatrixXd rhs = vertex_sample_ + mu * prior_.weights().cast<double>();
   // W (G + mu I) = rhs, with G + mu I symmetric positive definite: solve for W^T.
   const Eigen::LLT<Eigen::MatrixXd> llt(gram);
   if (llt.info() != Eigen::Success) return InternalError("propagation: learned system not SPD");

@@ -100,8 +100,11 @@ class PropagationLearner {
  public:
   // `prior` is W0 (usually SamplePropagation::Build of the rig); `samples` the rig's skin
   // samples (the same count as prior's columns).
-  PropagationLearner(const SamplePropagation& prior, std::vector<SurfacePoint> samples,
+  PropagationLearner(SamplePropagation prior, std::vector<SurfacePoint> samples,
                      PropagationLearnOptions options = {});
+  // With the rig's Laplacian (SamplePropagation::Build) as W0 and its skin samples.
+  static StatusOr<PropagationLearner> ForRig(const FaceRig& rig,
+                                             PropagationLearnOptions options = {});
 
   // Adds frames [first_frame, last_frame) of per-vertex offsets (skull frame, mm). Errors: a
   // cache with another vertex count, a frame range outside it.
@@ -112,7 +115,7 @@ class PropagationLearner {
   StatusOr<SamplePropagation> Fit() const;
 
  private:
-  const SamplePropagation* prior_;
+  SamplePropagation prior_;
   std::vector<SurfacePoint> samples_;
   PropagationLearnOptions options_;
   Eigen::MatrixXd sample_gram_;    // G = sum dx dx^T (S x S, lower triangle accumulated)

@@ -184,11 +184,9 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
   RemovalDataset data(config.skull_descriptor_size(), config.features.SkinDescriptorSize(),
                       config.sample_count, max_frames);
   const int window = config.features.window_frames();
-  std::optional<SamplePropagation> prior;
   std::optional<PropagationLearner> learner;
   if (options.learn_propagation) {
-    FACEDYN_ASSIGN_OR_RETURN(prior, SamplePropagation::Build(*takes[0].rig));
-    learner.emplace(*prior, takes[0].rig->skin_samples, options.propagation);
+    FACEDYN_ASSIGN_OR_RETURN(learner, PropagationLearner::ForRig(*takes[0].rig, options.propagation));
   }
   std::vector<std::pair<int, int>> frames;  // (take, frame) usable for training
   for (size_t k = 0; k < takes.size(); ++k) {

@@ -188,11 +188,9 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   }
   SynthesisDataset data(max_frames);
   const int window = config.features.window_frames();
-  std::optional<SamplePropagation> prior;
   std::optional<PropagationLearner> learner;
   if (options.learn_propagation) {
-    FACEDYN_ASSIGN_OR_RETURN(prior, SamplePropagation::Build(*decomposed[0].rig));
-    learner.emplace(*prior, decomposed[0].rig->skin_samples, options.propagation);
+    FACEDYN_ASSIGN_OR_RETURN(learner, PropagationLearner::ForRig(*decomposed[0].rig, options.propagation));
   }
   std::vector<long> rows;
   for (size_t k = 0; k < decomposed.size(); ++k) {

@@ -146,5 +146,22 @@ TEST(Evaluate, MismatchedTakesAndMissingChannels) {
   EXPECT_THAT(fps.status().message(), HasSubstr("fps differs"));
 }
 
+TEST(JigglingVertices, KeepsVerticesAboveAFifthOfTheLargestAndAveragesOverThem) {
+  PointCache offsets;
+  offsets.vertex_count = 4;
+  offsets.positions = Eigen::MatrixXf::Zero(12, 5);
+  for (int t = 0; t < 5; ++t) {
+    offsets.Frame(t).col(0) << 1.0f, 0, 0;   // the largest
+    offsets.Frame(t).col(1) << 0, 0.5f, 0;   // half of it: kept
+    offsets.Frame(t).col(2) << 0, 0, 0.1f;   // a tenth: left out
+  }                                          // vertex 3 never moves: left out
+  const std::vector<int> vertices = JigglingVertices(offsets, 1);
+  EXPECT_EQ(vertices, (std::vector<int>{0, 1}));
+  PointCache zero = offsets;
+  zero.positions.setZero();
+  EXPECT_NEAR(MeanDistanceOverVertices(offsets, zero, vertices, 1), 0.75, 1e-6);
+  EXPECT_EQ(MeanDistanceOverVertices(offsets, zero, {}, 1), 0.0);
+}
+
 }  // namespace
 }  // namespace facedyn::dynamics

@@ -1,5 +1,6 @@
 #include "dynamics/mlp.h"
 
+#include <ATen/CPUGeneratorImpl.h>
 #include <torch/torch.h>
 
 #include <algorithm>
@@ -285,6 +286,8 @@ Status MlpTrainOptions::Check() const {
   if (!(final_learning_rate_fraction > 0 && final_learning_rate_fraction <= 1)) {
     return InvalidArgumentError("final_learning_rate_fraction must be in (0, 1]");
   }
+  if (!(weight_decay >= 0)) return InvalidArgumentError("weight_decay must be >= 0");
+  if (!(input_noise_std >= 0)) return InvalidArgumentError("input_noise_std must be >= 0");
   if (num_threads < 0) return InvalidArgumentError("num_threads must be >= 0");
   return Status::Ok();
 }
@@ -365,7 +368,20 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
 
   Net& net = MlpTrainer::NetOf(*model);
   net->train();
-  torch::optim::Adam optimizer(net->parameters(), torch::optim::AdamOptions(options.learning_rate));
+  // Plain Adam without weight decay (the paper's, and bitwise what facedyn always trained with);
+  // AdamW with it (Adam's own weight_decay adds an L2 gradient that the adaptive step then
+  // divides by the gradient scale, so the weights with the largest gradients decay least).
+  std::unique_ptr<torch::optim::Optimizer> optimizer;
+  if (options.weight_decay > 0) {
+    optimizer = std::make_unique<torch::optim::AdamW>(
+        net->parameters(),
+        torch::optim::AdamWOptions(options.learning_rate).weight_decay(options.weight_decay));
+  } else {
+    optimizer = std::make_unique<torch::optim::Adam>(
+        net->parameters(), torch::optim::AdamOptions(options.learning_rate));
+  }
+  // Its own generator, so the noise does not depend on what else drew from LibTorch's global one.
+  at::Generator noise_generator = at::detail::createCPUGenerator(options.seed);
   MlpTrainSummary local;
   local.training_rows = static_cast<long>(train_rows.size());
   local.validation_rows = static_cast<long>(validation_rows.size());
@@ -380,20 +396,23 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
         options.learning_rate *
         std::pow(options.final_learning_rate_fraction,
                  options.epochs > 1 ? static_cast<double>(epoch) / (options.epochs - 1) : 0.0);
-    for (auto& group : optimizer.param_groups()) {
-      static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
-    }
+    for (auto& group : optimizer->param_groups()) group.options().set_lr(lr);
     std::shuffle(order.begin(), order.end(), rng);
     double loss_sum = 0.0;
     for (size_t begin = 0; begin < order.size(); begin += static_cast<size_t>(batch)) {
       const long n = static_cast<long>(std::min(order.size() - begin, static_cast<size_t>(batch)));
       data.Gather(order.data() + begin, n, &inputs, &targets);
       normalise(&inputs, &targets);
-      optimizer.zero_grad();
-      const torch::Tensor loss = torch::mse_loss(net->ForwardNormalised(AsRowMajorTensor(inputs)),
-                                                 AsRowMajorTensor(targets));
+      optimizer->zero_grad();
+      torch::Tensor batch_inputs = AsRowMajorTensor(inputs);
+      if (options.input_noise_std > 0) {
+        batch_inputs = batch_inputs + options.input_noise_std *
+                                          torch::randn(batch_inputs.sizes(), noise_generator);
+      }
+      const torch::Tensor loss =
+          torch::mse_loss(net->ForwardNormalised(batch_inputs), AsRowMajorTensor(targets));
       loss.backward();
-      optimizer.step();
+      optimizer->step();
       loss_sum += loss.item<double>() * static_cast<double>(n);
     }
     local.train_loss.push_back(loss_sum / static_cast<double>(order.size()));

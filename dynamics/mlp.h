@@ -66,8 +66,8 @@ class Mlp {
   // DataLoss for a truncated or foreign file, a kind other than `expected_kind`, or tensors that
   // disagree with the stored shape (attachments included); the message starts with the path.
   // `attachments` may be null (they are then not read).
-  static StatusOr<Mlp> Load(const std::string& path, const std::string& expected_kind,
-                            Json* config, MlpAttachments* attachments = nullptr);
+  static StatusOr<Mlp> Load(const std::string& path, const std::string& expected_kind, Json* config,
+                            MlpAttachments* attachments = nullptr);
 
   bool valid() const { return impl_ != nullptr; }
   const MlpShape& shape() const;
@@ -110,12 +110,21 @@ struct MlpTrainOptions {
   // Exponential decay of the learning rate to this fraction of it at the last epoch
   // (lr_e = lr * fraction^(e / (epochs - 1))); 1 keeps it constant, as the paper states.
   double final_learning_rate_fraction = 1.0;
-  uint64_t seed = 1;    // initialisation and shuffling
+  // Decoupled weight decay (AdamW, Loshchilov & Hutter 2019): every step shrinks each weight
+  // and bias by learning_rate * weight_decay of itself, apart from the gradient step. A
+  // regulariser for generalising beyond the training conditions (e.g. F at an unseen platform
+  // frequency); 0, the default, trains with plain Adam as the paper does.
+  double weight_decay = 0.0;
+  // Standard deviation of Gaussian noise added to the normalised inputs of every training batch
+  // (not to validation rows): smooths the fitted function around the training features. 0, the
+  // default, adds none.
+  double input_noise_std = 0.0;
+  uint64_t seed = 1;    // initialisation, shuffling and input noise
   int num_threads = 0;  // LibTorch intra-op threads; 0 keeps the current setting
   bool show_progress = true;
   std::string progress_label = "train";
   // epochs >= 1, batch_size >= 1, learning_rate > 0, final_learning_rate_fraction in (0, 1],
-  // num_threads >= 0. Names the field.
+  // weight_decay >= 0, input_noise_std >= 0, num_threads >= 0. Names the field.
   Status Check() const;
 };
 

@@ -109,6 +109,73 @@ TEST(TrainMlp, DecayingLearningRateIsDeterministicAndDiffersFromConstant) {
   EXPECT_NE(train(1.0), decayed);
 }
 
+TEST(MlpTrainOptions, RegularisersDefaultToNoneAndAreChecked) {
+  MlpTrainOptions options;
+  EXPECT_EQ(options.weight_decay, 0.0);
+  EXPECT_EQ(options.input_noise_std, 0.0);
+  options.weight_decay = -1e-3;
+  EXPECT_THAT(options.Check().message(), HasSubstr("weight_decay"));
+  options = MlpTrainOptions();
+  options.input_noise_std = -0.1;
+  EXPECT_THAT(options.Check().message(), HasSubstr("input_noise_std"));
+}
+
+// Sum of squares of the weights and biases (FlatParameters lists them before the buffers).
+double SquaredParameterNorm(const Mlp& model, const MlpShape& shape) {
+  const std::vector<float> flat = model.FlatParameters();
+  const size_t buffers = 2 * shape.input_size + 2 * shape.output_size;
+  double sum = 0.0;
+  for (size_t k = 0; k + buffers < flat.size(); ++k) sum += double(flat[k]) * flat[k];
+  return sum;
+}
+
+TEST(TrainMlp, WeightDecayShrinksTheWeightsAndZeroIsPlainAdamBitwise) {
+  const LinearDataset data(500);
+  std::vector<long> rows(500);
+  for (long r = 0; r < 500; ++r) rows[r] = r;
+  auto train = [&](const MlpTrainOptions& options) {
+    Mlp model = Mlp::Create(SmallShape(), 9).value();
+    EXPECT_TRUE(TrainMlp(data, rows, {}, options, &model, nullptr).ok());
+    return model;
+  };
+  MlpTrainOptions options;
+  options.epochs = 20;
+  options.batch_size = 50;
+  options.show_progress = false;
+  const Mlp plain = train(options);
+  // Explicit zeros take the default path: the same parameters to the bit.
+  MlpTrainOptions zeros = options;
+  zeros.weight_decay = 0.0;
+  zeros.input_noise_std = 0.0;
+  EXPECT_EQ(train(zeros).FlatParameters(), plain.FlatParameters());
+  // A strong decay (lr * decay * steps = 1e-3 * 2 * 200 = 0.4) pulls the weights towards zero.
+  MlpTrainOptions decayed = options;
+  decayed.weight_decay = 2.0;
+  const Mlp shrunk = train(decayed);
+  EXPECT_LT(SquaredParameterNorm(shrunk, SmallShape()),
+            0.9 * SquaredParameterNorm(plain, SmallShape()));
+  EXPECT_EQ(train(decayed).FlatParameters(), shrunk.FlatParameters());  // deterministic
+}
+
+TEST(TrainMlp, InputNoiseIsDeterministicAndChangesTheFit) {
+  const LinearDataset data(500);
+  std::vector<long> rows(500);
+  for (long r = 0; r < 500; ++r) rows[r] = r;
+  MlpTrainOptions options;
+  options.epochs = 5;
+  options.batch_size = 50;
+  options.show_progress = false;
+  auto train = [&](double noise) {
+    Mlp model = Mlp::Create(SmallShape(), 9).value();
+    options.input_noise_std = noise;
+    EXPECT_TRUE(TrainMlp(data, rows, {}, options, &model, nullptr).ok());
+    return model.FlatParameters();
+  };
+  const std::vector<float> noisy = train(0.1);
+  EXPECT_EQ(train(0.1), noisy);
+  EXPECT_NE(train(0.0), noisy);
+}
+
 TEST(TrainMlp, RefusesMismatchedSizesAndNoRows) {
   const LinearDataset data(10);
   MlpShape shape = SmallShape();

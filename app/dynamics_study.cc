@@ -42,11 +42,12 @@ struct SimTake {
 };
 
 StatusOr<Take> Simulate(const FaceRig& rig, const std::string& expression, double hz,
-                        const DynamicsStudyOptions& options, uint64_t seed) {
+                        double amplitude_mm, const DynamicsStudyOptions& options, uint64_t seed) {
   sim::PerformanceOptions perform;
   perform.expression = expression;
   perform.motion.kind = sim::MotionKind::kPlatform;
   perform.motion.platform_hz = hz;
+  perform.motion.amplitude_mm = amplitude_mm;
   perform.motion.seed = seed;
   perform.seed = seed;
   perform.seconds = options.seconds;
@@ -64,6 +65,15 @@ Status DynamicsStudyOptions::Check() const {
       return InvalidArgumentError("train_hz: " + std::to_string(hz) + " not in 0.5..30");
   }
   if (!hz_ok(test_hz)) return InvalidArgumentError("test_hz must be in 0.5..30");
+  auto amplitude_ok = [](double mm) { return mm > 0 && mm <= 50; };
+  if (train_amplitudes_mm.empty())
+    return InvalidArgumentError("train_amplitudes_mm: at least one amplitude");
+  for (double mm : train_amplitudes_mm) {
+    if (!amplitude_ok(mm))
+      return InvalidArgumentError("train_amplitudes_mm: " + std::to_string(mm) + " not in (0, 50]");
+  }
+  if (!amplitude_ok(test_amplitude_mm))
+    return InvalidArgumentError("test_amplitude_mm must be in (0, 50]");
   if (expressions.empty()) return InvalidArgumentError("expressions: at least one");
   if (!(seconds >= 0.5)) return InvalidArgumentError("seconds must be >= 0.5");
   if (vertices < 4000 || vertices > 10000)
@@ -74,6 +84,11 @@ Status DynamicsStudyOptions::Check() const {
     return InvalidArgumentError("learning_rate must be in (0, 1)");
   if (removal_batch < 1 || synthesis_batch < 1)
     return InvalidArgumentError("batch sizes must be >= 1");
+  if (removal_hidden_units < 1) return InvalidArgumentError("removal_hidden_units must be >= 1");
+  if (!(removal_weight_decay >= 0))
+    return InvalidArgumentError("removal_weight_decay must be >= 0");
+  if (!(removal_input_noise_std >= 0))
+    return InvalidArgumentError("removal_input_noise_std must be >= 0");
   return Status::Ok();
 }
 
@@ -90,32 +105,68 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
   // --- data: held expressions on the platform; the test frequency is never trained on. ---
   const auto simulate_start = Clock::now();
   std::vector<SimTake> train, test;
-  uint64_t seed = options.seed;
-  for (double hz : options.train_hz) {
-    for (const std::string& expression : options.expressions) {
-      spdlog::info("simulating training take {} at {} Hz", expression, hz);
-      FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, expression, hz, options, ++seed));
-      train.push_back({expression + "@" + fmt::format("{:g}Hz", hz), std::move(take)});
+  // Seeds: the first amplitude's training takes, then the test takes, are numbered exactly as in
+  // a one-amplitude study (so its figures do not move when amplitudes are added); the takes at
+  // further amplitudes count on from kExtraSeeds apart, clear of them.
+  constexpr uint64_t kExtraSeeds = 100000;
+  const uint64_t seeds_per_frequency = options.expressions.size() + (options.train_speech ? 1 : 0);
+  auto train_seed = [&](size_t hz_index, size_t amplitude_index, size_t take_index) {
+    if (amplitude_index == 0) {
+      // Held takes frequency-major, then one speech take per frequency (take_index ==
+      // expressions.size()), as the one-amplitude study numbered them.
+      return take_index < options.expressions.size()
+                 ? options.seed + 1 + hz_index * options.expressions.size() + take_index
+                 : options.seed + 1 + options.train_hz.size() * options.expressions.size() +
+                       hz_index;
+    }
+    return options.seed + kExtraSeeds * amplitude_index + 1 + hz_index * seeds_per_frequency +
+           take_index;
+  };
+  auto name_of = [](const std::string& expression, double hz, double amplitude_mm,
+                    bool show_amplitude) {
+    return show_amplitude ? fmt::format("{}@{:g}Hz/{:g}mm", expression, hz, amplitude_mm)
+                          : fmt::format("{}@{:g}Hz", expression, hz);
+  };
+  const bool several_amplitudes = options.train_amplitudes_mm.size() > 1;
+  for (size_t h = 0; h < options.train_hz.size(); ++h) {
+    const double hz = options.train_hz[h];
+    for (size_t a = 0; a < options.train_amplitudes_mm.size(); ++a) {
+      const double amplitude_mm = options.train_amplitudes_mm[a];
+      for (size_t e = 0; e < options.expressions.size(); ++e) {
+        const std::string& expression = options.expressions[e];
+        spdlog::info("simulating training take {} at {} Hz, {} mm", expression, hz, amplitude_mm);
+        FACEDYN_ASSIGN_OR_RETURN(
+            Take take, Simulate(rig, expression, hz, amplitude_mm, options, train_seed(h, a, e)));
+        train.push_back(
+            {name_of(expression, hz, amplitude_mm, several_amplitudes), std::move(take)});
+      }
     }
   }
   std::vector<SimTake> train_speech;
   if (options.train_speech) {
-    for (double hz : options.train_hz) {
-      spdlog::info("simulating training take speech at {} Hz", hz);
-      FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, "speech", hz, options, ++seed));
-      train_speech.push_back({"speech@" + fmt::format("{:g}Hz", hz), std::move(take)});
+    for (size_t h = 0; h < options.train_hz.size(); ++h) {
+      const double hz = options.train_hz[h];
+      for (size_t a = 0; a < options.train_amplitudes_mm.size(); ++a) {
+        const double amplitude_mm = options.train_amplitudes_mm[a];
+        spdlog::info("simulating training take speech at {} Hz, {} mm", hz, amplitude_mm);
+        FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, "speech", hz, amplitude_mm, options,
+                                                     train_seed(h, a, options.expressions.size())));
+        train_speech.push_back(
+            {name_of("speech", hz, amplitude_mm, several_amplitudes), std::move(take)});
+      }
     }
   }
+  uint64_t seed = options.seed + options.train_hz.size() * seeds_per_frequency;
   for (const std::string& expression : options.expressions) {
     spdlog::info("simulating test take {} at {} Hz", expression, options.test_hz);
-    FACEDYN_ASSIGN_OR_RETURN(Take take,
-                             Simulate(rig, expression, options.test_hz, options, ++seed));
+    FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, expression, options.test_hz,
+                                                 options.test_amplitude_mm, options, ++seed));
     test.push_back({expression + "@" + fmt::format("{:g}Hz", options.test_hz), std::move(take)});
   }
   if (options.speech_hz > 0) {
     spdlog::info("simulating test take speech at {} Hz", options.speech_hz);
-    FACEDYN_ASSIGN_OR_RETURN(Take take,
-                             Simulate(rig, "speech", options.speech_hz, options, ++seed));
+    FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, "speech", options.speech_hz,
+                                                 options.test_amplitude_mm, options, ++seed));
     test.push_back({"speech@" + fmt::format("{:g}Hz", options.speech_hz), std::move(take)});
   }
   const double simulate_s = SecondsSince(simulate_start);
@@ -138,6 +189,9 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     train_options.train.epochs = options.removal_epochs;
     train_options.train.batch_size = options.removal_batch;
     train_options.train.learning_rate = options.learning_rate;
+    train_options.train.weight_decay = options.removal_weight_decay;
+    train_options.train.input_noise_std = options.removal_input_noise_std;
+    train_options.hidden_units = options.removal_hidden_units;
     train_options.targets = targets;
     train_options.window_s = options.window_s;
     train_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
@@ -161,9 +215,8 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                                           dynamics::RemovalTargets::kMovingAverage, held_training));
   }
   if (options.platform_targets) {
-    FACEDYN_RETURN_IF_ERROR(train_removal("F_platform_targets",
-                                          dynamics::RemovalTargets::kPlatformSynchronous,
-                                          held_training));
+    FACEDYN_RETURN_IF_ERROR(train_removal(
+        "F_platform_targets", dynamics::RemovalTargets::kPlatformSynchronous, held_training));
   }
 
   // --- removal evaluation against the exact quasistatic ---
@@ -173,8 +226,10 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
   std::vector<Take> removed_by_best;  // F_exact's removal of each test take (for synthesis)
   for (const SimTake& t : test) {
     const PointCache& truth = t.take.channels.at("quasistatic");
-    const std::vector<int> mask = dynamics::JigglingVertices(t.take.channels.at("dynamic_offset"), skip);
-    const double offset_mm = dynamics::MeanDistanceOverVertices(t.take.positions, truth, mask, skip);
+    const std::vector<int> mask =
+        dynamics::JigglingVertices(t.take.channels.at("dynamic_offset"), skip);
+    const double offset_mm =
+        dynamics::MeanDistanceOverVertices(t.take.positions, truth, mask, skip);
     Json entry;
     entry["take"] = t.name;
     entry["jiggle_vertices"] = mask.size();
@@ -235,7 +290,8 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
       const dynamics::RemovalModel& model = models.front().model;
       const PointCache& exact = t.take.channels.at("dynamic_offset");
       const int sample_count = static_cast<int>(rig.skin_samples.size());
-      Eigen::MatrixXf exact_samples(3, static_cast<Eigen::Index>(exact.frame_count()) * sample_count);
+      Eigen::MatrixXf exact_samples(3,
+                                    static_cast<Eigen::Index>(exact.frame_count()) * sample_count);
       for (int f = 0; f < exact.frame_count(); ++f) {
         for (int i = 0; i < sample_count; ++i) {
           exact_samples.col(static_cast<Eigen::Index>(f) * sample_count + i) =
@@ -284,11 +340,16 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                      {"test_hz", options.test_hz},
                      {"speech_hz", options.speech_hz},
                      {"expressions", options.expressions},
+                     {"train_amplitudes_mm", options.train_amplitudes_mm},
+                     {"test_amplitude_mm", options.test_amplitude_mm},
                      {"training_takes", train.size()},
                      {"training_speech_takes", train_speech.size()},
                      {"final_learning_rate_fraction", options.final_learning_rate_fraction},
                      {"removal_epochs", options.removal_epochs},
                      {"removal_batch", options.removal_batch},
+                     {"removal_hidden_units", options.removal_hidden_units},
+                     {"removal_weight_decay", options.removal_weight_decay},
+                     {"removal_input_noise_std", options.removal_input_noise_std},
                      {"learning_rate", options.learning_rate},
                      {"removal_learned_propagation", options.removal_learned_propagation},
                      {"synthesis_learned_propagation", options.synthesis_learned_propagation},
@@ -305,10 +366,12 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
   if (options.frequency_subsets && options.train_hz.size() > 1) {
     const SimTake& probe = test.front();
     const PointCache& truth = probe.take.channels.at("quasistatic");
-    const std::vector<int> mask = dynamics::JigglingVertices(probe.take.channels.at("dynamic_offset"), skip);
-    const double offset_mm = dynamics::MeanDistanceOverVertices(probe.take.positions, truth, mask, skip);
+    const std::vector<int> mask =
+        dynamics::JigglingVertices(probe.take.channels.at("dynamic_offset"), skip);
+    const double offset_mm =
+        dynamics::MeanDistanceOverVertices(probe.take.positions, truth, mask, skip);
     Json subsets = Json::array();
-    const size_t per_frequency = options.expressions.size();
+    const size_t per_frequency = options.expressions.size() * options.train_amplitudes_mm.size();
     for (size_t k = 1; k <= options.train_hz.size(); ++k) {
       double error_mm = 0;
       if (k == options.train_hz.size()) {
@@ -321,6 +384,9 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
             options.subset_epochs > 0 ? options.subset_epochs : options.removal_epochs;
         subset_options.train.batch_size = options.removal_batch;
         subset_options.train.learning_rate = options.learning_rate;
+        subset_options.train.weight_decay = options.removal_weight_decay;
+        subset_options.train.input_noise_std = options.removal_input_noise_std;
+        subset_options.hidden_units = options.removal_hidden_units;
         subset_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
         subset_options.train.seed = options.seed;
         subset_options.train.num_threads = options.threads;
@@ -399,14 +465,15 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
           const Take resynthesised,
           dynamics::SynthesizeDynamics(synthesis, removed_by_best[k], original.world_from_skull,
                                        original.info.motion, rig, &propagation));
-      const std::vector<int> mask = dynamics::JigglingVertices(original.channels.at("dynamic_offset"), skip);
-      const double offset_mm =
-          dynamics::MeanDistanceOverVertices(original.positions, original.channels.at("quasistatic"), mask, skip);
-      const double residual_mm =
-          dynamics::MeanDistanceOverVertices(resynthesised.positions, original.positions, mask, skip);
+      const std::vector<int> mask =
+          dynamics::JigglingVertices(original.channels.at("dynamic_offset"), skip);
+      const double offset_mm = dynamics::MeanDistanceOverVertices(
+          original.positions, original.channels.at("quasistatic"), mask, skip);
+      const double residual_mm = dynamics::MeanDistanceOverVertices(resynthesised.positions,
+                                                                    original.positions, mask, skip);
       // Without synthesis, the residual of the removed take is the dynamics themselves.
-      const double removed_only_mm =
-          dynamics::MeanDistanceOverVertices(removed_by_best[k].positions, original.positions, mask, skip);
+      const double removed_only_mm = dynamics::MeanDistanceOverVertices(
+          removed_by_best[k].positions, original.positions, mask, skip);
       if (artifacts != nullptr && k == 0) artifacts->resynthesised = resynthesised;
       synthesis_json.push_back(
           {{"take", test[k].name},

@@ -13,7 +13,13 @@
 //                  [--hz 6,7,...] [--expressions a,b] [--speech-hz F] [--no-train-speech]
 //                  [--lr-final F] [--window-ms MS] [--no-moving-average] [--no-platform-targets]
 //                  [--laplacian-removal] [--laplacian-synthesis] [--batch N] [--lr LR]
-//                  [--no-synthesis] [--propagation-prior W]
+//                  [--no-synthesis] [--propagation-prior W] [--amplitudes A1,A2,...]
+//                  [--test-hz F] [--test-amplitude A] [--hidden-units N] [--weight-decay W]
+//                  [--input-noise S]
+//
+// --amplitudes: platform amplitudes (mm) of the training takes, one take per frequency,
+// expression and amplitude. --test-hz with --hz lets a setting be chosen on a frequency held
+// out of the training set (e.g. --hz 6,7,8,9 --test-hz 10) without looking at the 11 Hz test.
 //
 // --no-moving-average / --no-platform-targets skip F trained on the paper's moving-average
 // targets / on platform-synchronous targets (each is one more training run).
@@ -163,15 +169,32 @@ int main(int argc, char** argv) {
       options.removal_learned_propagation = false;
     } else if (arg == "--laplacian-synthesis") {
       options.synthesis_learned_propagation = false;
+    } else if (arg == "--amplitudes") {
+      options.train_amplitudes_mm.clear();
+      for (const std::string& item : Split(next()))
+        options.train_amplitudes_mm.push_back(std::atof(item.c_str()));
+    } else if (arg == "--test-hz") {
+      options.test_hz = std::atof(next());
+    } else if (arg == "--test-amplitude") {
+      options.test_amplitude_mm = std::atof(next());
+    } else if (arg == "--hidden-units") {
+      options.removal_hidden_units = std::atoi(next());
+    } else if (arg == "--weight-decay") {
+      options.removal_weight_decay = std::atof(next());
+    } else if (arg == "--input-noise") {
+      options.removal_input_noise_std = std::atof(next());
     } else if (arg == "--seconds") {
       options.seconds = std::atof(next());
     } else {
-      std::fprintf(stderr,
-                   "usage: dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs "
-                   "N] [--seconds S] [--hz 6,7,...] [--expressions a,b] [--speech-hz F] "
-                   "[--no-train-speech] [--lr-final F] [--window-ms MS] [--no-moving-average] "
-                   "[--no-platform-targets] [--laplacian-removal] [--laplacian-synthesis] [--batch N] "
-                   "[--lr LR] [--no-synthesis] [--propagation-prior W]\n");
+      std::fprintf(
+          stderr,
+          "usage: dynamics_bench [--quick] [--threads N] [--epochs N] [--synthesis-epochs "
+          "N] [--seconds S] [--hz 6,7,...] [--expressions a,b] [--speech-hz F] "
+          "[--no-train-speech] [--lr-final F] [--window-ms MS] [--no-moving-average] "
+          "[--no-platform-targets] [--laplacian-removal] [--laplacian-synthesis] [--batch N] "
+          "[--lr LR] [--no-synthesis] [--propagation-prior W] [--amplitudes A1,A2,...] "
+          "[--test-hz F] [--test-amplitude A] [--hidden-units N] [--weight-decay W] "
+          "[--input-noise S]\n");
       return 2;
     }
   }

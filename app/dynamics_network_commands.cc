@@ -98,8 +98,11 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
   train_removal_cmd
       ->add_option("--targets", train_removal->targets,
                    "moving-average (Eq. 5-6, the paper), platform-synchronous (fit at each "
-                   "take's recorded platform frequency) or exact (simulated takes' quasistatic)")
-      ->check(CLI::IsMember({"moving-average", "platform-synchronous", "exact"}))
+                   "take's recorded platform frequency), platform-synchronous-where-known "
+                   "(platform takes fitted, other head motion moving-average) or exact "
+                   "(simulated takes' quasistatic)")
+      ->check(CLI::IsMember({"moving-average", "platform-synchronous",
+                             "platform-synchronous-where-known", "exact"}))
       ->capture_default_str();
   train_removal_cmd->add_option("--epochs", train_removal->options.train.epochs)
       ->capture_default_str();

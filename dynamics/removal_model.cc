@@ -100,6 +100,8 @@ const char* RemovalTargetsName(RemovalTargets targets) {
       return "exact";
     case RemovalTargets::kPlatformSynchronous:
       return "platform-synchronous";
+    case RemovalTargets::kPlatformSynchronousWhereKnown:
+      return "platform-synchronous-where-known";
     case RemovalTargets::kMovingAverage:
       break;
   }
@@ -107,12 +109,14 @@ const char* RemovalTargetsName(RemovalTargets targets) {
 }
 
 StatusOr<RemovalTargets> ParseRemovalTargets(const std::string& name) {
-  for (RemovalTargets targets : {RemovalTargets::kMovingAverage, RemovalTargets::kExact,
-                                 RemovalTargets::kPlatformSynchronous}) {
+  for (RemovalTargets targets :
+       {RemovalTargets::kMovingAverage, RemovalTargets::kExact,
+        RemovalTargets::kPlatformSynchronous, RemovalTargets::kPlatformSynchronousWhereKnown}) {
     if (name == RemovalTargetsName(targets)) return targets;
   }
   return InvalidArgumentError("targets: unknown \"" + name +
-                              "\" (moving-average, platform-synchronous or exact)");
+                              "\" (moving-average, platform-synchronous, "
+                              "platform-synchronous-where-known or exact)");
 }
 
 RemovalConfig RemovalConfig::ForRig(const FaceRig& rig, double fps) {
@@ -186,7 +190,8 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
   const int window = config.features.window_frames();
   std::optional<PropagationLearner> learner;
   if (options.learn_propagation) {
-    FACEDYN_ASSIGN_OR_RETURN(learner, PropagationLearner::ForRig(*takes[0].rig, options.propagation));
+    FACEDYN_ASSIGN_OR_RETURN(learner,
+                             PropagationLearner::ForRig(*takes[0].rig, options.propagation));
   }
   std::vector<std::pair<int, int>> frames;  // (take, frame) usable for training
   for (size_t k = 0; k < takes.size(); ++k) {
@@ -212,7 +217,9 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
       }
       QuasistaticOptions quasistatic;
       quasistatic.window_s = options.window_s;
-      if (options.targets == RemovalTargets::kPlatformSynchronous) {
+      if (options.targets == RemovalTargets::kPlatformSynchronous ||
+          (options.targets == RemovalTargets::kPlatformSynchronousWhereKnown &&
+           take.info.platform_hz)) {
         quasistatic.method = QuasistaticMethod::kPlatformSynchronous;
       }
       FACEDYN_ASSIGN_OR_RETURN(Take estimate, ExtractQuasistatic(take, quasistatic));

@@ -61,9 +61,7 @@ class RemovalModel {
   const Mlp& mlp() const { return mlp_; }
 
   // The learned propagation trained with the network, or null.
-  const SamplePropagation* propagation() const {
-    return propagation_ ? &*propagation_ : nullptr;
-  }
+  const SamplePropagation* propagation() const { return propagation_ ? &*propagation_ : nullptr; }
   void set_propagation(std::optional<SamplePropagation> propagation) {
     propagation_ = std::move(propagation);
   }
@@ -96,9 +94,14 @@ enum class RemovalTargets {
   // must record its platform frequency, info.platform_hz): exact for a steady sinusoid, where
   // the paper's fixed window leaves up to ~10% of the jiggle in the targets.
   kPlatformSynchronous,
+  // kPlatformSynchronous on takes that record a platform frequency, kMovingAverage on the others
+  // (walks, runs): a capture session mixes both kinds, and the moving average is the only
+  // estimate for head motion without a single known frequency.
+  kPlatformSynchronousWhereKnown,
 };
 
-// "moving-average", "exact", "platform-synchronous"; and back (InvalidArgument listing them).
+// "moving-average", "exact", "platform-synchronous", "platform-synchronous-where-known"; and back
+// (InvalidArgument listing them).
 const char* RemovalTargetsName(RemovalTargets targets);
 StatusOr<RemovalTargets> ParseRemovalTargets(const std::string& name);
 

@@ -221,6 +221,40 @@ TEST(TrainRemoval, LearnsAKnownSmoothFunctionOfTheFeatures) {
   EXPECT_LT(error, 0.2 * offset);
 }
 
+// The mixed targets of a capture session: takes with a platform frequency get the
+// platform-synchronous fit, the others the moving average — each the same model as training with
+// that one kind of target (same seed), and plain platform-synchronous refuses the walk-like take.
+TEST(TrainRemoval, PlatformSynchronousWhereKnownMixesTargetsPerTake) {
+  const FaceRig rig = TinyRig();
+  Take platform = SyntheticTake(rig, 80, 128.0, 0.0);
+  platform.info.platform_hz = 7.0;
+  const Take other = SyntheticTake(rig, 80, 128.0, 0.7);  // records no platform frequency
+  auto train = [&](const Take& take, RemovalTargets targets) {
+    RemovalTrainOptions options = QuickOptions(2);
+    options.targets = targets;
+    return TrainRemoval({{&take, &rig}}, options);
+  };
+  const auto mixed_platform = train(platform, RemovalTargets::kPlatformSynchronousWhereKnown);
+  const auto mixed_other = train(other, RemovalTargets::kPlatformSynchronousWhereKnown);
+  ASSERT_TRUE(mixed_platform.ok()) << mixed_platform.status().message();
+  ASSERT_TRUE(mixed_other.ok()) << mixed_other.status().message();
+  EXPECT_EQ(mixed_platform->FlatParameters(),
+            train(platform, RemovalTargets::kPlatformSynchronous).value().FlatParameters());
+  EXPECT_NE(mixed_platform->FlatParameters(),
+            train(platform, RemovalTargets::kMovingAverage).value().FlatParameters());
+  EXPECT_EQ(mixed_other->FlatParameters(),
+            train(other, RemovalTargets::kMovingAverage).value().FlatParameters());
+  EXPECT_THAT(train(other, RemovalTargets::kPlatformSynchronous).status().message(),
+              HasSubstr("platform_hz"));
+
+  EXPECT_EQ(ParseRemovalTargets("platform-synchronous-where-known").value(),
+            RemovalTargets::kPlatformSynchronousWhereKnown);
+  EXPECT_STREQ(RemovalTargetsName(RemovalTargets::kPlatformSynchronousWhereKnown),
+               "platform-synchronous-where-known");
+  EXPECT_THAT(ParseRemovalTargets("platform").status().message(),
+              HasSubstr("platform-synchronous-where-known"));
+}
+
 TEST(TrainRemoval, LearnsItsPropagationAndSavesIt) {
   const FaceRig rig = TinyRig();
   const Take take = SyntheticTake(rig, 80, 128.0, 0.0);

@@ -130,7 +130,9 @@ struct RemovalTrainOptions {
 };
 
 // Trains F on the takes (which must share fps, landmarks and samples). Frames within the
-// feature window of either end of a take are left out (their windows read replicated frames).
+// feature window of either end of a take are left out (their windows read replicated frames),
+// and so are frames within the target estimate's window (the platform-synchronous fit's is
+// wider at low platform frequencies: 1.5 periods, 32 frames at 6 Hz and 128 fps).
 // The validation split holds out whole frames (all their samples), seeded.
 // Errors: no takes, mismatched takes, exact targets requested for a take without them.
 StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,

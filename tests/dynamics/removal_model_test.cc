@@ -247,6 +247,20 @@ TEST(TrainRemoval, PlatformSynchronousWhereKnownMixesTargetsPerTake) {
   EXPECT_THAT(train(other, RemovalTargets::kPlatformSynchronous).status().message(),
               HasSubstr("platform_hz"));
 
+  // Frames are used only where the target estimate's window lies inside the take: the moving
+  // average's is the feature window (10 frames at 128 fps), the 7 Hz fit's spans 1.5 periods
+  // (ceil(0.75 * 128 / 7) = 14 frames).
+  auto rows = [&](const Take& take, RemovalTargets targets) {
+    RemovalTrainOptions options = QuickOptions(1);
+    options.targets = targets;
+    MlpTrainSummary summary;
+    EXPECT_TRUE(TrainRemoval({{&take, &rig}}, options, &summary).ok());
+    return summary.training_rows + summary.validation_rows;
+  };
+  const long samples = static_cast<long>(rig.skin_samples.size());
+  EXPECT_EQ(rows(other, RemovalTargets::kMovingAverage), (80 - 2 * 10) * samples);
+  EXPECT_EQ(rows(platform, RemovalTargets::kPlatformSynchronous), (80 - 2 * 14) * samples);
+
   EXPECT_EQ(ParseRemovalTargets("platform-synchronous-where-known").value(),
             RemovalTargets::kPlatformSynchronousWhereKnown);
   EXPECT_STREQ(RemovalTargetsName(RemovalTargets::kPlatformSynchronousWhereKnown),

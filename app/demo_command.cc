@@ -39,6 +39,8 @@ namespace {
 struct DemoOptions {
   std::string out_dir = "facedyn-demo";
   bool quick = false;
+  // F's targets on the reconstructed takes (DemoDynamicsOptions::removal_targets).
+  std::string removal_targets = "platform-synchronous-where-known";
 };
 
 // A head-sized surface on a platform oscillating vertically at `platform_hz`, with the
@@ -94,6 +96,9 @@ Status RunDemo(const DemoOptions& options) {
   StageClock clock;
   Json metrics;
   metrics["quick"] = options.quick;
+  // Parsed before any stage runs, so a bad value costs nothing.
+  FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalTargets removal_targets,
+                           dynamics::ParseRemovalTargets(options.removal_targets));
   const double fps = 128.0;
   const int frames = options.quick ? 64 : 256;
   spdlog::info("facedyn demo -> {}", options.out_dir);
@@ -207,9 +212,11 @@ Status RunDemo(const DemoOptions& options) {
   // Dynamics on reconstructed takes (app/demo_dynamics.h): F, H, walk synthesis, retargeting.
   DemoDynamicsArtifacts artifacts;
   Json dynamics_metrics;
+  DemoDynamicsOptions dynamics_options = DemoDynamicsOptions::ForDemo(options.quick);
+  dynamics_options.removal_targets = removal_targets;
   FACEDYN_RETURN_IF_ERROR(RunDemoDynamicsStage(
-      face, cameras, simulated, reconstructed, DemoDynamicsOptions::ForDemo(options.quick),
-      options.out_dir, &study_artifacts.removal_model, &dynamics_metrics, &artifacts));
+      face, cameras, simulated, reconstructed, dynamics_options, options.out_dir,
+      &study_artifacts.removal_model, &dynamics_metrics, &artifacts));
   metrics["dynamics"] = dynamics_metrics;
   clock.Lap("dynamics on reconstructed takes");
   FACEDYN_ASSIGN_OR_RETURN(metrics["renders"],
@@ -240,6 +247,13 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected) {
   auto* command = app.add_subcommand("demo", "Run the main job end to end on the simulated stage");
   command->add_option("--out", options->out_dir, "Output folder")->capture_default_str();
   command->add_flag("--quick", options->quick, "A shorter run for smoke tests");
+  command
+      ->add_option("--removal-targets", options->removal_targets,
+                   "Targets of the removal network on the reconstructed takes: "
+                   "platform-synchronous-where-known (platform takes fitted at their recorded "
+                   "frequency, walks moving-average) or moving-average (the paper's Eq. 5-6)")
+      ->check(CLI::IsMember({"platform-synchronous-where-known", "moving-average"}))
+      ->capture_default_str();
   command->callback([options, selected] { *selected = [options] { return RunDemo(*options); }; });
 }
 

@@ -201,20 +201,22 @@ Json TrainingJson(const dynamics::MlpTrainSummary& summary, int epochs) {
           {"rows_per_s", std::round(summary.rows_per_s)}};
 }
 
-// F on reconstructed takes: moving-average targets, the only ones a capture has.
+// F on reconstructed takes, with targets a capture has (moving average, platform-synchronous).
 StatusOr<dynamics::RemovalModel> TrainF(const std::vector<Take>& takes, const FaceRig& face,
-                                        int epochs, uint64_t seed, const std::string& label,
+                                        dynamics::RemovalTargets targets, int epochs, int batch,
+                                        uint64_t seed, const std::string& label,
                                         dynamics::MlpTrainSummary* summary) {
   std::vector<dynamics::TrainingTake> training;
   for (const Take& take : takes) training.push_back({&take, &face});
   dynamics::RemovalTrainOptions options;
-  options.targets = dynamics::RemovalTargets::kMovingAverage;
+  options.targets = targets;
   options.train.epochs = epochs;
+  options.train.batch_size = batch;
   options.train.seed = seed;
   options.train.final_learning_rate_fraction = 0.05;
   options.train.progress_label = label;
-  spdlog::info("training {} on {} reconstructed takes ({} epochs, moving-average targets)", label,
-               takes.size(), epochs);
+  spdlog::info("training {} on {} reconstructed takes ({} epochs, {} targets)", label, takes.size(),
+               epochs, dynamics::RemovalTargetsName(targets));
   return dynamics::TrainRemoval(training, options, summary);
 }
 
@@ -240,23 +242,102 @@ StatusOr<dynamics::SynthesisModel> TrainH(const std::vector<Take>& decomposed, c
 Json SynthesisErrors(const Take& synthesised, const Take& truth, const std::vector<int>& vertices,
                      int skip) {
   const PointCache& truth_offsets = truth.channels.at("dynamic_offset");
-  return {{"position_mean_mm",
-           Round4(dynamics::MeanDistanceOverVertices(synthesised.positions, truth.positions, vertices, skip))},
-          {"offset_mean_mm", Round4(dynamics::MeanDistanceOverVertices(synthesised.channels.at("dynamic_offset"),
-                                                 truth_offsets, vertices, skip))}};
+  return {{"position_mean_mm", Round4(dynamics::MeanDistanceOverVertices(
+                                   synthesised.positions, truth.positions, vertices, skip))},
+          {"offset_mean_mm",
+           Round4(dynamics::MeanDistanceOverVertices(synthesised.channels.at("dynamic_offset"),
+                                                     truth_offsets, vertices, skip))}};
 }
 
 // The same figures for a take without dynamics: its positions are the quasistatic itself.
 Json NoDynamicsErrors(const Take& quasistatic, const Take& truth, const std::vector<int>& vertices,
                       int skip) {
   const PointCache& truth_offsets = truth.channels.at("dynamic_offset");
-  return {{"position_mean_mm",
-           Round4(dynamics::MeanDistanceOverVertices(quasistatic.positions, truth.positions, vertices, skip))},
+  return {{"position_mean_mm", Round4(dynamics::MeanDistanceOverVertices(
+                                   quasistatic.positions, truth.positions, vertices, skip))},
           {"offset_mean_mm", Round4(MeanNorm(truth_offsets, vertices, skip))}};
 }
 
 void PrintRow(const std::string& what, const std::string& method, double mm, double of) {
   std::printf("  %-28s %-30s %8.3f mm %7.1f%%\n", what.c_str(), method.c_str(), mm, 100 * of);
+}
+
+// F against the baselines on one held-out reconstructed take: errors over its jiggling vertices
+// against the exact quasistatic of the simulation that was filmed, printed and returned as the
+// metrics section. `reference` (may be null): F trained on simulated takes with exact targets.
+// *removed (may be null): F's removal. The simulated take must have the exact channels
+// (quasistatic, dynamic_offset; RunDemoDynamicsStage checks the held-out one up front).
+StatusOr<Json> CompareRemoval(const dynamics::RemovalModel& f_model,
+                              const dynamics::RemovalModel* reference, const Take& simulated,
+                              const Take& reconstructed, const FaceRig& face, int skip,
+                              Take* removed_out) {
+  const PointCache& truth = simulated.channels.at("quasistatic");
+  const std::vector<int> jiggle =
+      dynamics::JigglingVertices(simulated.channels.at("dynamic_offset"), skip);
+  const double offset_mm = MeanNorm(simulated.channels.at("dynamic_offset"), jiggle, skip);
+  FACEDYN_ASSIGN_OR_RETURN(Take removed, dynamics::RemoveDynamics(f_model, reconstructed, face));
+  dynamics::EvaluateOptions evaluate;
+  evaluate.skip_edge_frames = skip;
+  FACEDYN_ASSIGN_OR_RETURN(const dynamics::Evaluation evaluation,
+                           dynamics::Evaluate(removed, simulated, &reconstructed, &face, evaluate));
+  Json methods = Json::object();
+  auto add_method = [&](const std::string& name, const PointCache& predicted,
+                        const dynamics::ErrorStats& face_stats) {
+    const double error_mm = dynamics::MeanDistanceOverVertices(predicted, truth, jiggle, skip);
+    methods[name] = {{"mean_mm", Round4(face_stats.mean_mm)},
+                     {"p95_mm", Round4(face_stats.p95_mm)},
+                     {"max_mm", Round4(face_stats.max_mm)},
+                     {"jiggle_mean_mm", Round4(error_mm)},
+                     {"relative_to_offset", Round4(offset_mm > 0 ? error_mm / offset_mm : 0.0)}};
+  };
+  add_method("F", removed.positions, evaluation.reports.front().face);
+  if (reference != nullptr) {
+    FACEDYN_ASSIGN_OR_RETURN(const Take by_reference,
+                             dynamics::RemoveDynamics(*reference, reconstructed, face));
+    FACEDYN_ASSIGN_OR_RETURN(const dynamics::Evaluation reference_evaluation,
+                             dynamics::Evaluate(by_reference, simulated, nullptr, &face, evaluate));
+    add_method("F_exact_targets_simulated", by_reference.positions,
+               reference_evaluation.reports.front().face);
+  }
+  for (size_t r = 1; r < evaluation.reports.size(); ++r) {
+    const std::string& name = evaluation.reports[r].name;
+    dynamics::BaselineKind kind = dynamics::BaselineKind::kMovingAverage;
+    for (dynamics::BaselineKind k :
+         {dynamics::BaselineKind::kNoRemoval, dynamics::BaselineKind::kLowPass,
+          dynamics::BaselineKind::kMovingAverage}) {
+      if (name == dynamics::BaselineName(k)) kind = k;
+    }
+    FACEDYN_ASSIGN_OR_RETURN(const PointCache baseline,
+                             dynamics::ComputeBaseline(reconstructed, kind, evaluate.baselines));
+    add_method(name, baseline, evaluation.reports[r].face);
+  }
+  const std::string name =
+      TakeName(simulated.info.expression, simulated.info.platform_hz.value_or(0.0));
+  // What the reconstruction itself gets wrong (its positions vs the simulated ones, dynamics
+  // included): a floor for any removal that only subtracts dynamics, which a temporal filter
+  // like the low-pass can go below by smoothing the reconstruction's frame-to-frame noise.
+  const double reconstruction_error_mm = dynamics::MeanDistanceOverVertices(
+      reconstructed.positions, simulated.positions, jiggle, skip);
+  const double f_mm = methods["F"]["jiggle_mean_mm"].get<double>();
+  const double lowpass_mm = methods["lowpass"]["jiggle_mean_mm"].get<double>();
+  std::printf(
+      "\nRemoval on the reconstructed %s take (never trained on), error vs the exact "
+      "quasistatic over the jiggling vertices (mean true offset %.3f mm):\n",
+      name.c_str(), offset_mm);
+  for (const auto& [method, figures] : methods.items()) {
+    PrintRow(name + " reconstructed", method, figures["jiggle_mean_mm"].get<double>(),
+             figures["relative_to_offset"].get<double>());
+  }
+  std::printf("  (the reconstruction itself is %.3f mm from the simulated positions there)\n",
+              reconstruction_error_mm);
+  if (removed_out != nullptr) *removed_out = std::move(removed);
+  return Json{{"take", name + " reconstructed"},
+              {"truth", "exact quasistatic of the simulation that was filmed"},
+              {"jiggle_vertices", jiggle.size()},
+              {"mean_dynamic_offset_mm", Round4(offset_mm)},
+              {"reconstruction_error_mm", Round4(reconstruction_error_mm)},
+              {"methods", methods},
+              {"lowpass_over_F", Round4(f_mm > 0 ? lowpass_mm / f_mm : 0.0)}};
 }
 
 }  // namespace
@@ -310,7 +391,13 @@ Status DemoDynamicsOptions::Check() const {
   }
   if (!(seconds >= 1.0)) return InvalidArgumentError("seconds must be >= 1");
   if (!(walk_seconds >= 1.0)) return InvalidArgumentError("walk_seconds must be >= 1");
+  if (removal_targets == dynamics::RemovalTargets::kExact) {
+    return InvalidArgumentError(
+        "removal_targets: exact targets need a simulated take's quasistatic; the demo trains on "
+        "reconstructed takes");
+  }
   if (removal_epochs < 1) return InvalidArgumentError("removal_epochs must be >= 1");
+  if (removal_batch < 1) return InvalidArgumentError("removal_batch must be >= 1");
   if (synthesis_epochs < 1) return InvalidArgumentError("synthesis_epochs must be >= 1");
   if (subset_epochs < 0) return InvalidArgumentError("subset_epochs must be >= 0");
   for (double s : {second_subject_scale_x, second_subject_scale_y, second_subject_scale_z}) {
@@ -398,73 +485,42 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   dynamics::MlpTrainSummary f_summary;
   FACEDYN_ASSIGN_OR_RETURN(
       const dynamics::RemovalModel f_model,
-      TrainF(a.reconstructed, face, options.removal_epochs, options.seed, "F", &f_summary));
+      TrainF(a.reconstructed, face, options.removal_targets, options.removal_epochs,
+             options.removal_batch, options.seed, "F", &f_summary));
   FACEDYN_RETURN_IF_ERROR(f_model.Save(JoinPath(models_dir, "F.pt")));
   training["F"] = TrainingJson(f_summary, options.removal_epochs);
 
-  const PointCache& test_truth = test_simulated.channels.at("quasistatic");
+  Take removed;
+  FACEDYN_ASSIGN_OR_RETURN(result["removal"],
+                           CompareRemoval(f_model, reference_removal, test_simulated,
+                                          test_reconstructed, face, skip, &removed));
+  result["removal"]["F_targets"] = dynamics::RemovalTargetsName(options.removal_targets);
+  const std::string test_name = TakeName(test_simulated.info.expression, test_hz);
   const std::vector<int> jiggle =
       dynamics::JigglingVertices(test_simulated.channels.at("dynamic_offset"), skip);
   const double test_offset_mm =
       MeanNorm(test_simulated.channels.at("dynamic_offset"), jiggle, skip);
-  FACEDYN_ASSIGN_OR_RETURN(Take removed,
-                           dynamics::RemoveDynamics(f_model, test_reconstructed, face));
-  dynamics::EvaluateOptions evaluate;
-  evaluate.skip_edge_frames = skip;
-  FACEDYN_ASSIGN_OR_RETURN(
-      const dynamics::Evaluation evaluation,
-      dynamics::Evaluate(removed, test_simulated, &test_reconstructed, &face, evaluate));
-  Json methods = Json::object();
-  auto add_method = [&](const std::string& name, const PointCache& predicted,
-                        const dynamics::ErrorStats& face_stats) {
-    const double error_mm = dynamics::MeanDistanceOverVertices(predicted, test_truth, jiggle, skip);
-    methods[name] = {
-        {"mean_mm", Round4(face_stats.mean_mm)},
-        {"p95_mm", Round4(face_stats.p95_mm)},
-        {"max_mm", Round4(face_stats.max_mm)},
-        {"jiggle_mean_mm", Round4(error_mm)},
-        {"relative_to_offset", Round4(test_offset_mm > 0 ? error_mm / test_offset_mm : 0.0)}};
-  };
-  add_method("F_moving_average_targets", removed.positions, evaluation.reports.front().face);
-  if (reference_removal != nullptr) {
+  const PointCache& test_truth = test_simulated.channels.at("quasistatic");
+  // A copy: Json is an ordered_json, whose objects are vectors that move on insertion.
+  const Json methods = result["removal"]["methods"];
+  const double f_mm = methods["F"]["jiggle_mean_mm"].get<double>();
+
+  // A performance on the same held-out frequency: the expression changes (speech), which is
+  // what F is for and where a temporal low-pass smears the performance with the dynamics. F
+  // never saw a changing expression: a capture has targets for held expressions only.
+  if (options.performance_expression != "") {
+    const TakeSpec spec = {TakeName(options.performance_expression, test_hz),
+                           options.performance_expression,
+                           PlatformMotion(test_hz, options.seed + 70), test_hz};
+    SubjectTakes performance;
+    int performance_done = 0;
+    FACEDYN_RETURN_IF_ERROR(SimulateAndReconstruct(face, cameras, {spec}, options.seconds, tissue_a,
+                                                   "A", &performance_done, 1, &performance));
+    reconstruction.push_back(performance.reconstruction.front());
     FACEDYN_ASSIGN_OR_RETURN(
-        const Take by_reference,
-        dynamics::RemoveDynamics(*reference_removal, test_reconstructed, face));
-    FACEDYN_ASSIGN_OR_RETURN(
-        const dynamics::Evaluation reference_evaluation,
-        dynamics::Evaluate(by_reference, test_simulated, nullptr, &face, evaluate));
-    add_method("F_exact_targets_simulated", by_reference.positions,
-               reference_evaluation.reports.front().face);
-  }
-  for (size_t r = 1; r < evaluation.reports.size(); ++r) {
-    const std::string& name = evaluation.reports[r].name;
-    dynamics::BaselineKind kind = dynamics::BaselineKind::kMovingAverage;
-    for (dynamics::BaselineKind k :
-         {dynamics::BaselineKind::kNoRemoval, dynamics::BaselineKind::kLowPass,
-          dynamics::BaselineKind::kMovingAverage}) {
-      if (name == dynamics::BaselineName(k)) kind = k;
-    }
-    FACEDYN_ASSIGN_OR_RETURN(
-        const PointCache baseline,
-        dynamics::ComputeBaseline(test_reconstructed, kind, evaluate.baselines));
-    add_method(name, baseline, evaluation.reports[r].face);
-  }
-  const std::string test_name = TakeName(test_simulated.info.expression, test_hz);
-  const double f_mm = methods["F_moving_average_targets"]["jiggle_mean_mm"].get<double>();
-  const double lowpass_mm = methods["lowpass"]["jiggle_mean_mm"].get<double>();
-  result["removal"] = {{"take", test_name + " reconstructed"},
-                       {"truth", "exact quasistatic of the simulation that was filmed"},
-                       {"jiggle_vertices", jiggle.size()},
-                       {"mean_dynamic_offset_mm", Round4(test_offset_mm)},
-                       {"methods", methods},
-                       {"lowpass_over_F", Round4(f_mm > 0 ? lowpass_mm / f_mm : 0.0)}};
-  std::printf(
-      "\nRemoval on the reconstructed %s take (never trained on), error vs the exact "
-      "quasistatic over the jiggling vertices (mean true offset %.3f mm):\n",
-      test_name.c_str(), test_offset_mm);
-  for (const auto& [name, figures] : methods.items()) {
-    PrintRow(test_name + " reconstructed", name, figures["jiggle_mean_mm"].get<double>(),
-             figures["relative_to_offset"].get<double>());
+        result["removal_performance"],
+        CompareRemoval(f_model, reference_removal, performance.simulated.front(),
+                       performance.reconstructed.front(), face, skip, nullptr));
   }
 
   // Paper Fig. 5: F trained on the slowest 1 .. n frequencies.
@@ -480,11 +536,13 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
         subset.insert(subset.end(), a.reconstructed.begin() + platform_takes,
                       a.reconstructed.end());
         FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel model,
-                                 TrainF(subset, face, options.subset_epochs, options.seed,
+                                 TrainF(subset, face, options.removal_targets,
+                                        options.subset_epochs, options.removal_batch, options.seed,
                                         fmt::format("F on {} frequencies", k), nullptr));
         FACEDYN_ASSIGN_OR_RETURN(const Take subset_removed,
                                  dynamics::RemoveDynamics(model, test_reconstructed, face));
-        error_mm = dynamics::MeanDistanceOverVertices(subset_removed.positions, test_truth, jiggle, skip);
+        error_mm =
+            dynamics::MeanDistanceOverVertices(subset_removed.positions, test_truth, jiggle, skip);
       }
       subsets.push_back(
           {{"train_hz",
@@ -523,12 +581,12 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
       Take resynthesised,
       dynamics::SynthesizeDynamics(h_model, removed, test_reconstructed.world_from_skull,
                                    test_reconstructed.info.motion, face));
-  const double residual_mm =
-      dynamics::MeanDistanceOverVertices(resynthesised.positions, test_reconstructed.positions, jiggle, skip);
-  const double removed_only_mm =
-      dynamics::MeanDistanceOverVertices(removed.positions, test_reconstructed.positions, jiggle, skip);
-  const double vs_simulated_mm =
-      dynamics::MeanDistanceOverVertices(resynthesised.positions, test_simulated.positions, jiggle, skip);
+  const double residual_mm = dynamics::MeanDistanceOverVertices(
+      resynthesised.positions, test_reconstructed.positions, jiggle, skip);
+  const double removed_only_mm = dynamics::MeanDistanceOverVertices(
+      removed.positions, test_reconstructed.positions, jiggle, skip);
+  const double vs_simulated_mm = dynamics::MeanDistanceOverVertices(
+      resynthesised.positions, test_simulated.positions, jiggle, skip);
   Json synthesis;
   synthesis["resynthesis"] = {
       {"take", test_name + " reconstructed"},
@@ -581,7 +639,8 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   dynamics::MlpTrainSummary fb_summary, hb_summary;
   FACEDYN_ASSIGN_OR_RETURN(
       const dynamics::RemovalModel fb_model,
-      TrainF(b.reconstructed, face_b, options.removal_epochs, options.seed, "F_B", &fb_summary));
+      TrainF(b.reconstructed, face_b, options.removal_targets, options.removal_epochs,
+             options.removal_batch, options.seed, "F_B", &fb_summary));
   training["F_B"] = TrainingJson(fb_summary, options.removal_epochs);
   std::vector<Take> decomposed_b;
   for (const Take& take : b.reconstructed) {
@@ -647,7 +706,10 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   Json train_hz_json = options.train_hz;
   result["setup"] = {
       {"data", "simulated takes filmed by 8 simulated cameras and reconstructed"},
-      {"targets", "moving average (Eq. 5-6); reconstructed takes have no exact channel"},
+      {"targets", dynamics::RemovalTargetsName(options.removal_targets)},
+      {"targets_note",
+       "reconstructed takes have no exact channel; platform-synchronous: the fit at the take's "
+       "recorded platform frequency (quasistatic.h), moving average (Eq. 5-6) on walks"},
       {"train_hz", train_hz_json},
       {"expressions", options.expressions},
       {"training_walk_step_hz", options.training_walk_step_hz},
@@ -659,6 +721,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
       {"second_subject_hz", options.second_subject_hz},
       {"second_subject_expressions", options.second_subject_expressions},
       {"removal_epochs", options.removal_epochs},
+      {"removal_batch", options.removal_batch},
       {"synthesis_epochs", options.synthesis_epochs},
       {"subset_epochs", options.subset_epochs},
       {"data_s", Round4(data_s)},

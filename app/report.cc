@@ -254,7 +254,10 @@ std::vector<std::pair<std::string, double>> MethodBars(const Json& methods,
     bars.emplace_back(method, Number(figures, figure));
   }
   std::stable_sort(bars.begin(), bars.end(), [](const auto& a, const auto& b) {
-    return (a.first.rfind("F_", 0) == 0) > (b.first.rfind("F_", 0) == 0);
+    auto network = [](const std::string& label) {
+      return label == "F" || label.rfind("F_", 0) == 0;
+    };
+    return network(a.first) > network(b.first);
   });
   return bars;
 }
@@ -278,12 +281,13 @@ std::string DynamicsSection(const Json& dynamics) {
   html += fmt::format(
       "<p>Subject A held {} on the platform at {} Hz ({} takes of {} s); every take was "
       "simulated, filmed by the 8 simulated cameras and reconstructed. The removal network F was "
-      "trained on the reconstructed takes with the paper's moving-average targets ({} epochs), "
+      "trained on the reconstructed takes with {} targets ({} epochs), "
       "the synthesis network H on those takes decomposed by F ({} epochs). Errors are against the "
       "simulator's exact truth, in mm, over the vertices where the face jiggles.</p>",
       Escape(Text(setup, "expressions")), Escape(Text(setup, "train_hz")),
       Escape(Text(setup, "training_takes")), Escape(Text(setup, "seconds_per_take")),
-      Escape(Text(setup, "removal_epochs")), Escape(Text(setup, "synthesis_epochs")));
+      Escape(Text(setup, "targets")), Escape(Text(setup, "removal_epochs")),
+      Escape(Text(setup, "synthesis_epochs")));
   const Json& reconstruction = Field(dynamics, "reconstruction");
   if (reconstruction.is_array() && !reconstruction.empty()) {
     html +=
@@ -305,6 +309,14 @@ std::string DynamicsSection(const Json& dynamics) {
         SvgBarChart(Text(removal, "take") + fmt::format(" (mean true offset {:.3f} mm)",
                                                         Number(removal, "mean_dynamic_offset_mm")),
                     MethodBars(Field(removal, "methods"), "jiggle_mean_mm"), "mm");
+  }
+  const Json& performance = Field(dynamics, "removal_performance");
+  if (performance.is_object()) {
+    html += "<h3>Removal from a performance (changing expression) at that frequency</h3>" +
+            SvgBarChart(Text(performance, "take") +
+                            fmt::format(" (mean true offset {:.3f} mm)",
+                                        Number(performance, "mean_dynamic_offset_mm")),
+                        MethodBars(Field(performance, "methods"), "jiggle_mean_mm"), "mm");
   }
   const Json& fig5 = Field(dynamics, "removal_by_training_frequencies");
   if (fig5.is_object()) {

@@ -137,26 +137,39 @@ TEST(Cli, DemoMetricsAndReport) {
   // Dynamics on reconstructed takes.
   const auto& dynamics = metrics["dynamics"];
   for (const char* section :
-       {"setup", "reconstruction", "removal", "removal_by_training_frequencies", "synthesis",
-        "retarget", "training"}) {
+       {"setup", "reconstruction", "removal", "removal_performance",
+        "removal_by_training_frequencies", "synthesis", "retarget", "training"}) {
     ASSERT_TRUE(dynamics.contains(section)) << section;
   }
   EXPECT_EQ(dynamics["reconstruction"].size(),
             dynamics["setup"]["training_takes"].get<size_t>() +
-                dynamics["retarget"]["training_takes"].get<size_t>());
+                dynamics["retarget"]["training_takes"].get<size_t>() + 1);  // + the performance
   for (const auto& take : dynamics["reconstruction"]) {
     EXPECT_LT(take["sample_rms_mm"].get<double>(), 1.0) << take["take"];
   }
   const auto& methods = dynamics["removal"]["methods"];
-  for (const char* method : {"F_moving_average_targets", "F_exact_targets_simulated", "no_removal",
-                             "lowpass", "moving_average"}) {
+  for (const char* method :
+       {"F", "F_exact_targets_simulated", "no_removal", "lowpass", "moving_average"}) {
     ASSERT_TRUE(methods.contains(method)) << method;
   }
-  const double f_mm = methods["F_moving_average_targets"]["jiggle_mean_mm"].get<double>();
+  const double f_mm = methods["F"]["jiggle_mean_mm"].get<double>();
   // The held-out take's removal must at least remove most of the dynamics. Issue 8 also asks
-  // for F to beat the low-pass baseline here; on reconstructed takes it does not yet (default
-  // demo: F 0.217 mm, low-pass 0.172 mm), so that check waits for a better F.
+  // for F to beat the low-pass baseline here. On reconstructed takes of a held expression it
+  // does not (default demo: F 0.170 mm, low-pass 0.172 mm — a tie; --quick: 0.253 vs 0.201): a
+  // 4 Hz low-pass also smooths the reconstruction's own frame-to-frame error, which F, that
+  // only subtracts predicted dynamics, keeps ("reconstruction_error_mm", 0.158 mm, is F's floor
+  // there). So that check is not made.
+  EXPECT_GT(dynamics["removal"]["reconstruction_error_mm"].get<double>(), 0.0);
+  EXPECT_EQ(dynamics["removal"]["F_targets"], "platform-synchronous-where-known");
   EXPECT_LT(f_mm, 0.5 * methods["no_removal"]["jiggle_mean_mm"].get<double>());
+  // The performance (speech) on the held-out frequency, never trained on.
+  ASSERT_TRUE(dynamics.contains("removal_performance"));
+  const auto& performance = dynamics["removal_performance"]["methods"];
+  for (const char* method : {"F", "no_removal", "lowpass", "moving_average"}) {
+    ASSERT_TRUE(performance.contains(method)) << method;
+  }
+  EXPECT_LT(performance["F"]["jiggle_mean_mm"].get<double>(),
+            0.5 * performance["no_removal"]["jiggle_mean_mm"].get<double>());
   EXPECT_EQ(dynamics["removal_by_training_frequencies"]["subsets"].size(),
             dynamics["setup"]["train_hz"].size());
   const auto& synthesis = dynamics["synthesis"];
@@ -188,9 +201,10 @@ TEST(Cli, DemoMetricsAndReport) {
   EXPECT_THAT(report, HasSubstr("<svg"));
   EXPECT_THAT(report, HasSubstr("<polyline"));
   EXPECT_THAT(report, HasSubstr("data:image/png;base64,"));
-  for (const char* figure : {"Platform frequency during the sweep", "Reprojection RMS per camera",
-                             "never trained on", "paper Fig. 5", "paper Fig. 7", "New head motion",
-                             "retargeting to a second subject", "Time per stage"}) {
+  for (const char* figure :
+       {"Platform frequency during the sweep", "Reprojection RMS per camera", "never trained on",
+        "paper Fig. 5", "paper Fig. 7", "New head motion", "retargeting to a second subject",
+        "Time per stage", "Removal from a performance"}) {
     EXPECT_THAT(report, HasSubstr(figure));
   }
   // Self-contained: nothing is loaded from elsewhere (the SVG namespace URI is not a fetch).
@@ -338,6 +352,16 @@ TEST(Cli, SimPerformBadArgumentsAreClearErrors) {
       1);
   EXPECT_THAT(out, HasSubstr("no-ict"));
   EXPECT_FALSE(std::filesystem::exists(dir.Join("t/take.json")));
+}
+
+// A bad demo flag is refused before any stage runs (nothing is written).
+TEST(Cli, DemoRefusesUnknownRemovalTargets) {
+  TempDir dir;
+  std::string out;
+  EXPECT_NE(
+      RunCommand(Facedyn("demo --quick --removal-targets exact --out " + dir.Join("d")), &out), 0);
+  EXPECT_THAT(out, HasSubstr("--removal-targets"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("d/metrics.json")));
 }
 
 }  // namespace

@@ -90,19 +90,31 @@ TEST(MlpTrainOptions, CheckNamesTheField) {
   EXPECT_THAT(options.Check().message(), HasSubstr("batch_size"));
 }
 
-TEST(TrainMlp, DecayingLearningRateIsDeterministicAndDiffersFromConstant) {
-  const LinearDataset data(500);
-  std::vector<long> rows(500);
-  for (long r = 0; r < 500; ++r) rows[r] = r;
+// The small model (seed 9) trained on every row of `data`, no validation; a failed training
+// fails the calling test. (Each test makes its own dataset: LinearDataset draws from Eigen's
+// global random state.)
+Mlp TrainSmallOnAllRows(const LinearDataset& data, const MlpTrainOptions& options) {
+  std::vector<long> rows(data.inputs_.cols());
+  for (long r = 0; r < static_cast<long>(rows.size()); ++r) rows[r] = r;
+  Mlp model = Mlp::Create(SmallShape(), 9).value();
+  EXPECT_TRUE(TrainMlp(data, rows, {}, options, &model, nullptr).ok());
+  return model;
+}
+
+MlpTrainOptions QuietOptions(int epochs) {
   MlpTrainOptions options;
-  options.epochs = 5;
+  options.epochs = epochs;
   options.batch_size = 50;
   options.show_progress = false;
+  return options;
+}
+
+TEST(TrainMlp, DecayingLearningRateIsDeterministicAndDiffersFromConstant) {
+  const LinearDataset data(500);
+  MlpTrainOptions options = QuietOptions(5);
   auto train = [&](double fraction) {
-    Mlp model = Mlp::Create(SmallShape(), 9).value();
     options.final_learning_rate_fraction = fraction;
-    EXPECT_TRUE(TrainMlp(data, rows, {}, options, &model, nullptr).ok());
-    return model.FlatParameters();
+    return TrainSmallOnAllRows(data, options).FlatParameters();
   };
   const std::vector<float> decayed = train(0.01);
   EXPECT_EQ(train(0.01), decayed);
@@ -131,17 +143,8 @@ double SquaredParameterNorm(const Mlp& model, const MlpShape& shape) {
 
 TEST(TrainMlp, WeightDecayShrinksTheWeightsAndZeroIsPlainAdamBitwise) {
   const LinearDataset data(500);
-  std::vector<long> rows(500);
-  for (long r = 0; r < 500; ++r) rows[r] = r;
-  auto train = [&](const MlpTrainOptions& options) {
-    Mlp model = Mlp::Create(SmallShape(), 9).value();
-    EXPECT_TRUE(TrainMlp(data, rows, {}, options, &model, nullptr).ok());
-    return model;
-  };
-  MlpTrainOptions options;
-  options.epochs = 20;
-  options.batch_size = 50;
-  options.show_progress = false;
+  auto train = [&](const MlpTrainOptions& options) { return TrainSmallOnAllRows(data, options); };
+  const MlpTrainOptions options = QuietOptions(20);
   const Mlp plain = train(options);
   // Explicit zeros take the default path: the same parameters to the bit.
   MlpTrainOptions zeros = options;
@@ -159,17 +162,10 @@ TEST(TrainMlp, WeightDecayShrinksTheWeightsAndZeroIsPlainAdamBitwise) {
 
 TEST(TrainMlp, InputNoiseIsDeterministicAndChangesTheFit) {
   const LinearDataset data(500);
-  std::vector<long> rows(500);
-  for (long r = 0; r < 500; ++r) rows[r] = r;
-  MlpTrainOptions options;
-  options.epochs = 5;
-  options.batch_size = 50;
-  options.show_progress = false;
+  MlpTrainOptions options = QuietOptions(5);
   auto train = [&](double noise) {
-    Mlp model = Mlp::Create(SmallShape(), 9).value();
     options.input_noise_std = noise;
-    EXPECT_TRUE(TrainMlp(data, rows, {}, options, &model, nullptr).ok());
-    return model.FlatParameters();
+    return TrainSmallOnAllRows(data, options).FlatParameters();
   };
   const std::vector<float> noisy = train(0.1);
   EXPECT_EQ(train(0.1), noisy);

@@ -101,8 +101,8 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
                    "take's recorded platform frequency), platform-synchronous-where-known "
                    "(platform takes fitted, other head motion moving-average) or exact "
                    "(simulated takes' quasistatic)")
-      ->check(CLI::IsMember({"moving-average", "platform-synchronous",
-                             "platform-synchronous-where-known", "exact"}))
+      ->check(CLI::IsMember(
+          {"moving-average", "platform-synchronous", "platform-synchronous-where-known", "exact"}))
       ->capture_default_str();
   train_removal_cmd->add_option("--epochs", train_removal->options.train.epochs)
       ->capture_default_str();
@@ -123,6 +123,9 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       ->add_option("--lr-final", train_removal->options.train.final_learning_rate_fraction,
                    "Decay the learning rate exponentially to this fraction at the last epoch")
       ->capture_default_str();
+  train_removal_cmd->add_flag_callback(
+      "--no-linear-skip", [train_removal] { train_removal->options.linear_skip = false; },
+      "The paper's network alone, without the linear map of the inputs added to its output");
   train_removal_cmd->add_flag("--json", train_removal->json, "Print the training summary as JSON");
   train_removal_cmd->callback([train_removal, selected] {
     *selected = [train_removal]() -> Status {

@@ -192,6 +192,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     train_options.train.weight_decay = options.removal_weight_decay;
     train_options.train.input_noise_std = options.removal_input_noise_std;
     train_options.hidden_units = options.removal_hidden_units;
+    train_options.linear_skip = options.removal_linear_skip;
     train_options.targets = targets;
     train_options.window_s = options.window_s;
     train_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
@@ -350,6 +351,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                      {"removal_hidden_units", options.removal_hidden_units},
                      {"removal_weight_decay", options.removal_weight_decay},
                      {"removal_input_noise_std", options.removal_input_noise_std},
+                     {"removal_linear_skip", options.removal_linear_skip},
                      {"learning_rate", options.learning_rate},
                      {"removal_learned_propagation", options.removal_learned_propagation},
                      {"synthesis_learned_propagation", options.synthesis_learned_propagation},
@@ -387,6 +389,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
         subset_options.train.weight_decay = options.removal_weight_decay;
         subset_options.train.input_noise_std = options.removal_input_noise_std;
         subset_options.hidden_units = options.removal_hidden_units;
+        subset_options.linear_skip = options.removal_linear_skip;
         subset_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
         subset_options.train.seed = options.seed;
         subset_options.train.num_threads = options.threads;

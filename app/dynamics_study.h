@@ -53,6 +53,7 @@ struct DynamicsStudyOptions {
   int removal_hidden_units = 128;        // width of F's two hidden layers (the paper's 128)
   double removal_weight_decay = 0.0;     // decoupled weight decay of F's training (mlp.h)
   double removal_input_noise_std = 0.0;  // noise on F's normalised training inputs (mlp.h)
+  bool removal_linear_skip = true;       // F plus a linear map of its inputs (mlp.h)
   double learning_rate = 1e-3;           // Adam, both networks (the paper's)
   int synthesis_epochs = 30;             // the paper's
   int synthesis_batch = 50;              // the paper's

@@ -15,8 +15,9 @@
 //                  [--laplacian-removal] [--laplacian-synthesis] [--batch N] [--lr LR]
 //                  [--no-synthesis] [--propagation-prior W] [--amplitudes A1,A2,...]
 //                  [--test-hz F] [--test-amplitude A] [--hidden-units N] [--weight-decay W]
-//                  [--input-noise S]
+//                  [--input-noise S] [--no-linear-skip]
 //
+// --no-linear-skip: F without the linear map of its inputs (the paper's network alone).
 // --amplitudes: platform amplitudes (mm) of the training takes, one take per frequency,
 // expression and amplitude. --test-hz with --hz lets a setting be chosen on a frequency held
 // out of the training set (e.g. --hz 6,7,8,9 --test-hz 10) without looking at the 11 Hz test.
@@ -193,6 +194,8 @@ int main(int argc, char** argv) {
       options.removal_weight_decay = std::atof(next());
     } else if (arg == "--input-noise") {
       options.removal_input_noise_std = std::atof(next());
+    } else if (arg == "--no-linear-skip") {
+      options.removal_linear_skip = false;
     } else if (arg == "--seconds") {
       options.seconds = std::atof(next());
     } else {
@@ -204,7 +207,7 @@ int main(int argc, char** argv) {
           "[--no-platform-targets] [--laplacian-removal] [--laplacian-synthesis] [--batch N] "
           "[--lr LR] [--no-synthesis] [--propagation-prior W] [--amplitudes A1,A2,...] "
           "[--test-hz F] [--test-amplitude A] [--hidden-units N] [--weight-decay W] "
-          "[--input-noise S]\n");
+          "[--input-noise S] [--no-linear-skip]\n");
       return 2;
     }
   }

@@ -39,13 +39,22 @@ struct NetImpl : torch::nn::Module {
       layers.push_back(register_module("fc" + std::to_string(k + 1), torch::nn::Linear(in, out)));
       in = out;
     }
+    if (shape.linear_skip) {
+      skip = register_module(
+          "skip", torch::nn::Linear(
+                      torch::nn::LinearOptions(shape.input_size, shape.output_size).bias(false)));
+      torch::NoGradGuard no_grad;
+      skip->weight.zero_();  // starts as the plain MLP
+    }
   }
 
-  torch::Tensor ForwardNormalised(torch::Tensor x) {
+  torch::Tensor ForwardNormalised(const torch::Tensor& input) {
+    torch::Tensor x = input;
     for (size_t k = 0; k < layers.size(); ++k) {
       x = layers[k]->forward(x);
       if (k + 1 < layers.size()) x = torch::relu(x);
     }
+    if (!skip.is_empty()) x = x + skip->forward(input);
     return x;
   }
   torch::Tensor Forward(const torch::Tensor& raw) {
@@ -53,6 +62,7 @@ struct NetImpl : torch::nn::Module {
   }
 
   std::vector<torch::nn::Linear> layers;
+  torch::nn::Linear skip{nullptr};
   torch::Tensor input_mean, input_std, output_mean, output_std;
 };
 TORCH_MODULE(Net);
@@ -67,7 +77,8 @@ Json ShapeToJson(const MlpShape& shape) {
   return {{"input_size", shape.input_size},
           {"hidden_units", shape.hidden_units},
           {"hidden_layers", shape.hidden_layers},
-          {"output_size", shape.output_size}};
+          {"output_size", shape.output_size},
+          {"linear_skip", shape.linear_skip}};
 }
 
 }  // namespace
@@ -84,6 +95,7 @@ double MlpShape::ForwardMultiplyAdds() const {
   double total = static_cast<double>(input_size) * hidden_units;
   total += static_cast<double>(hidden_layers - 1) * hidden_units * hidden_units;
   total += static_cast<double>(hidden_units) * output_size;
+  if (linear_skip) total += static_cast<double>(input_size) * output_size;
   return total;
 }
 
@@ -173,6 +185,7 @@ StatusOr<Mlp> Mlp::Load(const std::string& path, const std::string& expected_kin
       shape.hidden_units = mlp.at("hidden_units").get<int>();
       shape.hidden_layers = mlp.at("hidden_layers").get<int>();
       shape.output_size = mlp.at("output_size").get<int>();
+      shape.linear_skip = mlp.value("linear_skip", false);  // absent in files before it existed
     } catch (const std::exception& e) {
       return DataLossError(path + ": bad mlp shape in the config: " + e.what());
     }

@@ -5,8 +5,9 @@
 //   y = MLP((x - input_mean) / input_std) * output_std + output_mean
 //
 // MLP: `hidden_layers` fully connected layers of `hidden_units` with ReLU, then a linear output
-// layer. The per-dimension normalisation lives in the model as buffers, so callers always pass
-// raw features and receive raw outputs (mm).
+// layer; optionally plus a linear map of the normalised inputs (MlpShape::linear_skip). The
+// per-dimension normalisation lives in the model as buffers, so callers always pass raw features
+// and receive raw outputs (mm).
 //
 // Mlp hides LibTorch behind a pointer to an implementation, so including this header costs no
 // LibTorch parse (only mlp.cc includes <torch/torch.h>).
@@ -42,6 +43,11 @@ struct MlpShape {
   int hidden_units = 128;
   int hidden_layers = 2;
   int output_size = 3;
+  // Adds a linear map of the normalised inputs to the output ("skip", no bias, zero at
+  // initialisation): y = MLP(x) + W x. A linear response extrapolates smoothly outside the
+  // training conditions where the ReLU layers alone extrapolate piecewise (e.g. F at a platform
+  // frequency above every training frequency). False is the paper's network.
+  bool linear_skip = false;
   // All >= 1. The message names the field.
   Status Check() const;
   // Multiply-adds of one forward pass of one row (for throughput figures).

@@ -136,6 +136,7 @@ StatusOr<RemovalModel> RemovalModel::Create(const RemovalConfig& config, uint64_
   MlpShape shape;
   shape.input_size = config.input_size();
   shape.hidden_units = config.hidden_units;
+  shape.linear_skip = config.linear_skip;
   shape.output_size = 3;
   RemovalModel model;
   model.config_ = config;
@@ -152,6 +153,7 @@ StatusOr<RemovalModel> RemovalModel::Load(const std::string& path) {
   FACEDYN_ASSIGN_OR_RETURN(model.mlp_, LoadFeatureModel(path, kKind, kRemovalFormatVersion,
                                                         &model.config_, &model.propagation_));
   model.config_.hidden_units = model.mlp_.shape().hidden_units;
+  model.config_.linear_skip = model.mlp_.shape().linear_skip;
   FACEDYN_RETURN_IF_ERROR(
       CheckNetworkSizes(path, model.mlp_.shape(), model.config_.input_size(), 3));
   return model;
@@ -179,6 +181,7 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
   RemovalConfig config = RemovalConfig::ForRig(*takes[0].rig, takes[0].take->info.fps);
   config.features.window_s = options.window_s;
   config.hidden_units = options.hidden_units;
+  config.linear_skip = options.linear_skip;
   FACEDYN_ASSIGN_OR_RETURN(RemovalModel model, RemovalModel::Create(config, options.train.seed));
 
   int max_frames = 0;

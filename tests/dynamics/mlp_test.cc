@@ -172,6 +172,32 @@ TEST(TrainMlp, InputNoiseIsDeterministicAndChangesTheFit) {
   EXPECT_NE(train(0.0), noisy);
 }
 
+TEST(Mlp, LinearSkipStartsAsThePlainNetworkAndRoundTrips) {
+  MlpShape shape = SmallShape();
+  shape.linear_skip = true;
+  EXPECT_DOUBLE_EQ(shape.ForwardMultiplyAdds(), SmallShape().ForwardMultiplyAdds() + 4 * 2);
+  const Mlp plain = Mlp::Create(SmallShape(), 5).value();
+  Mlp skip = Mlp::Create(shape, 5).value();
+  EXPECT_EQ(skip.FlatParameters().size(), plain.FlatParameters().size() + 4 * 2);
+  const Eigen::MatrixXf inputs = Eigen::MatrixXf::Random(4, 16) * 10.0f;
+  // Zero-initialised skip, the same draws for fc1..fc3: the same function at the start.
+  EXPECT_EQ(skip.Predict(inputs), plain.Predict(inputs));
+
+  const LinearDataset data(500);
+  std::vector<long> rows(500);
+  for (long r = 0; r < 500; ++r) rows[r] = r;
+  ASSERT_TRUE(TrainMlp(data, rows, {}, QuietOptions(3), &skip, nullptr).ok());
+  testing::TempDir dir;
+  ASSERT_TRUE(skip.Save(dir.Join("m.pt"), "removal", Json::object()).ok());
+  Json config;
+  const auto loaded = Mlp::Load(dir.Join("m.pt"), "removal", &config);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+  EXPECT_TRUE(loaded->shape().linear_skip);
+  EXPECT_EQ(config["mlp"]["linear_skip"], true);
+  EXPECT_EQ(loaded->Predict(inputs), skip.Predict(inputs));
+  EXPECT_NE(skip.Predict(inputs), plain.Predict(inputs));  // the skip was trained
+}
+
 TEST(TrainMlp, RefusesMismatchedSizesAndNoRows) {
   const LinearDataset data(10);
   MlpShape shape = SmallShape();

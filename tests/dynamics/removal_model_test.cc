@@ -188,6 +188,30 @@ TEST(TrainRemoval, DeterministicForASeed) {
   EXPECT_NE(TrainRemoval(takes, other).value().FlatParameters(), a.FlatParameters());
 }
 
+// F carries a linear map of its inputs unless asked for the paper's network alone; the choice
+// is part of the saved model.
+TEST(TrainRemoval, LinearSkipByDefaultSavedWithTheModel) {
+  const FaceRig rig = TinyRig();
+  const Take take = SyntheticTake(rig, 80, 128.0, 0.0);
+  const std::vector<TrainingTake> takes = {{&take, &rig}};
+  ASSERT_TRUE(RemovalTrainOptions().linear_skip);
+  const RemovalModel with_skip = TrainRemoval(takes, QuickOptions(1)).value();
+  RemovalTrainOptions paper = QuickOptions(1);
+  paper.linear_skip = false;
+  const RemovalModel without = TrainRemoval(takes, paper).value();
+  EXPECT_TRUE(with_skip.config().linear_skip);
+  EXPECT_FALSE(without.config().linear_skip);
+  EXPECT_EQ(with_skip.FlatParameters().size(),
+            without.FlatParameters().size() + 3u * with_skip.config().input_size());
+  testing::TempDir dir;
+  for (const RemovalModel* model : {&with_skip, &without}) {
+    ASSERT_TRUE(model->Save(dir.Join("F.pt")).ok());
+    const RemovalModel loaded = RemovalModel::Load(dir.Join("F.pt")).value();
+    EXPECT_EQ(loaded.config().linear_skip, model->config().linear_skip);
+    EXPECT_EQ(loaded.FlatParameters(), model->FlatParameters());
+  }
+}
+
 TEST(TrainRemoval, LearnsAKnownSmoothFunctionOfTheFeatures) {
   const FaceRig rig = TinyRig();
   const Take take_a = SyntheticTake(rig, 128, 128.0, 0.0);

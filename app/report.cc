@@ -251,8 +251,7 @@ std::string RemovalChartNote(const Json& removal) {
   std::string note =
       fmt::format(" (mean true offset {:.3f} mm", Number(removal, "mean_dynamic_offset_mm"));
   if (removal.contains("perfect_removal_mm")) {
-    note += fmt::format("; a perfect removal in the estimated skull frame: {:.3f} mm",
-                        Number(removal, "perfect_removal_mm"));
+    note += fmt::format(", skull-pose floor {:.3f} mm", Number(removal, "perfect_removal_mm"));
   }
   return note + ")";
 }
@@ -316,7 +315,11 @@ std::string DynamicsSection(const Json& dynamics) {
   }
   const Json& removal = Field(dynamics, "removal");
   if (removal.is_object()) {
-    html += "<h3>Removal at a platform frequency never trained on</h3>" +
+    html += std::string("<h3>Removal at a platform frequency never trained on</h3>") +
+            "<p>Error against the simulator's exact quasistatic over the jiggling vertices. The "
+            "skull-pose floor is what a perfect removal would give: every method removes in the "
+            "skull frame the reconstruction estimated and maps its result back with that pose, "
+            "so the pose's own error stays.</p>" +
             SvgBarChart(Text(removal, "take") + RemovalChartNote(removal),
                         MethodBars(Field(removal, "methods"), "jiggle_mean_mm"), "mm");
   }

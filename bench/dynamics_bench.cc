@@ -15,8 +15,10 @@
 //                  [--laplacian-removal] [--laplacian-synthesis] [--batch N] [--lr LR]
 //                  [--no-synthesis] [--propagation-prior W] [--amplitudes A1,A2,...]
 //                  [--test-hz F] [--test-amplitude A] [--hidden-units N] [--weight-decay W]
-//                  [--input-noise S] [--no-linear-skip]
+//                  [--input-noise S] [--no-linear-skip] [--seed N]
 //
+// --seed: draws every take (expression drift, motion phases) and the networks' initialisation
+// from another seed, for a replicate of the whole study (default 1).
 // --no-linear-skip: F without the linear map of its inputs (the paper's network alone).
 // --amplitudes: platform amplitudes (mm) of the training takes, one take per frequency,
 // expression and amplitude. --test-hz with --hz lets a setting be chosen on a frequency held
@@ -194,6 +196,8 @@ int main(int argc, char** argv) {
       options.removal_weight_decay = std::atof(next());
     } else if (arg == "--input-noise") {
       options.removal_input_noise_std = std::atof(next());
+    } else if (arg == "--seed") {
+      options.seed = std::strtoull(next(), nullptr, 10);
     } else if (arg == "--no-linear-skip") {
       options.removal_linear_skip = false;
     } else if (arg == "--seconds") {
@@ -207,7 +211,7 @@ int main(int argc, char** argv) {
           "[--no-platform-targets] [--laplacian-removal] [--laplacian-synthesis] [--batch N] "
           "[--lr LR] [--no-synthesis] [--propagation-prior W] [--amplitudes A1,A2,...] "
           "[--test-hz F] [--test-amplitude A] [--hidden-units N] [--weight-decay W] "
-          "[--input-noise S] [--no-linear-skip]\n");
+          "[--input-noise S] [--no-linear-skip] [--seed N]\n");
       return 2;
     }
   }

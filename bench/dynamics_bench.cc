@@ -33,6 +33,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -55,6 +57,28 @@ using facedyn::Json;
 using Clock = std::chrono::steady_clock;
 double Seconds(Clock::time_point a) {
   return std::chrono::duration<double>(Clock::now() - a).count();
+}
+
+// A flag's value as a finite number / an integer, or exit 2 naming the flag and the value
+// (atof/atoi would turn a typo into 0).
+double Number(const char* text, const std::string& flag) {
+  char* end = nullptr;
+  const double value = std::strtod(text, &end);
+  if (end == text || *end != '\0' || !std::isfinite(value)) {
+    std::fprintf(stderr, "dynamics_bench: %s: '%s' is not a number\n", flag.c_str(), text);
+    std::exit(2);
+  }
+  return value;
+}
+long long Integer(const char* text, const std::string& flag) {
+  char* end = nullptr;
+  const long long value = std::strtoll(text, &end, 10);
+  if (end == text || *end != '\0' || value < 0) {
+    std::fprintf(stderr, "dynamics_bench: %s: '%s' is not a non-negative integer\n", flag.c_str(),
+                 text);
+    std::exit(2);
+  }
+  return value;
 }
 
 std::vector<std::string> Split(const std::string& list) {
@@ -146,35 +170,35 @@ int main(int argc, char** argv) {
     if (arg == "--quick") {
       quick = true;
     } else if (arg == "--threads") {
-      threads = std::atoi(next());
+      threads = static_cast<int>(Integer(next(), arg));
     } else if (arg == "--epochs") {
-      options.removal_epochs = std::atoi(next());
+      options.removal_epochs = static_cast<int>(Integer(next(), arg));
     } else if (arg == "--hz") {
       options.train_hz.clear();
       for (const std::string& item : Split(next()))
-        options.train_hz.push_back(std::atof(item.c_str()));
+        options.train_hz.push_back(Number(item.c_str(), arg));
     } else if (arg == "--expressions") {
       options.expressions = Split(next());
     } else if (arg == "--speech-hz") {
-      options.speech_hz = std::atof(next());
+      options.speech_hz = Number(next(), arg);
     } else if (arg == "--no-train-speech") {
       options.train_speech = false;
     } else if (arg == "--window-ms") {
-      options.window_s = std::atof(next()) * 1e-3;
+      options.window_s = Number(next(), arg) * 1e-3;
     } else if (arg == "--lr-final") {
-      options.final_learning_rate_fraction = std::atof(next());
+      options.final_learning_rate_fraction = Number(next(), arg);
     } else if (arg == "--synthesis-epochs") {
-      options.synthesis_epochs = std::atoi(next());
+      options.synthesis_epochs = static_cast<int>(Integer(next(), arg));
     } else if (arg == "--no-moving-average") {
       options.moving_average_targets = false;
     } else if (arg == "--no-platform-targets") {
       options.platform_targets = false;
     } else if (arg == "--batch") {
-      options.removal_batch = std::atoi(next());
+      options.removal_batch = static_cast<int>(Integer(next(), arg));
     } else if (arg == "--lr") {
-      options.learning_rate = std::atof(next());
+      options.learning_rate = Number(next(), arg);
     } else if (arg == "--propagation-prior") {
-      options.propagation_prior_weight = std::atof(next());
+      options.propagation_prior_weight = Number(next(), arg);
     } else if (arg == "--no-synthesis") {
       options.synthesis = false;
     } else if (arg == "--laplacian-removal") {
@@ -185,23 +209,23 @@ int main(int argc, char** argv) {
       options.train_amplitudes_mm.clear();
       amplitudes_given = true;
       for (const std::string& item : Split(next()))
-        options.train_amplitudes_mm.push_back(std::atof(item.c_str()));
+        options.train_amplitudes_mm.push_back(Number(item.c_str(), arg));
     } else if (arg == "--test-hz") {
-      options.test_hz = std::atof(next());
+      options.test_hz = Number(next(), arg);
     } else if (arg == "--test-amplitude") {
-      options.test_amplitude_mm = std::atof(next());
+      options.test_amplitude_mm = Number(next(), arg);
     } else if (arg == "--hidden-units") {
-      options.removal_hidden_units = std::atoi(next());
+      options.removal_hidden_units = static_cast<int>(Integer(next(), arg));
     } else if (arg == "--weight-decay") {
-      options.removal_weight_decay = std::atof(next());
+      options.removal_weight_decay = Number(next(), arg);
     } else if (arg == "--input-noise") {
-      options.removal_input_noise_std = std::atof(next());
+      options.removal_input_noise_std = Number(next(), arg);
     } else if (arg == "--seed") {
-      options.seed = std::strtoull(next(), nullptr, 10);
+      options.seed = static_cast<uint64_t>(Integer(next(), arg));
     } else if (arg == "--no-linear-skip") {
       options.removal_linear_skip = false;
     } else if (arg == "--seconds") {
-      options.seconds = std::atof(next());
+      options.seconds = Number(next(), arg);
     } else {
       std::fprintf(
           stderr,

@@ -4,7 +4,8 @@
 //   y_i(t)  = x_i(t) - T(t) F(B(t), X_i(t))                                      (Eq. 7)
 //
 // input = [B(t) flattened; X_i(t) flattened] (features.h layout), two hidden layers of 128 with
-// ReLU, output dx_i (3, skull frame, mm), normalisation in the model (mlp.h). The corrected
+// ReLU plus, by default, a linear map of the inputs (RemovalTrainOptions::linear_skip), output
+// dx_i (3, skull frame, mm), normalisation in the model (mlp.h). The corrected
 // samples are propagated to every vertex by the model's own learned propagation (fitted to the
 // training targets, saved in the model; propagation.h says why), or by the rig's prefactorised
 // Laplacian for a model without one.

@@ -109,10 +109,10 @@ struct DemoDynamicsArtifacts {
 // under <out_dir>/models, prints progress and tables, and returns the figures in *metrics:
 // "setup", "reconstruction" (per take), "removal" (held-out take: every method's face mean,
 // p95, max and mean over the jiggling vertices, the reconstruction's own error and
-// "perfect_removal_mm", the floor the estimated skull pose sets for every method), "removal_by_training_frequencies" (Fig. 5),
-// "synthesis" ("resynthesis", "walk"), "retarget" and "training". `reference_removal` (may be
-// null) is another removal model for A's rig, reported as "F_exact_targets_simulated" (e.g. the
-// simulated-data study's). *artifacts may be null.
+// "perfect_removal_mm", the floor the estimated skull pose sets for every method),
+// "removal_by_training_frequencies" (Fig. 5), "synthesis" ("resynthesis", "walk"), "retarget" and
+// "training". `reference_removal` (may be null) is another removal model for A's rig, reported as
+// "F_exact_targets_simulated" (e.g. the simulated-data study's). *artifacts may be null.
 Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
                             const Take& test_simulated, const Take& test_reconstructed,
                             const DemoDynamicsOptions& options, const std::string& out_dir,

@@ -93,11 +93,15 @@ TEST(MlpTrainOptions, CheckNamesTheField) {
 // The small model (seed 9) trained on every row of `data`, no validation; a failed training
 // fails the calling test. (Each test makes its own dataset: LinearDataset draws from Eigen's
 // global random state.)
-Mlp TrainSmallOnAllRows(const LinearDataset& data, const MlpTrainOptions& options) {
+std::vector<long> AllRows(const LinearDataset& data) {
   std::vector<long> rows(data.inputs_.cols());
   for (long r = 0; r < static_cast<long>(rows.size()); ++r) rows[r] = r;
+  return rows;
+}
+
+Mlp TrainSmallOnAllRows(const LinearDataset& data, const MlpTrainOptions& options) {
   Mlp model = Mlp::Create(SmallShape(), 9).value();
-  EXPECT_TRUE(TrainMlp(data, rows, {}, options, &model, nullptr).ok());
+  EXPECT_TRUE(TrainMlp(data, AllRows(data), {}, options, &model, nullptr).ok());
   return model;
 }
 
@@ -184,9 +188,7 @@ TEST(Mlp, LinearSkipStartsAsThePlainNetworkAndRoundTrips) {
   EXPECT_EQ(skip.Predict(inputs), plain.Predict(inputs));
 
   const LinearDataset data(500);
-  std::vector<long> rows(500);
-  for (long r = 0; r < 500; ++r) rows[r] = r;
-  ASSERT_TRUE(TrainMlp(data, rows, {}, QuietOptions(3), &skip, nullptr).ok());
+  ASSERT_TRUE(TrainMlp(data, AllRows(data), {}, QuietOptions(3), &skip, nullptr).ok());
   testing::TempDir dir;
   ASSERT_TRUE(skip.Save(dir.Join("m.pt"), "removal", Json::object()).ok());
   Json config;
@@ -195,7 +197,7 @@ TEST(Mlp, LinearSkipStartsAsThePlainNetworkAndRoundTrips) {
   EXPECT_TRUE(loaded->shape().linear_skip);
   EXPECT_EQ(config["mlp"]["linear_skip"], true);
   EXPECT_EQ(loaded->Predict(inputs), skip.Predict(inputs));
-  EXPECT_NE(skip.Predict(inputs), plain.Predict(inputs));  // the skip was trained
+  EXPECT_NE(skip.Predict(inputs), plain.Predict(inputs));  // training changed it
 }
 
 TEST(TrainMlp, RefusesMismatchedSizesAndNoRows) {

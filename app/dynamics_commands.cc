@@ -29,6 +29,8 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
     double window_ms = 80.0;
     std::string method = "moving-average";
     double platform_hz = 0.0;
+    int trend_degree = 0;
+    double min_periods = 1.5;
   };
   auto quasistatic_options = std::make_shared<QuasistaticCommandOptions>();
   auto* quasistatic = dynamics->add_subcommand(
@@ -49,6 +51,15 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
   quasistatic->add_option("--platform-hz", quasistatic_options->platform_hz,
                           "Platform frequency for platform-synchronous (default: the take's own "
                           "platform_hz)");
+  quasistatic
+      ->add_option("--trend-degree", quasistatic_options->trend_degree,
+                   "platform-synchronous: degree of the polynomial fitted with the sinusoids "
+                   "(0: a constant; 2 follows an expression that changes, e.g. speech)")
+      ->capture_default_str();
+  quasistatic
+      ->add_option("--min-periods", quasistatic_options->min_periods,
+                   "platform-synchronous: shortest window in platform periods (2 with a trend)")
+      ->capture_default_str();
   quasistatic->callback([quasistatic_options, selected] {
     *selected = [quasistatic_options]() -> Status {
       dynamics::QuasistaticOptions options;
@@ -59,6 +70,16 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
       }
       if (quasistatic_options->method == "platform-synchronous") {
         options.method = dynamics::QuasistaticMethod::kPlatformSynchronous;
+      }
+      options.trend_degree = quasistatic_options->trend_degree;
+      options.min_periods = quasistatic_options->min_periods;
+      if (options.trend_degree < 0 || options.trend_degree > 4) {
+        return InvalidArgumentError("--trend-degree must be in 0..4, got " +
+                                    std::to_string(options.trend_degree));
+      }
+      if (!(options.min_periods >= 1 && options.min_periods <= 10)) {
+        return InvalidArgumentError("--min-periods must be in [1, 10], got " +
+                                    std::to_string(options.min_periods));
       }
       if (quasistatic_options->platform_hz != 0.0) {
         if (!(quasistatic_options->platform_hz > 0)) {

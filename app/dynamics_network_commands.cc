@@ -104,6 +104,15 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       ->check(CLI::IsMember(
           {"moving-average", "platform-synchronous", "platform-synchronous-where-known", "exact"}))
       ->capture_default_str();
+  train_removal_cmd
+      ->add_option("--target-trend-degree", train_removal->options.target_trend_degree,
+                   "Platform-synchronous targets: degree of the polynomial fitted with the "
+                   "sinusoids (0: a constant; 2 for takes whose expression changes)")
+      ->capture_default_str();
+  train_removal_cmd
+      ->add_option("--target-min-periods", train_removal->options.target_min_periods,
+                   "Platform-synchronous targets: shortest window in platform periods")
+      ->capture_default_str();
   train_removal_cmd->add_option("--epochs", train_removal->options.train.epochs)
       ->capture_default_str();
   train_removal_cmd->add_option("--batch", train_removal->options.train.batch_size)

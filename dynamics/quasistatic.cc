@@ -26,6 +26,10 @@ Status QuasistaticOptions::Check() const {
     return InvalidArgumentError("QuasistaticOptions.harmonics must be in 1..4, got " +
                                 std::to_string(harmonics));
   }
+  if (trend_degree < 0 || trend_degree > 4) {
+    return InvalidArgumentError("QuasistaticOptions.trend_degree must be in 0..4, got " +
+                                std::to_string(trend_degree));
+  }
   if (!(min_periods >= 1 && min_periods <= 10)) {
     return InvalidArgumentError("QuasistaticOptions.min_periods must be in [1, 10], got " +
                                 std::to_string(min_periods));
@@ -34,10 +38,15 @@ Status QuasistaticOptions::Check() const {
 }
 
 StatusOr<std::vector<double>> PlatformSynchronousWeights(double fps, double platform_hz,
-                                                         int half_window_frames, int harmonics) {
+                                                         int half_window_frames, int harmonics,
+                                                         int trend_degree) {
   if (!(fps > 0) || !(platform_hz > 0) || half_window_frames < 1 || harmonics < 1) {
     return InvalidArgumentError("platform-synchronous weights: fps, platform_hz, window and "
                                 "harmonics must be positive");
+  }
+  if (trend_degree < 0 || trend_degree > 4) {
+    return InvalidArgumentError("platform-synchronous weights: trend_degree must be in 0..4, got " +
+                                std::to_string(trend_degree));
   }
   if (harmonics * platform_hz >= 0.5 * fps) {
     return InvalidArgumentError(
@@ -46,14 +55,19 @@ StatusOr<std::vector<double>> PlatformSynchronousWeights(double fps, double plat
         std::to_string(fps) + " fps (fit fewer harmonics)");
   }
   const int length = 2 * half_window_frames + 1;
-  const int columns = 1 + 2 * harmonics;
+  const int columns = 1 + trend_degree + 2 * harmonics;
   Eigen::MatrixXd basis(length, columns);
   for (int k = -half_window_frames; k <= half_window_frames; ++k) {
-    basis(k + half_window_frames, 0) = 1.0;
+    const int row = k + half_window_frames;
+    // Polynomial in the offset scaled to [-1, 1] (conditioning); its value at k = 0 is the
+    // constant's coefficient, so e_0 still picks the quasistatic at the centre.
+    const double u = static_cast<double>(k) / half_window_frames;
+    double power = 1.0;
+    for (int d = 0; d <= trend_degree; ++d, power *= u) basis(row, d) = power;
     for (int h = 1; h <= harmonics; ++h) {
       const double phase = 2.0 * M_PI * h * platform_hz * k / fps;
-      basis(k + half_window_frames, 2 * h - 1) = std::sin(phase);
-      basis(k + half_window_frames, 2 * h) = std::cos(phase);
+      basis(row, trend_degree + 2 * h - 1) = std::sin(phase);
+      basis(row, trend_degree + 2 * h) = std::cos(phase);
     }
   }
   const Eigen::MatrixXd normal = basis.transpose() * basis;
@@ -200,7 +214,8 @@ StatusOr<Take> ExtractQuasistatic(const Take& take, const QuasistaticOptions& op
         static_cast<int>(std::ceil(0.5 * options.min_periods * take.info.fps / *platform_hz)));
     FACEDYN_ASSIGN_OR_RETURN(
         const std::vector<double> weights,
-        PlatformSynchronousWeights(take.info.fps, *platform_hz, window_frames, options.harmonics));
+        PlatformSynchronousWeights(take.info.fps, *platform_hz, window_frames, options.harmonics,
+                                   options.trend_degree));
     FACEDYN_ASSIGN_OR_RETURN(quasistatic,
                              WeightedAverageInSkull(take.positions, take.world_from_skull, weights));
   } else {

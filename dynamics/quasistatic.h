@@ -51,6 +51,9 @@ struct QuasistaticOptions {
   std::optional<double> platform_hz;
   int harmonics = 2;
   double min_periods = 1.5;
+  // Platform-synchronous only: degree of the polynomial fitted with the sinusoids (0: a
+  // constant). A changing expression is a trend over the window that a constant smears.
+  int trend_degree = 0;
   // window_s in [0, 1] s, platform_hz > 0 when set, harmonics in 1..4, min_periods in [1, 10].
   // The message names the field.
   Status Check() const;
@@ -60,7 +63,8 @@ struct QuasistaticOptions {
 // `harmonics` harmonics. Errors: a harmonic at or above the Nyquist frequency, or a window too
 // short for the fit to be well conditioned.
 StatusOr<std::vector<double>> PlatformSynchronousWeights(double fps, double platform_hz,
-                                                         int half_window_frames, int harmonics);
+                                                         int half_window_frames, int harmonics,
+                                                         int trend_degree = 0);
 
 // Like MovingAverageInSkull with any centred weights (size 2w+1, offsets -w..w; clamped frame
 // indices at the ends): T(t) sum_k h_k T(t+k)^-1 x(t+k).

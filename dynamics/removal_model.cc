@@ -166,6 +166,14 @@ Status RemovalTrainOptions::Check() const {
   }
   if (hidden_units < 1) return InvalidArgumentError("hidden_units must be >= 1");
   if (!(window_s > 0 && window_s <= 1)) return InvalidArgumentError("window_s must be in (0, 1]");
+  if (target_trend_degree < 0 || target_trend_degree > 4) {
+    return InvalidArgumentError("target_trend_degree must be in 0..4, got " +
+                                std::to_string(target_trend_degree));
+  }
+  if (!(target_min_periods >= 1 && target_min_periods <= 10)) {
+    return InvalidArgumentError("target_min_periods must be in [1, 10], got " +
+                                std::to_string(target_min_periods));
+  }
   if (Status status = propagation.Check(); !status.ok()) return status.WithContext("propagation");
   return Status::Ok();
 }
@@ -228,6 +236,8 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
           (options.targets == RemovalTargets::kPlatformSynchronousWhereKnown &&
            take.info.platform_hz)) {
         quasistatic.method = QuasistaticMethod::kPlatformSynchronous;
+        quasistatic.trend_degree = options.target_trend_degree;
+        quasistatic.min_periods = options.target_min_periods;
       }
       FACEDYN_ASSIGN_OR_RETURN(Take estimate, ExtractQuasistatic(take, quasistatic));
       target_window = estimate.info.metadata.value("quasistatic_window_frames", 0);

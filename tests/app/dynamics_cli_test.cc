@@ -136,6 +136,20 @@ TEST(DynamicsCli, PlatformSynchronousQuasistaticAndTargets) {
                        &out),
             0)
       << out;
+  // A trend for a changing expression; a degree out of range is refused by name.
+  EXPECT_EQ(RunCommand(Facedyn("dynamics quasistatic --take " + dir.Join("walk") +
+                               " --method platform-synchronous --platform-hz 2 --trend-degree 2 "
+                               "--min-periods 2 --out " + dir.Join("q4")),
+                       &out),
+            0)
+      << out;
+  EXPECT_EQ(RunCommand(Facedyn("dynamics quasistatic --take " + dir.Join("walk") +
+                               " --method platform-synchronous --platform-hz 2 --trend-degree 7 "
+                               "--out " + dir.Join("q5")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("--trend-degree"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("q5/take.json")));
 }
 
 TEST(DynamicsCli, BadArgumentsNameTheField) {
@@ -147,6 +161,11 @@ TEST(DynamicsCli, BadArgumentsNameTheField) {
                        &out),
             1);
   EXPECT_THAT(out, HasSubstr("epochs"));
+  EXPECT_EQ(RunCommand(Facedyn("dynamics train-removal --takes " + takes.Join("p7") +
+                               " --target-trend-degree 9 --out " + dir.Join("F.pt")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("target_trend_degree"));
   EXPECT_EQ(RunCommand(Facedyn("dynamics train-removal --takes " + takes.Join("p7") +
                                " --targets magic --out " + dir.Join("F.pt")),
                        &out),

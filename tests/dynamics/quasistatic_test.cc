@@ -155,6 +155,73 @@ TEST(PlatformSynchronous, WeightsPassAConstantAndCancelThePlatformAndItsHarmonic
               ::testing::HasSubstr("too short"));
 }
 
+TEST(PlatformSynchronous, ATrendOfDegreeTwoPassesAQuadraticExactly) {
+  const int w = 12;  // 2.1 periods of 11 Hz at 128 fps
+  const auto trend = PlatformSynchronousWeights(128.0, 11.0, w, 2, 2);
+  const auto constant = PlatformSynchronousWeights(128.0, 11.0, w, 2, 0);
+  ASSERT_TRUE(trend.ok()) << trend.status().message();
+  ASSERT_TRUE(constant.ok()) << constant.status().message();
+  auto moments = [&](const std::vector<double>& h) {
+    Eigen::Vector4d m = Eigen::Vector4d::Zero();  // sum h, sum h k^2, fundamental, 2nd harmonic
+    for (int k = -w; k <= w; ++k) {
+      m(0) += h[k + w];
+      m(1) += h[k + w] * k * k;
+      m(2) += h[k + w] * std::cos(2 * kPi * 11.0 * k / 128.0 + 0.4);
+      m(3) += h[k + w] * std::sin(2 * kPi * 22.0 * k / 128.0 + 1.1);
+    }
+    return m;
+  };
+  const Eigen::Vector4d with_trend = moments(*trend);
+  EXPECT_NEAR(with_trend(0), 1.0, 1e-9);
+  EXPECT_NEAR(with_trend(1), 0.0, 1e-7);  // a quadratic's centre value is reproduced
+  EXPECT_NEAR(with_trend(2), 0.0, 1e-9);
+  EXPECT_NEAR(with_trend(3), 0.0, 1e-9);
+  // The constant fit smears a quadratic: its weights have a second moment.
+  EXPECT_GT(std::abs(moments(*constant)(1)), 1.0);
+  EXPECT_THAT(PlatformSynchronousWeights(128.0, 11.0, w, 2, 5).status().message(),
+              ::testing::HasSubstr("trend_degree"));
+  QuasistaticOptions options;
+  options.trend_degree = -1;
+  EXPECT_THAT(options.Check().message(), ::testing::HasSubstr("trend_degree"));
+}
+
+// An expression that changes on the platform (a slow quadratic drift of every vertex under an
+// 11 Hz jiggle): the fit with a trend follows the drift, the constant lags it.
+TEST(ExtractQuasistatic, PlatformSynchronousWithATrendFollowsAChangingExpression) {
+  const Mesh rest = MakeEllipsoidPatch(75, 100, 90, 1.0, 0.8, 6, 6);
+  const double hz = 11.0;
+  auto drift = [](int t) {
+    const double s = t / 128.0;
+    return Eigen::Vector3d(12.0 * s * s, -8.0 * s * s + s, 6.0 * s * s);
+  };
+  Take take = HeldExpressionTake(rest, 120, 128.0, [&](int t, int v) -> Eigen::Vector3d {
+    const double phase = 2 * kPi * hz * t / 128.0 + 0.1 * v;
+    return drift(t) + Eigen::Vector3d(0.5 * std::sin(phase), 2.0 * std::cos(phase), 0.0);
+  });
+  take.info.platform_hz = hz;
+  QuasistaticOptions options;
+  options.method = QuasistaticMethod::kPlatformSynchronous;
+  options.min_periods = 2.0;
+  auto worst_error = [&](const Take& estimate) {
+    const int w = estimate.info.metadata.at("quasistatic_window_frames").get<int>();
+    double worst = 0;
+    for (int t = w; t < 120 - w; ++t) {
+      Eigen::Matrix3Xd truth = rest.positions_mm;
+      truth.colwise() += drift(t);
+      const Eigen::Matrix3Xd in_skull =
+          estimate.world_from_skull[t].Inverse().Apply(estimate.FramePositions(t));
+      worst = std::max(worst, (in_skull - truth).colwise().norm().maxCoeff());
+    }
+    return worst;
+  };
+  const double constant_mm = worst_error(ExtractQuasistatic(take, options).value());
+  options.trend_degree = 2;
+  const double trend_mm = worst_error(ExtractQuasistatic(take, options).value());
+  EXPECT_LT(trend_mm, 1e-3);  // float storage
+  EXPECT_GT(constant_mm, 0.02) << constant_mm;
+  std::printf("worst error: constant %.4f mm, trend %.6f mm\n", constant_mm, trend_mm);
+}
+
 TEST(ExtractQuasistatic, PlatformSynchronousRemovesAJiggleTheMovingAverageCannot) {
   const Mesh rest = MakeEllipsoidPatch(75, 100, 90, 1.0, 0.8, 8, 8);
   // 11 Hz at 128 fps: the 21-frame box spans 1.8 periods and leaves part of the jiggle.

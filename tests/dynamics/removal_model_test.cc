@@ -91,6 +91,12 @@ TEST(RemovalTrainOptions, CheckNamesTheField) {
   options = RemovalTrainOptions();
   options.validation_fraction = 0.95;
   EXPECT_THAT(options.Check().message(), HasSubstr("validation_fraction"));
+  options = RemovalTrainOptions();
+  options.target_trend_degree = 5;
+  EXPECT_THAT(options.Check().message(), HasSubstr("target_trend_degree"));
+  options = RemovalTrainOptions();
+  options.target_min_periods = 0.5;
+  EXPECT_THAT(options.Check().message(), HasSubstr("target_min_periods"));
 }
 
 TEST(RemovalModel, RefusesATakeWithAnotherFps) {

@@ -121,11 +121,11 @@ struct RemovalTrainOptions {
   double window_s = 0.08;  // feature and moving-average half-window
   RemovalTargets targets = RemovalTargets::kMovingAverage;
   // Platform-synchronous targets only: QuasistaticOptions::trend_degree and min_periods. A
-  // take whose expression changes on the platform (a performance) needs a trend; on a
-  // simulated speech take at 11 Hz degree 2 over 2 periods put the targets 0.021 mm from the
-  // exact quasistatic where the constant over 1.5 periods was 0.073 mm off. On a held
-  // expression reconstructed from the demo's simulated cameras it let more of the positions'
-  // noise through (0.185 -> 0.196 mm), so 0 stays the default.
+  // take whose expression changes on the platform (a performance) needs a trend: on a simulated
+  // speech take at 11 Hz degree 2 over 2 periods is 0.0149 mm from the exact quasistatic where
+  // the constant is 0.0645 (README, offline evaluation). On a held expression reconstructed
+  // from the demo's simulated cameras it let more of the positions' noise through (0.185 ->
+  // 0.196 mm), so 0 stays the default.
   int target_trend_degree = 0;
   double target_min_periods = 1.5;
   // Fit the propagation to the per-vertex training targets (propagation.h) and keep it in the

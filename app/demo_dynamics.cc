@@ -821,10 +821,11 @@ StatusOr<Json> RenderDemoDynamics(const FaceRig& face, const DemoDynamicsArtifac
     render_options.range_mm = range_mm;
     for (int t : frames) {
       for (const View& view : views_at(t)) {
+        // Relative to the output folder, so metrics.json and the report survive a move.
         const std::string path =
-            JoinPath(dir, fmt::format("{:02d}_frame{:04d}.png", image_index++, t));
+            JoinPath("renders", fmt::format("{:02d}_frame{:04d}.png", image_index++, t));
         FACEDYN_RETURN_IF_ERROR(
-            WriteBytes(path, RenderSignedOffsetPng(topology, view.positions_in_skull,
+            WriteBytes(JoinPath(out_dir, path), RenderSignedOffsetPng(topology, view.positions_in_skull,
                                                    view.offsets_in_skull, render_options)));
         images.push_back(
             {{"group", group},

@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
   app::AddReconstructCommand(cli, &selected);
   app::AddCaptureCommands(cli, &selected);
   app::AddDemoCommand(cli, &selected);
+  app::AddReportCommand(cli, &selected);
 
   try {
     cli.parse(argc, argv);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <utility>
@@ -413,7 +414,10 @@ std::string ReferenceSection(const Json& reference) {
 
 }  // namespace
 
-Status WriteDemoReport(const Json& metrics, const std::string& path) {
+Status WriteDemoReport(const Json& metrics, const std::string& path,
+                       const std::string& files_dir) {
+  const std::filesystem::path base =
+      files_dir.empty() ? std::filesystem::path(path).parent_path() : std::filesystem::path(files_dir);
   std::string html =
       "<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>facedyn demo report</title>"
       "<style>body{font-family:sans-serif;max-width:960px;margin:2em auto;color:#222}"
@@ -476,7 +480,9 @@ Status WriteDemoReport(const Json& metrics, const std::string& path) {
     // One row per (group, frame), one column per view, in the order the demo rendered them.
     std::string last_row;
     for (const Json& image : Field(renders, "images")) {
-      const std::string image_path = Text(image, "path");
+      std::filesystem::path image_file(Text(image, "path"));
+      if (image_file.is_relative()) image_file = base / image_file;
+      const std::string image_path = image_file.string();
       std::ifstream in(image_path, std::ios::binary);
       const std::vector<unsigned char> png((std::istreambuf_iterator<char>(in)),
                                            std::istreambuf_iterator<char>());

@@ -12,8 +12,12 @@
 
 namespace facedyn::app {
 
-// Writes `path` (HTML) from the demo metrics. Errors when the file cannot be written.
-Status WriteDemoReport(const Json& metrics, const std::string& path);
+// Writes `path` (HTML) from the demo metrics. Renders are embedded from the files the metrics
+// name ("renders" "images" "path"); a relative path is read from `files_dir` (empty: the folder
+// of `path`, which for the demo is where metrics.json and renders/ are). Errors when a render
+// is missing or empty (DataLoss, naming it) or the file cannot be written.
+Status WriteDemoReport(const Json& metrics, const std::string& path,
+                       const std::string& files_dir = "");
 
 // A horizontal bar chart as an inline SVG element: one bar per (label, value), values >= 0,
 // with the value printed at the bar's end in `unit`. Escapes labels.

@@ -18,6 +18,7 @@ using ::facedyn::testing::FacedynExecutable;
 using ::facedyn::testing::ReadBytes;
 using ::facedyn::testing::RunCommand;
 using ::facedyn::testing::TempDir;
+using ::facedyn::testing::WriteBytes;
 using ::testing::HasSubstr;
 
 std::string Facedyn(const std::string& args) { return FacedynExecutable() + " " + args; }
@@ -198,8 +199,11 @@ TEST(Cli, DemoMetricsAndReport) {
   // Renders: the held-out take (3 views), the walk (2) and the retargeting (3), two frames each.
   EXPECT_EQ(metrics["renders"]["groups"].size(), 3u);
   EXPECT_EQ(metrics["renders"]["images"].size(), 16u);
+  // Named relative to the output folder, so the folder can move.
   for (const auto& image : metrics["renders"]["images"]) {
-    EXPECT_TRUE(std::filesystem::exists(image["path"].get<std::string>())) << image["path"];
+    EXPECT_TRUE(std::filesystem::path(image["path"].get<std::string>()).is_relative());
+    EXPECT_TRUE(std::filesystem::exists(DemoDir().Join("demo/" + image["path"].get<std::string>())))
+        << image["path"];
   }
   const std::string report = ReadBytes(DemoDir().Join("demo/report.html"));
   EXPECT_THAT(report, HasSubstr("<svg"));
@@ -214,6 +218,45 @@ TEST(Cli, DemoMetricsAndReport) {
   // Self-contained: nothing is loaded from elsewhere (the SVG namespace URI is not a fetch).
   for (const char* remote : {"src=\"http", "href=\"http", "url(http", "@import"}) {
     EXPECT_EQ(report.find(remote), std::string::npos) << "the report loads " << remote;
+  }
+}
+
+// `facedyn report` draws the same report from metrics.json, also after the folder moved.
+TEST(Cli, ReportRedrawsTheDemoReportFromItsMetrics) {
+  TempDir dir;
+  const std::string moved = dir.Join("moved");
+  std::filesystem::create_directories(moved);
+  std::filesystem::copy(DemoDir().Join("demo/metrics.json"), moved + "/metrics.json");
+  std::filesystem::copy(DemoDir().Join("demo/renders"), moved + "/renders");
+  std::string out;
+  ASSERT_EQ(RunCommand("cd " + dir.path() + " && " +
+                           Facedyn("report --metrics moved/metrics.json 2>&1"),
+                       &out),
+            0)
+      << out;
+  EXPECT_THAT(out, HasSubstr("moved/report.html"));
+  EXPECT_EQ(ReadBytes(moved + "/report.html"), ReadBytes(DemoDir().Join("demo/report.html")));
+  // Bad input names the file and writes nothing.
+  EXPECT_EQ(RunCommand(Facedyn("report --metrics " + dir.Join("none.json") + " --out " +
+                               dir.Join("r1.html") + " 2>&1"),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("none.json"));
+  WriteBytes(dir.Join("bad.json"), "{\"rig\": ");
+  EXPECT_EQ(RunCommand(Facedyn("report --metrics " + dir.Join("bad.json") + " --out " +
+                               dir.Join("r2.html") + " 2>&1"),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("bad.json: not JSON"));
+  // A render gone: DataLoss naming it.
+  std::filesystem::remove_all(moved + "/renders");
+  EXPECT_EQ(RunCommand(Facedyn("report --metrics " + moved + "/metrics.json --out " +
+                               dir.Join("r3.html") + " 2>&1"),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("render missing"));
+  for (const char* name : {"r1.html", "r2.html", "r3.html"}) {
+    EXPECT_FALSE(std::filesystem::exists(dir.Join(name))) << name;
   }
 }
 

@@ -31,6 +31,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench/bench_flags.h"
 #include "capture/capture_config.h"
 #include "capture/frame_file.h"
 #include "capture/recorder.h"
@@ -72,17 +73,17 @@ bool Parse(int argc, char** argv, Args* args) {
     if (a == "--dir")
       args->dir = next("--dir");
     else if (a == "--cameras")
-      args->cameras = std::atoi(next("--cameras"));
+      args->cameras = static_cast<int>(facedyn::bench::FlagInteger("capture_bench", "--cameras", next("--cameras")));
     else if (a == "--width")
-      args->width = std::atoi(next("--width"));
+      args->width = static_cast<int>(facedyn::bench::FlagInteger("capture_bench", "--width", next("--width")));
     else if (a == "--height")
-      args->height = std::atoi(next("--height"));
+      args->height = static_cast<int>(facedyn::bench::FlagInteger("capture_bench", "--height", next("--height")));
     else if (a == "--megabytes")
-      args->megabytes = std::atof(next("--megabytes"));
+      args->megabytes = facedyn::bench::FlagNumber("capture_bench", "--megabytes", next("--megabytes"));
     else if (a == "--fps")
-      args->fps = std::atof(next("--fps"));
+      args->fps = facedyn::bench::FlagNumber("capture_bench", "--fps", next("--fps"));
     else if (a == "--render-frames")
-      args->render_frames = std::atoi(next("--render-frames"));
+      args->render_frames = static_cast<int>(facedyn::bench::FlagInteger("capture_bench", "--render-frames", next("--render-frames")));
     else {
       std::fprintf(stderr, "capture_bench: unknown argument '%s'\n", a.c_str());
       return false;

@@ -42,6 +42,7 @@
 #include <vector>
 
 #include "app/dynamics_study.h"
+#include "bench/bench_flags.h"
 #include "core/log.h"
 #include "core/progress.h"
 #include "dynamics/mlp.h"
@@ -59,26 +60,11 @@ double Seconds(Clock::time_point a) {
   return std::chrono::duration<double>(Clock::now() - a).count();
 }
 
-// A flag's value as a finite number / an integer, or exit 2 naming the flag and the value
-// (atof/atoi would turn a typo into 0).
 double Number(const char* text, const std::string& flag) {
-  char* end = nullptr;
-  const double value = std::strtod(text, &end);
-  if (end == text || *end != '\0' || !std::isfinite(value)) {
-    std::fprintf(stderr, "dynamics_bench: %s: '%s' is not a number\n", flag.c_str(), text);
-    std::exit(2);
-  }
-  return value;
+  return facedyn::bench::FlagNumber("dynamics_bench", flag, text);
 }
 long long Integer(const char* text, const std::string& flag) {
-  char* end = nullptr;
-  const long long value = std::strtoll(text, &end, 10);
-  if (end == text || *end != '\0' || value < 0) {
-    std::fprintf(stderr, "dynamics_bench: %s: '%s' is not a non-negative integer\n", flag.c_str(),
-                 text);
-    std::exit(2);
-  }
-  return value;
+  return facedyn::bench::FlagInteger("dynamics_bench", flag, text);
 }
 
 std::vector<std::string> Split(const std::string& list) {

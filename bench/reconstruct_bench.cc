@@ -29,6 +29,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench/bench_flags.h"
 #include "core/json_io.h"
 #include "core/progress.h"
 #include "reconstruct/board.h"
@@ -442,9 +443,11 @@ int main(int argc, char** argv) {
     if (arg == "--shared" && i + 1 < argc) {
       shared = argv[++i];
     } else if (arg == "--frames" && i + 1 < argc) {
-      frames = std::max(1, std::stoi(argv[++i]));
+      frames = std::max(1, static_cast<int>(facedyn::bench::FlagInteger(
+                                  "reconstruct_bench", "--frames", argv[++i])));
     } else if (arg == "--seconds" && i + 1 < argc) {
-      seconds = std::max(0.75, std::stod(argv[++i]));
+      seconds = std::max(
+          0.75, facedyn::bench::FlagNumber("reconstruct_bench", "--seconds", argv[++i]));
     } else {
       std::fprintf(stderr, "usage: reconstruct_bench [--shared DIR] [--frames N] [--seconds S]\n");
       return 2;

@@ -13,6 +13,7 @@
 
 #include <Eigen/Core>
 
+#include "bench/bench_flags.h"
 #include "core/json_io.h"
 #include "core/log.h"
 #include "core/progress.h"
@@ -84,8 +85,9 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--ict" && i + 1 < argc) ict_dir = argv[++i];
-    else if (arg == "--seconds" && i + 1 < argc) seconds = std::stod(argv[++i]);
-    else if (arg == "--repeats" && i + 1 < argc) repeats = std::max(1, std::stoi(argv[++i]));
+    else if (arg == "--seconds" && i + 1 < argc) seconds = facedyn::bench::FlagNumber("sim_bench", arg, argv[++i]);
+    else if (arg == "--repeats" && i + 1 < argc) repeats = std::max(
+          1, static_cast<int>(facedyn::bench::FlagInteger("sim_bench", arg, argv[++i])));
     else {
       std::fprintf(stderr, "usage: sim_bench [--ict DIR] [--seconds S] [--repeats N]\n");
       return 2;

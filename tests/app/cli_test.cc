@@ -156,7 +156,7 @@ TEST(Cli, DemoMetricsAndReport) {
   const double f_mm = methods["F"]["jiggle_mean_mm"].get<double>();
   // The held-out take's removal must at least remove most of the dynamics. Issue 8 also asks
   // for F to beat the low-pass baseline here. On reconstructed takes of a held expression it
-  // does not (default demo: F 0.170 mm, low-pass 0.172 mm — a tie; --quick: 0.253 vs 0.201).
+  // does not (default demo: F 0.172 mm, low-pass 0.172 mm — a tie; --quick: 0.243 vs 0.201).
   // Every method removes in the skull frame the reconstruction estimated; that pose's error
   // alone puts even a perfect removal 0.20 mm from the truth here ("perfect_removal_mm"), and a
   // low-pass of a held expression, whose stabilised quasistatic is constant, sits at that floor

@@ -174,6 +174,13 @@ Status RemovalTrainOptions::Check() const {
     return InvalidArgumentError("target_min_periods must be in [1, 10], got " +
                                 std::to_string(target_min_periods));
   }
+  // A trend asked for with targets that never use the fit would be silently ignored.
+  if (target_trend_degree != 0 && (targets == RemovalTargets::kMovingAverage ||
+                                   targets == RemovalTargets::kExact)) {
+    return InvalidArgumentError(std::string("target_trend_degree applies to platform-synchronous "
+                                            "targets only, not ") +
+                                RemovalTargetsName(targets));
+  }
   if (Status status = propagation.Check(); !status.ok()) return status.WithContext("propagation");
   return Status::Ok();
 }

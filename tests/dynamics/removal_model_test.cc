@@ -94,6 +94,12 @@ TEST(RemovalTrainOptions, CheckNamesTheField) {
   options = RemovalTrainOptions();
   options.target_trend_degree = 5;
   EXPECT_THAT(options.Check().message(), HasSubstr("target_trend_degree"));
+  // A trend is for the platform-synchronous fit; with other targets it would be ignored.
+  options.target_trend_degree = 2;
+  options.targets = RemovalTargets::kMovingAverage;
+  EXPECT_THAT(options.Check().message(), HasSubstr("platform-synchronous targets only"));
+  options.targets = RemovalTargets::kPlatformSynchronousWhereKnown;
+  EXPECT_TRUE(options.Check().ok());
   options = RemovalTrainOptions();
   options.target_min_periods = 0.5;
   EXPECT_THAT(options.Check().message(), HasSubstr("target_min_periods"));

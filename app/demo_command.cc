@@ -188,7 +188,7 @@ Status RunDemo(const DemoOptions& options) {
   study.seconds = 1.5;
   study.speech_hz = 0;
   study.train_speech = false;
-  study.removal_epochs = options.quick ? 5 : 12;
+  study.removal_epochs = options.quick ? 5 : 8;
   study.synthesis_epochs = options.quick ? 3 : 15;
   study.platform_targets = false;
   study.moving_average_targets = false;  // the reconstructed-take stage trains on those

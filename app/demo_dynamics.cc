@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <mutex>
+#include <thread>
 #include <utility>
 
 #include "app/face_render.h"
@@ -125,6 +127,7 @@ struct TakeSpec {
   std::string expression;
   sim::MotionOptions motion;
   double platform_hz = 0.0;  // 0 for motions other than the platform
+  double seconds = 0.0;      // 0: the length SimulateAndReconstruct is given
 };
 
 // A walk in place (sim/skull_motion.h kWalk with no forward speed): walking at constant speed
@@ -158,34 +161,80 @@ std::vector<TakeSpec> TrainingSpecs(const std::vector<double>& hz_list,
 }
 
 // Simulates every take of `specs` on `face` and reconstructs it through the demo's cameras.
-// *done counts takes across subjects for the progress lines.
+// *done counts takes across subjects for the progress lines. Simulation and reconstruction of
+// one take run on one core, so takes run two at a time (one per core of the 2-core machines the
+// demo targets): each take has its own seeds, so the results do not depend on the order.
 Status SimulateAndReconstruct(const FaceRig& face, const DemoCameraRig& cameras,
                               const std::vector<TakeSpec>& specs, double seconds,
                               const sim::TissueOptions& tissue, const std::string& subject,
                               int* done, int total, SubjectTakes* takes) {
-  for (const TakeSpec& spec : specs) {
-    ++*done;
-    std::printf(
-        "  [%d/%d] subject %s, %s: simulating %.1f s, filming with 8 cameras, "
-        "reconstructing\n",
-        *done, total, subject.c_str(), spec.name.c_str(), seconds);
-    std::fflush(stdout);
-    FACEDYN_ASSIGN_OR_RETURN(Take simulated, Simulate(face, spec.expression, spec.motion, seconds,
-                                                      tissue, spec.motion.seed));
-    FACEDYN_ASSIGN_OR_RETURN(
-        reconstruct::Reconstruction result,
-        ReconstructSimulatedTake(face, cameras, simulated, 7000 + spec.motion.seed));
-    const double frames = simulated.frame_count();
-    takes->reconstruction.push_back(
-        {{"subject", subject},
-         {"take", spec.name},
-         {"frames", simulated.frame_count()},
-         {"sample_rms_mm", Round4(SampleRmsMm(face, result.take, simulated))},
-         {"dense_fit_fps", Round4(frames / std::max(1e-9, result.timings.dense_s))}});
-    takes->names.push_back(spec.name);
-    takes->hz.push_back(spec.platform_hz);
-    takes->simulated.push_back(std::move(simulated));
-    takes->reconstructed.push_back(std::move(result.take));
+  struct Result {
+    Status status = Status::Ok();
+    Take simulated;
+    Take reconstructed;
+    Json reconstruction;
+  };
+  std::vector<Result> results(specs.size());
+  std::mutex mutex;  // guards next, failed, *done and stdout
+  size_t next = 0;
+  bool failed = false;
+  auto work = [&]() {
+    for (;;) {
+      size_t i = 0;
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (failed || next == specs.size()) return;
+        i = next++;
+        ++*done;
+        std::printf(
+            "  [%d/%d] subject %s, %s: simulating %.1f s, filming with 8 cameras, "
+            "reconstructing\n",
+            *done, total, subject.c_str(), specs[i].name.c_str(),
+            specs[i].seconds > 0 ? specs[i].seconds : seconds);
+        std::fflush(stdout);
+      }
+      const TakeSpec& spec = specs[i];
+      Result& result = results[i];
+      StatusOr<Take> simulated =
+          Simulate(face, spec.expression, spec.motion, spec.seconds > 0 ? spec.seconds : seconds,
+                   tissue, spec.motion.seed);
+      StatusOr<reconstruct::Reconstruction> reconstruction =
+          simulated.ok()
+              ? ReconstructSimulatedTake(face, cameras, *simulated, 7000 + spec.motion.seed)
+              : StatusOr<reconstruct::Reconstruction>(simulated.status());
+      if (!reconstruction.ok()) {
+        result.status =
+            reconstruction.status().WithContext(fmt::format("subject {}, {}", subject, spec.name));
+        std::lock_guard<std::mutex> lock(mutex);
+        failed = true;
+        return;
+      }
+      const double frames = simulated->frame_count();
+      result.reconstruction = {
+          {"subject", subject},
+          {"take", spec.name},
+          {"frames", simulated->frame_count()},
+          {"sample_rms_mm", Round4(SampleRmsMm(face, reconstruction->take, *simulated))},
+          {"dense_fit_fps", Round4(frames / std::max(1e-9, reconstruction->timings.dense_s))}};
+      result.simulated = std::move(*simulated);
+      result.reconstructed = std::move(reconstruction->take);
+    }
+  };
+  const unsigned workers = static_cast<unsigned>(
+      std::min<size_t>(specs.size(), std::clamp(std::thread::hardware_concurrency(), 1u, 2u)));
+  std::vector<std::thread> threads;
+  for (unsigned w = 1; w < workers; ++w) threads.emplace_back(work);
+  work();
+  for (std::thread& thread : threads) thread.join();
+  for (size_t i = 0; i < specs.size(); ++i) {
+    if (!results[i].status.ok()) return results[i].status;
+  }
+  for (size_t i = 0; i < specs.size(); ++i) {
+    takes->reconstruction.push_back(std::move(results[i].reconstruction));
+    takes->names.push_back(specs[i].name);
+    takes->hz.push_back(specs[i].platform_hz);
+    takes->simulated.push_back(std::move(results[i].simulated));
+    takes->reconstructed.push_back(std::move(results[i].reconstructed));
   }
   return Status::Ok();
 }
@@ -268,9 +317,9 @@ void PrintRow(const std::string& what, const std::string& method, double mm, dou
 // *removed (may be null): F's removal. The simulated take must have the exact channels
 // (quasistatic, dynamic_offset; RunDemoDynamicsStage checks the held-out one up front).
 StatusOr<Json> CompareRemoval(const dynamics::RemovalModel& f_model,
-                              const dynamics::RemovalModel* reference, const Take& simulated,
-                              const Take& reconstructed, const FaceRig& face, int skip,
-                              Take* removed_out) {
+                              const dynamics::RemovalModel* reference, const std::string& take_name,
+                              const Take& simulated, const Take& reconstructed, const FaceRig& face,
+                              int skip, Take* removed_out) {
   const PointCache& truth = simulated.channels.at("quasistatic");
   const std::vector<int> jiggle =
       dynamics::JigglingVertices(simulated.channels.at("dynamic_offset"), skip);
@@ -311,8 +360,6 @@ StatusOr<Json> CompareRemoval(const dynamics::RemovalModel& f_model,
                              dynamics::ComputeBaseline(reconstructed, kind, evaluate.baselines));
     add_method(name, baseline, evaluation.reports[r].face);
   }
-  const std::string name =
-      TakeName(simulated.info.expression, simulated.info.platform_hz.value_or(0.0));
   // What the reconstruction itself gets wrong (its positions vs the simulated ones, dynamics
   // included): a floor for any removal that only subtracts dynamics, which a temporal filter
   // like the low-pass can go below by smoothing the reconstruction's frame-to-frame noise.
@@ -337,9 +384,9 @@ StatusOr<Json> CompareRemoval(const dynamics::RemovalModel& f_model,
   std::printf(
       "\nRemoval on the reconstructed %s take (never trained on), error vs the exact "
       "quasistatic over the jiggling vertices (mean true offset %.3f mm):\n",
-      name.c_str(), offset_mm);
+      take_name.c_str(), offset_mm);
   for (const auto& [method, figures] : methods.items()) {
-    PrintRow(name + " reconstructed", method, figures["jiggle_mean_mm"].get<double>(),
+    PrintRow(take_name + " reconstructed", method, figures["jiggle_mean_mm"].get<double>(),
              figures["relative_to_offset"].get<double>());
   }
   std::printf(
@@ -347,7 +394,7 @@ StatusOr<Json> CompareRemoval(const dynamics::RemovalModel& f_model,
       "removal in its estimated skull frame would be %.3f mm from the exact quasistatic)\n",
       reconstruction_error_mm, perfect_removal_mm);
   if (removed_out != nullptr) *removed_out = std::move(removed);
-  return Json{{"take", name + " reconstructed"},
+  return Json{{"take", take_name + " reconstructed"},
               {"truth", "exact quasistatic of the simulation that was filmed"},
               {"jiggle_vertices", jiggle.size()},
               {"mean_dynamic_offset_mm", Round4(offset_mm)},
@@ -370,6 +417,7 @@ DemoDynamicsOptions DemoDynamicsOptions::ForDemo(bool quick) {
     options.seconds = 1.25;
     options.walk_seconds = 1.5;
     options.removal_epochs = 8;
+    options.second_subject_removal_epochs = 8;
     options.synthesis_epochs = 30;
     options.subset_epochs = 6;
   }
@@ -414,6 +462,9 @@ Status DemoDynamicsOptions::Check() const {
         "reconstructed takes");
   }
   if (removal_epochs < 1) return InvalidArgumentError("removal_epochs must be >= 1");
+  if (second_subject_removal_epochs < 1) {
+    return InvalidArgumentError("second_subject_removal_epochs must be >= 1");
+  }
   if (removal_batch < 1) return InvalidArgumentError("removal_batch must be >= 1");
   if (synthesis_epochs < 1) return InvalidArgumentError("synthesis_epochs must be >= 1");
   if (subset_epochs < 0) return InvalidArgumentError("subset_epochs must be >= 0");
@@ -508,9 +559,10 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   training["F"] = TrainingJson(f_summary, options.removal_epochs);
 
   Take removed;
-  FACEDYN_ASSIGN_OR_RETURN(result["removal"],
-                           CompareRemoval(f_model, reference_removal, test_simulated,
-                                          test_reconstructed, face, skip, &removed));
+  FACEDYN_ASSIGN_OR_RETURN(
+      result["removal"],
+      CompareRemoval(f_model, reference_removal, TakeName(test_simulated.info.expression, test_hz),
+                     test_simulated, test_reconstructed, face, skip, &removed));
   result["removal"]["F_targets"] = dynamics::RemovalTargetsName(options.removal_targets);
   const std::string test_name = TakeName(test_simulated.info.expression, test_hz);
   const std::vector<int> jiggle =
@@ -522,23 +574,42 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   const Json methods = result["removal"]["methods"];
   const double f_mm = methods["F"]["jiggle_mean_mm"].get<double>();
 
-  // A performance on the same held-out frequency: the expression changes (speech), which is
-  // what F is for and where a temporal low-pass smears the performance with the dynamics. F
-  // never saw a changing expression: a capture has targets for held expressions only.
+  // Two more takes of subject A, never trained on, simulated, filmed and reconstructed together
+  // (two at a time, as the training takes):
+  // - a performance on the held-out frequency: the expression changes (speech), which is what F
+  //   is for and where a temporal low-pass smears the performance with the dynamics. F never
+  //   saw a changing expression: a capture has targets for held expressions only.
+  // - a new head motion: A walking in place at a step rate and with a seed no training walk
+  //   has, holding the held-out take's expression. Here a temporal low-pass cannot help: a
+  //   walk's dynamics are at the step rate and its first harmonics (2-6 Hz), in the band a
+  //   low-pass must pass to keep a performance, where the platform's 6-11 Hz are above it. The
+  //   simulation is also the truth for H's synthesis of the walk (section 3).
+  const sim::MotionOptions walk = WalkInPlace(options.test_walk_step_hz, options.seed + 50);
+  std::vector<TakeSpec> extra_specs = {
+      {fmt::format("{} walk {:g} steps/s", test_simulated.info.expression,
+                   options.test_walk_step_hz),
+       test_simulated.info.expression, walk, 0.0, options.walk_seconds}};
   if (options.performance_expression != "") {
-    const TakeSpec spec = {TakeName(options.performance_expression, test_hz),
+    extra_specs.push_back({TakeName(options.performance_expression, test_hz),
                            options.performance_expression,
-                           PlatformMotion(test_hz, options.seed + 70), test_hz};
-    SubjectTakes performance;
-    int performance_done = 0;
-    FACEDYN_RETURN_IF_ERROR(SimulateAndReconstruct(face, cameras, {spec}, options.seconds, tissue_a,
-                                                   "A", &performance_done, 1, &performance));
-    reconstruction.push_back(performance.reconstruction.front());
-    FACEDYN_ASSIGN_OR_RETURN(
-        result["removal_performance"],
-        CompareRemoval(f_model, reference_removal, performance.simulated.front(),
-                       performance.reconstructed.front(), face, skip, nullptr));
+                           PlatformMotion(test_hz, options.seed + 70), test_hz, options.seconds});
   }
+  SubjectTakes extra;
+  int extra_done = 0;
+  FACEDYN_RETURN_IF_ERROR(SimulateAndReconstruct(face, cameras, extra_specs, options.seconds,
+                                                 tissue_a, "A", &extra_done,
+                                                 static_cast<int>(extra_specs.size()), &extra));
+  for (size_t i = 0; i < extra_specs.size(); ++i) {
+    reconstruction.push_back(extra.reconstruction[i]);
+    FACEDYN_ASSIGN_OR_RETURN(
+        result[i == 0 ? "removal_walk" : "removal_performance"],
+        CompareRemoval(f_model, reference_removal, extra_specs[i].name, extra.simulated[i],
+                       extra.reconstructed[i], face, skip, nullptr));
+  }
+  result["removal_walk"]["step_hz"] = options.test_walk_step_hz;
+  result["removal_walk"]["training_walk_step_hz"] = options.training_walk_step_hz;
+  Take walk_truth = std::move(extra.simulated.front());
+  extra = SubjectTakes();
 
   // Paper Fig. 5: F trained on the slowest 1 .. n frequencies.
   if (options.subset_epochs > 0) {
@@ -618,14 +689,8 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   PrintRow(test_name + " reconstructed", "removed, not resynthesised", removed_only_mm,
            test_offset_mm > 0 ? removed_only_mm / test_offset_mm : 0.0);
 
-  // A new head motion: A walking. The quasistatic is F's estimate of the held-out take's shape.
-  // Another step rate and another seed than every training walk.
-  const sim::MotionOptions walk = WalkInPlace(options.test_walk_step_hz, options.seed + 50);
-  std::printf("  simulating subject A walking (%.1f s) for the truth\n", options.walk_seconds);
-  std::fflush(stdout);
-  FACEDYN_ASSIGN_OR_RETURN(
-      Take walk_truth, Simulate(face, test_simulated.info.expression, walk, options.walk_seconds,
-                                tissue_a, options.seed + 50));
+  // The new head motion (the walk simulated in section 2) synthesised by H. The quasistatic is
+  // F's estimate of the held-out take's shape.
   const Eigen::Matrix3Xd shape_a = MeanShapeInSkull(removed, skip);
   const Take walk_quasistatic =
       dynamics::HeldShapeTake(face, shape_a, walk_truth.world_from_skull, fps);
@@ -654,11 +719,11 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
 
   // --- 4. retargeting to subject B: B's own F and H, A's walk ---
   dynamics::MlpTrainSummary fb_summary, hb_summary;
-  FACEDYN_ASSIGN_OR_RETURN(
-      const dynamics::RemovalModel fb_model,
-      TrainF(b.reconstructed, face_b, options.removal_targets, options.removal_epochs,
-             options.removal_batch, options.seed, "F_B", &fb_summary));
-  training["F_B"] = TrainingJson(fb_summary, options.removal_epochs);
+  FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel fb_model,
+                           TrainF(b.reconstructed, face_b, options.removal_targets,
+                                  options.second_subject_removal_epochs, options.removal_batch,
+                                  options.seed, "F_B", &fb_summary));
+  training["F_B"] = TrainingJson(fb_summary, options.second_subject_removal_epochs);
   std::vector<Take> decomposed_b;
   for (const Take& take : b.reconstructed) {
     FACEDYN_ASSIGN_OR_RETURN(Take decomposed, dynamics::RemoveDynamics(fb_model, take, face_b));
@@ -738,6 +803,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
       {"second_subject_hz", options.second_subject_hz},
       {"second_subject_expressions", options.second_subject_expressions},
       {"removal_epochs", options.removal_epochs},
+      {"second_subject_removal_epochs", options.second_subject_removal_epochs},
       {"removal_batch", options.removal_batch},
       {"synthesis_epochs", options.synthesis_epochs},
       {"subset_epochs", options.subset_epochs},
@@ -824,9 +890,9 @@ StatusOr<Json> RenderDemoDynamics(const FaceRig& face, const DemoDynamicsArtifac
         // Relative to the output folder, so metrics.json and the report survive a move.
         const std::string path =
             JoinPath("renders", fmt::format("{:02d}_frame{:04d}.png", image_index++, t));
-        FACEDYN_RETURN_IF_ERROR(
-            WriteBytes(JoinPath(out_dir, path), RenderSignedOffsetPng(topology, view.positions_in_skull,
-                                                   view.offsets_in_skull, render_options)));
+        FACEDYN_RETURN_IF_ERROR(WriteBytes(
+            JoinPath(out_dir, path), RenderSignedOffsetPng(topology, view.positions_in_skull,
+                                                           view.offsets_in_skull, render_options)));
         images.push_back(
             {{"group", group},
              {"range_mm", range_mm},

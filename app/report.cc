@@ -330,6 +330,17 @@ std::string DynamicsSection(const Json& dynamics) {
             SvgBarChart(Text(performance, "take") + RemovalChartNote(performance),
                         MethodBars(Field(performance, "methods"), "jiggle_mean_mm"), "mm");
   }
+  const Json& walk_removal = Field(dynamics, "removal_walk");
+  if (walk_removal.is_object()) {
+    html += std::string(
+                "<h3>Removal from a new head motion (a walk at a step rate never trained "
+                "on)</h3>") +
+            "<p>A walk's dynamics lie at the step rate and its first harmonics, inside the band a "
+            "low-pass filter must keep for the performance; the platform's frequencies lie "
+            "above it.</p>" +
+            SvgBarChart(Text(walk_removal, "take") + RemovalChartNote(walk_removal),
+                        MethodBars(Field(walk_removal, "methods"), "jiggle_mean_mm"), "mm");
+  }
   const Json& fig5 = Field(dynamics, "removal_by_training_frequencies");
   if (fig5.is_object()) {
     html += "<h3>Removal error against the number of training frequencies (paper Fig. 5)</h3>" +
@@ -414,10 +425,9 @@ std::string ReferenceSection(const Json& reference) {
 
 }  // namespace
 
-Status WriteDemoReport(const Json& metrics, const std::string& path,
-                       const std::string& files_dir) {
-  const std::filesystem::path base =
-      files_dir.empty() ? std::filesystem::path(path).parent_path() : std::filesystem::path(files_dir);
+Status WriteDemoReport(const Json& metrics, const std::string& path, const std::string& files_dir) {
+  const std::filesystem::path base = files_dir.empty() ? std::filesystem::path(path).parent_path()
+                                                       : std::filesystem::path(files_dir);
   std::string html =
       "<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>facedyn demo report</title>"
       "<style>body{font-family:sans-serif;max-width:960px;margin:2em auto;color:#222}"

@@ -175,6 +175,7 @@ Status SimulateAndReconstruct(const FaceRig& face, const DemoCameraRig& cameras,
     Json reconstruction;
   };
   std::vector<Result> results(specs.size());
+  auto seconds_of = [&](const TakeSpec& spec) { return spec.seconds > 0 ? spec.seconds : seconds; };
   std::mutex mutex;  // guards next, failed, *done and stdout
   size_t next = 0;
   bool failed = false;
@@ -189,15 +190,13 @@ Status SimulateAndReconstruct(const FaceRig& face, const DemoCameraRig& cameras,
         std::printf(
             "  [%d/%d] subject %s, %s: simulating %.1f s, filming with 8 cameras, "
             "reconstructing\n",
-            *done, total, subject.c_str(), specs[i].name.c_str(),
-            specs[i].seconds > 0 ? specs[i].seconds : seconds);
+            *done, total, subject.c_str(), specs[i].name.c_str(), seconds_of(specs[i]));
         std::fflush(stdout);
       }
       const TakeSpec& spec = specs[i];
       Result& result = results[i];
       StatusOr<Take> simulated =
-          Simulate(face, spec.expression, spec.motion, spec.seconds > 0 ? spec.seconds : seconds,
-                   tissue, spec.motion.seed);
+          Simulate(face, spec.expression, spec.motion, seconds_of(spec), tissue, spec.motion.seed);
       StatusOr<reconstruct::Reconstruction> reconstruction =
           simulated.ok()
               ? ReconstructSimulatedTake(face, cameras, *simulated, 7000 + spec.motion.seed)
@@ -559,12 +558,11 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   training["F"] = TrainingJson(f_summary, options.removal_epochs);
 
   Take removed;
-  FACEDYN_ASSIGN_OR_RETURN(
-      result["removal"],
-      CompareRemoval(f_model, reference_removal, TakeName(test_simulated.info.expression, test_hz),
-                     test_simulated, test_reconstructed, face, skip, &removed));
-  result["removal"]["F_targets"] = dynamics::RemovalTargetsName(options.removal_targets);
   const std::string test_name = TakeName(test_simulated.info.expression, test_hz);
+  FACEDYN_ASSIGN_OR_RETURN(result["removal"],
+                           CompareRemoval(f_model, reference_removal, test_name, test_simulated,
+                                          test_reconstructed, face, skip, &removed));
+  result["removal"]["F_targets"] = dynamics::RemovalTargetsName(options.removal_targets);
   const std::vector<int> jiggle =
       dynamics::JigglingVertices(test_simulated.channels.at("dynamic_offset"), skip);
   const double test_offset_mm =
@@ -589,7 +587,9 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
       {fmt::format("{} walk {:g} steps/s", test_simulated.info.expression,
                    options.test_walk_step_hz),
        test_simulated.info.expression, walk, 0.0, options.walk_seconds}};
+  std::vector<std::string> extra_sections = {"removal_walk"};  // per extra take, its metrics
   if (options.performance_expression != "") {
+    extra_sections.push_back("removal_performance");
     extra_specs.push_back({TakeName(options.performance_expression, test_hz),
                            options.performance_expression,
                            PlatformMotion(test_hz, options.seed + 70), test_hz, options.seconds});
@@ -602,7 +602,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   for (size_t i = 0; i < extra_specs.size(); ++i) {
     reconstruction.push_back(extra.reconstruction[i]);
     FACEDYN_ASSIGN_OR_RETURN(
-        result[i == 0 ? "removal_walk" : "removal_performance"],
+        result[extra_sections[i]],
         CompareRemoval(f_model, reference_removal, extra_specs[i].name, extra.simulated[i],
                        extra.reconstructed[i], face, skip, nullptr));
   }

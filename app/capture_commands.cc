@@ -371,8 +371,11 @@ Status RunCaptureCommand(const CaptureCommandOptions& options) {
     if (platform.supervisor) {
       Status stopped = platform.supervisor->RampToStop("take " + options.take + " done");
       (void)session->events().Append({{"event", "rig_stop"}, {"ok", stopped.ok()}});
-      (void)platform.supervisor->Close();
+      // Close() disarms the drive's watchdog only after a confirmed standstill; its error says
+      // when it had to leave it armed, and that must reach the user.
+      const Status closed = platform.supervisor->Close();
       if (!stopped.ok() && output.ok()) return stopped;
+      if (!closed.ok() && output.ok()) return closed;
     }
     if (!output.ok()) return output.status();
     if (options.json) {

@@ -3,6 +3,8 @@
 // Exit codes: 0 success, 1 the command failed (the message says why), 2 bad command line.
 
 #include <cstdio>
+#include <exception>
+#include <new>
 #include <memory>
 #include <string>
 
@@ -55,7 +57,23 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "facedyn: nothing to do (see facedyn --help)\n");
     return 2;
   }
-  const Status status = selected();
+  // Last line of defence: an exception that escaped a command (a library's bad_alloc on a
+  // hostile size, a parser's throw) becomes a message and exit 1, never an abort. The command's
+  // objects are destroyed while the exception unwinds, so a RigSupervisor ramps its platform to
+  // a stop (or leaves the drive's watchdog armed) before this prints.
+  Status status;
+  try {
+    status = selected();
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "facedyn: error: out of memory (an input asked for more than fits)\n");
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "facedyn: error: unexpected failure: %s\n", e.what());
+    return 1;
+  } catch (...) {
+    std::fprintf(stderr, "facedyn: error: unexpected failure (unknown exception)\n");
+    return 1;
+  }
   if (!status.ok()) {
     std::fprintf(stderr, "facedyn: error: %s\n", status.message().c_str());
     return 1;

@@ -24,8 +24,14 @@ bool IsLinkError(int error) {
          error == ENOTCONN || error == ECONNABORTED || error == EIO;
 }
 
-// Modbus exception replies: the drive answered, retrying will get the same answer.
+// Modbus exception replies: the drive answered. Most are final (illegal function, address,
+// value; device failure): retrying gets the same answer. Two say "not now": 05 acknowledge
+// (accepted, still processing) and 06 server device busy (Modbus Application Protocol v1.1b3,
+// section 7), which the specification asks the client to retry later.
 bool IsExceptionReply(int error) { return error >= EMBXILFUN && error <= EMBXGTAR; }
+bool IsRetryLaterException(int error) { return error == EMBXACK || error == EMBXSBUSY; }
+// Busy replies retried per request (20, 40, ... ms apart: 1.1 s in all) before it fails.
+constexpr int kMaxBusyRetries = 10;
 
 }  // namespace
 
@@ -152,12 +158,15 @@ class ModbusTransport::Owner {
   // Owner thread only: runs one Modbus call with retries. `call` returns libmodbus' rc.
   Status Transact(const std::string& what, const std::function<int(modbus_t*)>& call) {
     std::string last_error;
+    int busy_attempts = 0;
+    bool after_busy = false;
     for (int attempt = 0; attempt <= options_.retries; ++attempt) {
-      if (attempt > 0) {
+      if (attempt > 0 && !after_busy) {
         Count([](TransportStats& s) { ++s.retries; });
         spdlog::warn("{}: {}: retry {}/{} after: {}", options_.Describe(), what, attempt,
                      options_.retries, last_error);
       }
+      after_busy = false;
       Status connected = EnsureConnected();
       if (!connected.ok()) {
         last_error = connected.message();
@@ -178,6 +187,22 @@ class ModbusTransport::Owner {
         return Status::Ok();
       }
       last_error = modbus_strerror(error);
+      if (IsRetryLaterException(error)) {
+        // The drive is alive and asks for a later retry: wait a little (its reply came at
+        // once, so without a pause every attempt would land in the same busy window).
+        ++busy_attempts;
+        if (busy_attempts <= kMaxBusyRetries) {
+          after_busy = true;
+          --attempt;  // a busy reply is not a link failure and does not use up a retry
+          std::this_thread::sleep_for(std::chrono::milliseconds(20) * busy_attempts);
+          Count([](TransportStats& s) { ++s.retries; });
+          continue;
+        }
+        Fail();
+        return FailedPreconditionError(fmt::format(
+            "{}: {}: the drive stayed busy after {} retries: {}", options_.Describe(), what,
+            kMaxBusyRetries, last_error));
+      }
       if (IsExceptionReply(error)) {
         Fail();
         return FailedPreconditionError(

@@ -6,7 +6,8 @@
 // block on the answer. On the owner thread each request gets a bounded number of attempts:
 // a timeout or a corrupt reply (bad CRC/data) flushes the link and retries; a dead socket
 // (EBADF, ECONNRESET, EPIPE, ECONNREFUSED, ...) closes and reconnects before the next attempt;
-// a Modbus exception reply is the drive's answer and is returned at once. On RTU the thread
+// a Modbus exception reply is the drive's answer and is returned at once, except 05
+// (acknowledge) and 06 (server busy), which mean "retry later" and are retried with a backoff. On RTU the thread
 // keeps a minimum gap between requests, since many drives need silence after a reply, and
 // discards received bytes before each request, since RTU has no transaction id to tell a late
 // reply to an earlier attempt from the answer to this one.

@@ -154,6 +154,10 @@ Status SafetyOptions::Check() const {
     return InvalidArgumentError(
         fmt::format("safety.stop_timeout_s: {} is outside (0, 600] s", stop_timeout_s));
   }
+  if (!(sensor_tolerance_hz >= 0.05 && sensor_tolerance_hz <= 5.0)) {
+    return InvalidArgumentError(fmt::format(
+        "safety.sensor_tolerance_hz: {} is outside [0.05, 5] Hz", sensor_tolerance_hz));
+  }
   return Status::Ok();
 }
 
@@ -194,6 +198,17 @@ Status RigConfig::Check() const {
         limits.motor_max_hz, top_motor_hz, limits.max_hz, trim.max_correction_hz, platform.ratio,
         platform.slip));
   }
+  // The setpoint is capped at absolute_max_hz / ratio (zero slip, see RigSupervisor): max_hz
+  // must be reachable under that cap at the nominal slip.
+  const double cap_motor_hz = limits.absolute_max_hz / platform.ratio;
+  if (model.MotorHzFor(limits.max_hz) > cap_motor_hz) {
+    return InvalidArgumentError(fmt::format(
+        "limits.absolute_max_hz: {} Hz leaves no headroom for max_hz {} Hz: at slip {} the "
+        "drive needs {:.2f} Hz, above the zero-slip cap {:.2f} Hz; raise absolute_max_hz or "
+        "lower max_hz",
+        limits.absolute_max_hz, limits.max_hz, platform.slip, model.MotorHzFor(limits.max_hz),
+        cap_motor_hz));
+  }
   return Status::Ok();
 }
 
@@ -202,7 +217,8 @@ DriveLimits RigConfig::MotorLimits() const {
   DriveLimits motor;
   motor.window_min_hz = model.MotorHzFor(std::max(0.1, limits.min_hz - trim.max_correction_hz));
   motor.window_max_hz =
-      std::min(limits.motor_max_hz, model.MotorHzFor(limits.max_hz + trim.max_correction_hz));
+      std::min({limits.motor_max_hz, model.MotorHzFor(limits.max_hz + trim.max_correction_hz),
+                limits.absolute_max_hz / platform.ratio});
   motor.absolute_max_hz = limits.motor_max_hz;
   return motor;
 }
@@ -271,13 +287,16 @@ StatusOr<RigConfig> ParseRigConfig(const ConfigNode& root, const std::string& ba
   if (root.Has("safety")) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode safety, root.Child("safety"));
     FACEDYN_RETURN_IF_ERROR(
-        CheckKnownFields(safety, {"control_period_s", "comm_watchdog_s", "stop_timeout_s"}));
+        CheckKnownFields(safety, {"control_period_s", "comm_watchdog_s", "stop_timeout_s",
+                                  "sensor_tolerance_hz"}));
     FACEDYN_RETURN_IF_ERROR(
         GetNumber(safety, "control_period_s", 0.01, 1.0, &c.safety.control_period_s));
     FACEDYN_RETURN_IF_ERROR(
         GetNumber(safety, "comm_watchdog_s", 0.0, 600.0, &c.safety.comm_watchdog_s));
     FACEDYN_RETURN_IF_ERROR(
         GetNumber(safety, "stop_timeout_s", 0.1, 600.0, &c.safety.stop_timeout_s));
+    FACEDYN_RETURN_IF_ERROR(
+        GetNumber(safety, "sensor_tolerance_hz", 0.05, 5.0, &c.safety.sensor_tolerance_hz));
   }
   const Status valid = c.Check();
   if (!valid.ok())

@@ -34,7 +34,12 @@ struct SafetyOptions {
   // (0: leave the drive's setting alone). The drive stops on its own when facedyn goes silent
   // for this long. Must be at least 3 control periods.
   double comm_watchdog_s = 1.0;
-  double stop_timeout_s = 20.0;  // how long a ramp to stop may take before it is an error
+  double stop_timeout_s = 20.0;  // how long one stop command may take to reach standstill
+  // With feedback "sensor": once the drive output is steady, the oscillation sensor and the
+  // drive's own output frequency (through the nominal platform model) must agree within this;
+  // beyond it one of them is wrong and the platform is stopped. It must exceed the model's
+  // slip error (trim.max_correction_hz is a fair guide).
+  double sensor_tolerance_hz = 0.8;
 
   Status Check() const;
 };

@@ -12,13 +12,20 @@ extern "C" void OnStopSignal(int) { g_stop_requested.store(true); }
 
 }  // namespace
 
+const int kStopSignals[4] = {SIGINT, SIGTERM, SIGHUP, SIGQUIT};
+
 const std::atomic<bool>* InstallStopSignalHandlers() {
   struct sigaction action {};
   action.sa_handler = OnStopSignal;
   sigemptyset(&action.sa_mask);
   action.sa_flags = 0;  // no SA_RESTART: a blocking sleep or read returns early
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
+  for (int signal_number : kStopSignals) sigaction(signal_number, &action, nullptr);
+  // A closed pipe on stdout or stderr (`facedyn sweep ... | head -n 1`) must not kill the
+  // process mid-move: with SIGPIPE ignored, the write fails with EPIPE and the run goes on.
+  struct sigaction ignore {};
+  ignore.sa_handler = SIG_IGN;
+  sigemptyset(&ignore.sa_mask);
+  sigaction(SIGPIPE, &ignore, nullptr);
   return &g_stop_requested;
 }
 

@@ -13,6 +13,8 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 constexpr double kStartGraceS = 1.5;  // a drive may take this long to report "running"
+// Stop commands sent (each waiting up to safety.stop_timeout_s) before a stop is given up.
+constexpr int kStopAttempts = 3;
 
 Json StatusJson(const Status& status) {
   if (status.ok()) return "ok";
@@ -156,6 +158,7 @@ Status RigSupervisor::Arm() {
   PlatformReading reading;
   FACEDYN_RETURN_IF_ERROR(ReadPlatform(&reading));
   last_ = reading;  // a platform still turning (e.g. after `rig set --detach`) ramps from here
+  standstill_confirmed_ = reading.output_hz == 0.0 && !reading.running;
   if (log_) log_->Write("reply", reading.ToJson());
   if (reading.faulted) {
     SetState(RigState::kFaulted, reading.fault_text);
@@ -260,6 +263,7 @@ Status RigSupervisor::SetTargetHz(double hz) {
   const bool was_moving =
       state_ == RigState::kRamping || state_ == RigState::kSettling || state_ == RigState::kSettled;
   target_hz_ = hz;
+  standstill_confirmed_ = false;
   settle_.Restart();
   jumped_for_target_ = false;
   at_speed_since_s_ = -1.0;
@@ -285,17 +289,8 @@ Status RigSupervisor::SetTargetHz(double hz) {
 
 Status RigSupervisor::LinkLost(const Status& error) {
   SetState(RigState::kLinkLost, error.message());
-  const auto& watchdog = config_.profile.comm_watchdog;
-  std::string fallback;
-  if (watchdog_armed_) {
-    fallback = fmt::format("the drive's own comm watchdog ({}, {} s) stops the motor",
-                           watchdog->parameter, config_.safety.comm_watchdog_s);
-  } else if (watchdog) {
-    fallback = fmt::format("the drive stops only if its {} is set on the drive: check the platform",
-                           watchdog->parameter);
-  } else {
-    fallback = "the drive has no comm watchdog known to facedyn: STOP THE PLATFORM BY HAND";
-  }
+  standstill_confirmed_ = false;
+  std::string fallback = WatchdogFallback();
   // One stop attempt: the link may come back for it.
   const Status stop = client_->Stop();
   LogCommand("stop",
@@ -412,6 +407,20 @@ Status RigSupervisor::Tick() {
         trim_.Update(target_hz_, reading.measured_hz, dt_s);
       }
     }
+    if (config_.feedback == "sensor" && trim_ready) {
+      // Cross-check the sensor against the drive: the overspeed check and the trim both trust
+      // the sensor, so a sensor that drifts must not go unnoticed.
+      const double from_output_hz = model_.PlatformHzFor(reading.output_hz);
+      if (std::abs(reading.measured_hz - from_output_hz) > config_.safety.sensor_tolerance_hz) {
+        if (log_) log_->Write("reply", reading.ToJson());
+        return FailAndStop(FailedPreconditionError(fmt::format(
+            "rig {}: the oscillation sensor reads {:.3f} Hz but the drive's output {:.3f} Hz "
+            "means {:.3f} Hz on the platform model: they disagree by more than "
+            "safety.sensor_tolerance_hz {} Hz; check the sensor (or platform.ratio/slip)",
+            config_.name, reading.measured_hz, reading.output_hz, from_output_hz,
+            config_.safety.sensor_tolerance_hz)));
+      }
+    }
     settle_.Update(reading.time_s, target_hz_, reading.measured_hz,
                    trim_ready && jumped_for_target_);
     if (ramp_done && state_ == RigState::kRamping) SetState(RigState::kSettling, "ramp done");
@@ -422,7 +431,13 @@ Status RigSupervisor::Tick() {
     if (!settle_.settled() && state_ == RigState::kSettled)
       SetState(RigState::kSettling, "left the tolerance");
 
-    const double motor_hz = model_.MotorHzFor(commanded_hz_ + trim_.correction_hz());
+    // limits.absolute_max_hz caps the command itself, whatever the trim asks for. The cap
+    // assumes zero slip (the rotor never outruns the drive's field while motoring), so it holds
+    // whatever the true slip is, and it does not trust the sensor: a sensor that reads low can
+    // only leave the platform short of its target, never above absolute_max_hz.
+    const double motor_cap_hz = config_.limits.absolute_max_hz / config_.platform.ratio;
+    const double motor_hz =
+        std::min(model_.MotorHzFor(commanded_hz_ + trim_.correction_hz()), motor_cap_hz);
     if (std::abs(motor_hz - written_motor_hz_) >= 0.5 * count_hz) {
       const Status written = WriteMotorSetpoint(motor_hz);
       if (!written.ok()) {
@@ -493,45 +508,90 @@ StatusOr<HoldSummary> RigSupervisor::Hold(double seconds) {
   return summary;
 }
 
+std::string RigSupervisor::WatchdogFallback() const {
+  const auto& watchdog = config_.profile.comm_watchdog;
+  if (watchdog_armed_) {
+    return fmt::format(
+        "the drive's comm watchdog ({}, {} s) is left armed and stops the motor once facedyn "
+        "goes quiet",
+        watchdog->parameter, config_.safety.comm_watchdog_s);
+  }
+  if (watchdog) {
+    return fmt::format("the drive stops only if its {} is set on the drive: CHECK THE PLATFORM",
+                       watchdog->parameter);
+  }
+  return "the drive has no comm watchdog known to facedyn: STOP THE PLATFORM BY HAND";
+}
+
 Status RigSupervisor::RampToStop(const std::string& reason) {
   SetState(RigState::kStopping, reason);
   target_hz_ = 0.0;
   run_commanded_at_s_ = -1.0;
-  const Status stop = client_->Stop();
-  LogCommand("stop",
-             {{"register", config_.profile.command_register},
-              {"value", config_.profile.stop_value},
-              {"reason", reason}},
-             stop);
-  if (!stop.ok()) {
-    if (stop.code() == StatusCode::kUnavailable) return LinkLost(stop);
-    return stop;
+  standstill_confirmed_ = false;
+  // A stop is final only when the drive reports standstill. A refused stop (an exception reply
+  // the transport did not clear by retrying) or one that did not reach 0 Hz within
+  // safety.stop_timeout_s is sent again, kStopAttempts times in all; after that facedyn gives
+  // up with the drive-side watchdog still armed (Close() disarms it only after standstill).
+  std::string last_failure;
+  for (int attempt = 1; attempt <= kStopAttempts; ++attempt) {
+    const Status stop = client_->Stop();
+    LogCommand("stop",
+               {{"register", config_.profile.command_register},
+                {"value", config_.profile.stop_value},
+                {"reason", reason},
+                {"attempt", attempt}},
+               stop);
+    if (!stop.ok()) {
+      if (stop.code() == StatusCode::kUnavailable) return LinkLost(stop);
+      last_failure = fmt::format("stop command refused: {}", stop.message());
+      spdlog::warn("rig {}: {} (attempt {}/{})", config_.name, last_failure, attempt,
+                   kStopAttempts);
+      std::this_thread::sleep_for(std::chrono::duration<double>(config_.safety.control_period_s));
+      continue;
+    }
+    const double deadline_s = ElapsedS() + config_.safety.stop_timeout_s;
+    for (;;) {
+      std::this_thread::sleep_for(std::chrono::duration<double>(config_.safety.control_period_s));
+      PlatformReading reading;
+      const Status read = ReadPlatform(&reading);
+      if (!read.ok()) return LinkLost(read);
+      const auto now = Clock::now();
+      exposure_.Add(reading.measured_hz, std::chrono::duration<double>(now - last_tick_).count());
+      last_tick_ = now;
+      last_ = reading;
+      if (log_) {
+        Json fields = reading.ToJson();
+        fields["state"] = RigStateName(state_);
+        fields["vibrating_s"] = exposure_.vibrating_s();
+        fields["dose_m2_s3"] = exposure_.dose_m2_s3();
+        log_->Write("reply", std::move(fields));
+      }
+      // Standstill is the drive reporting exactly 0 Hz output (register 0), not "nearly
+      // stopped".
+      if (reading.output_hz == 0.0 && !reading.running) {
+        standstill_confirmed_ = true;
+        break;
+      }
+      if (ElapsedS() > deadline_s) {
+        last_failure = fmt::format("still at {:.2f} Hz {} s after the stop command "
+                                   "(safety.stop_timeout_s)",
+                                   reading.output_hz, config_.safety.stop_timeout_s);
+        spdlog::warn("rig {}: {} (attempt {}/{})", config_.name, last_failure, attempt,
+                     kStopAttempts);
+        break;
+      }
+    }
+    if (standstill_confirmed_) break;
   }
-  const double deadline_s = ElapsedS() + config_.safety.stop_timeout_s;
-  for (;;) {
-    std::this_thread::sleep_for(std::chrono::duration<double>(config_.safety.control_period_s));
-    PlatformReading reading;
-    const Status read = ReadPlatform(&reading);
-    if (!read.ok()) return LinkLost(read);
-    const auto now = Clock::now();
-    exposure_.Add(reading.measured_hz, std::chrono::duration<double>(now - last_tick_).count());
-    last_tick_ = now;
-    last_ = reading;
-    if (log_) {
-      Json fields = reading.ToJson();
-      fields["state"] = RigStateName(state_);
-      fields["vibrating_s"] = exposure_.vibrating_s();
-      fields["dose_m2_s3"] = exposure_.dose_m2_s3();
-      log_->Write("reply", std::move(fields));
-    }
-    // Standstill is the drive reporting exactly 0 Hz output (register 0), not "nearly stopped".
-    if (reading.output_hz == 0.0 && !reading.running) break;
-    if (ElapsedS() > deadline_s) {
-      return FailedPreconditionError(
-          fmt::format("rig {}: still at {:.2f} Hz {} s after the stop command "
-                      "(safety.stop_timeout_s)",
-                      config_.name, reading.output_hz, config_.safety.stop_timeout_s));
-    }
+  if (!standstill_confirmed_) {
+    const std::string fallback = WatchdogFallback();
+    if (log_)
+      log_->Write("stop_unconfirmed", {{"error", last_failure},
+                                       {"attempts", kStopAttempts},
+                                       {"fallback", fallback}});
+    return FailedPreconditionError(
+        fmt::format("rig {}: the stop was not confirmed after {} attempts ({}); {}", config_.name,
+                    kStopAttempts, last_failure, fallback));
   }
   commanded_hz_ = 0.0;
   written_motor_hz_ = -1.0;
@@ -552,17 +612,29 @@ Status RigSupervisor::Close() {
   if (closed_ || !client_) return Status::Ok();
   closed_ = true;
   Status result;
-  const bool maybe_moving =
-      state_ == RigState::kRamping || state_ == RigState::kSettling || state_ == RigState::kSettled;
-  if (maybe_moving) result = RampToStop("session closed");
-  if (watchdog_armed_ && state_ != RigState::kLinkLost) {
-    // A stopped drive with an armed comm watchdog would trip once facedyn goes quiet.
-    const Status disarmed = WriteWatchdog(0.0);
-    if (result.ok()) result = disarmed;
-    watchdog_armed_ = false;
+  // Anything but a confirmed standstill (a move, an unconfirmed stop, a trip whose output was
+  // not yet read at 0 Hz, an armed drive that was found turning) gets a stop first. A lost
+  // link gets none: the drive's watchdog is the fallback there and stays armed.
+  const bool unconfirmed = state_ != RigState::kIdle || watchdog_armed_;
+  if (unconfirmed && !standstill_confirmed_ && state_ != RigState::kLinkLost)
+    result = RampToStop("session closed");
+  if (watchdog_armed_) {
+    if (standstill_confirmed_ && state_ != RigState::kLinkLost) {
+      // A stopped drive with an armed comm watchdog would trip once facedyn goes quiet.
+      const Status disarmed = WriteWatchdog(0.0);
+      if (result.ok()) result = disarmed;
+      if (disarmed.ok()) watchdog_armed_ = false;
+    } else if (result.ok()) {
+      result = FailedPreconditionError(
+          fmt::format("rig {}: closed without a confirmed standstill ({}); {}", config_.name,
+                      RigStateName(state_), WatchdogFallback()));
+    }
   }
   if (log_)
-    log_->Write("close", {{"state", RigStateName(state_)}, {"exposure", exposure_.ToJson()}});
+    log_->Write("close", {{"state", RigStateName(state_)},
+                          {"standstill_confirmed", standstill_confirmed_},
+                          {"watchdog_armed", watchdog_armed_},
+                          {"exposure", exposure_.ToJson()}});
   return result;
 }
 

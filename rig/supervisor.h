@@ -14,8 +14,9 @@
 //    tries to command a stop and reports the failure, naming the drive-side watchdog;
 //  - a tripped drive is reported with its fault text and never reset except by ResetFault();
 //  - a measured platform frequency above absolute_max_hz + overspeed_margin_hz stops it;
-//  - a stop request (SIGINT/SIGTERM sets the flag passed in) or any error during a move ramps
-//    the platform to a stop before the error is returned;
+//  - a stop request (SIGINT/SIGTERM/SIGHUP/SIGQUIT set the flag passed in) or any error during
+//    a move ramps the platform to a stop before the error is returned; a stop counts only when
+//    the drive reports standstill, and the drive-side watchdog is disarmed only after that;
 //  - every command, reply and state change goes to the SessionLog, and the person's cumulative
 //    vibration exposure is accumulated (VibrationExposure).
 #pragma once
@@ -99,12 +100,16 @@ class RigSupervisor {
   // Runs the control loop for `seconds`, measuring how well the target is held.
   StatusOr<HoldSummary> Hold(double seconds);
   // Commands a stop (the drive decelerates on its own ramp) and waits until the output is 0.
+  // A refused or unconfirmed stop is sent again (3 attempts, each waiting up to
+  // safety.stop_timeout_s); if standstill is never confirmed the error says so and names the
+  // drive-side watchdog, which stays armed.
   Status RampToStop(const std::string& reason);
   // Explicit fault acknowledgement: the only place a trip is cleared.
   Status ResetFault();
   // One status read without any control action (for `rig status`).
   StatusOr<PlatformReading> ReadOnce();
-  // Stops if needed and disarms the drive-side watchdog. Idempotent.
+  // Stops if needed and disarms the drive-side watchdog, but only after the drive confirmed
+  // standstill; otherwise the watchdog stays armed and the error says so. Idempotent.
   Status Close();
   // Leaves the drive running at the current setpoint and disarms the drive-side watchdog, so
   // the drive keeps going after facedyn exits (`rig set --detach`).
@@ -128,6 +133,8 @@ class RigSupervisor {
   void LogCommand(const std::string& what, Json fields, const Status& result);
   bool StopRequested() const { return stop_requested_ != nullptr && stop_requested_->load(); }
   Status LinkLost(const Status& error);
+  // What stops the motor when facedyn cannot: names the armed watchdog, or says to stop by hand.
+  std::string WatchdogFallback() const;
 
   RigConfig config_;
   SessionLog* log_;
@@ -151,6 +158,7 @@ class RigSupervisor {
   double run_commanded_at_s_ = -1.0;  // < 0: no run command outstanding
   TransportStats logged_stats_;
   bool watchdog_armed_ = false;
+  bool standstill_confirmed_ = false;  // the drive last reported 0 Hz output and not running
   bool closed_ = false;
 };
 

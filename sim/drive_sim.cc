@@ -58,6 +58,10 @@ Status DriveModelOptions::Check() const {
     return InvalidArgumentError(
         fmt::format("model.sensor_noise_hz: {} is outside [0, 1]", sensor_noise_hz));
   }
+  if (!(sensor_gain >= 0.5 && sensor_gain <= 1.5)) {
+    return InvalidArgumentError(
+        fmt::format("model.sensor_gain: {} is outside [0.5, 1.5]", sensor_gain));
+  }
   return Status::Ok();
 }
 
@@ -77,6 +81,7 @@ Status ParseDriveModelOptions(const ConfigNode& node, DriveModelOptions* options
       {"slip_reference_hz", &options->slip_reference_hz, 0.1, 1000.0},
       {"sensor_window_s", &options->sensor_window_s, 0.01, 10.0},
       {"sensor_noise_hz", &options->sensor_noise_hz, 0.0, 1.0},
+      {"sensor_gain", &options->sensor_gain, 0.5, 1.5},
   };
   for (const std::string& key : node.Keys()) {
     bool known = key == "watchdog_fault_code" || key == "seed";
@@ -85,7 +90,7 @@ Status ParseDriveModelOptions(const ConfigNode& node, DriveModelOptions* options
       return node.Error(key,
                         "unknown field (expected accel_hz_per_s, max_hz, watchdog_fault_code, "
                         "platform_ratio, slip_base, slip_load, slip_reference_hz, "
-                        "sensor_window_s, sensor_noise_hz or seed)");
+                        "sensor_window_s, sensor_noise_hz, sensor_gain or seed)");
     }
   }
   for (const Field& field : fields) {
@@ -199,7 +204,7 @@ void DriveModel::Advance(double dt_s) {
   const auto& [then_s, then_cycles] = phase_history_.front();
   const double span_s = state_.time_s - then_s;
   const double mean_hz = span_s > 0.0 ? (phase_cycles_ - then_cycles) / span_s : 0.0;
-  const double noisy_hz = mean_hz + options_.sensor_noise_hz * noise_(random_);
+  const double noisy_hz = options_.sensor_gain * mean_hz + options_.sensor_noise_hz * noise_(random_);
   state_.sensor_hz = state_.platform_hz == 0.0 && mean_hz == 0.0 ? 0.0 : std::max(0.0, noisy_hz);
 }
 

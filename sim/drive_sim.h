@@ -62,6 +62,8 @@ struct DriveModelOptions {
   double slip_reference_hz = 11.0;
   double sensor_window_s = 0.5;
   double sensor_noise_hz = 0.004;  // standard deviation of one sensor reading
+  // A miscalibrated sensor (fault injection): it reports sensor_gain times the true mean.
+  double sensor_gain = 1.0;
   uint64_t seed = 1;
 
   Status Check() const;

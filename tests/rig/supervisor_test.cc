@@ -96,7 +96,7 @@ TEST(RigSupervisor, RefusesOutOfRangeBeforeWritingAnything) {
   const long served = bench->sim->requests_served();
   Status high = (*supervisor)->SetTargetHz(12.0);
   EXPECT_EQ(high.code(), StatusCode::kInvalidArgument);
-  EXPECT_THAT(high.message(), HasSubstr("hz: 12 Hz is above limits.absolute_max_hz 11 Hz"));
+  EXPECT_THAT(high.message(), HasSubstr("hz: 12 Hz is above limits.absolute_max_hz 11.6 Hz"));
   Status low = (*supervisor)->SetTargetHz(5.9);
   EXPECT_THAT(low.message(), HasSubstr("outside limits.min_hz..max_hz 6..11 Hz"));
   EXPECT_FALSE((*supervisor)->SetTargetHz(std::nan("")).ok());
@@ -256,6 +256,138 @@ TEST(RigSupervisor, RetriedTimeoutsAreLogged) {
     if (r["event"] == "link") logged_retries = r["retries"].get<long>();
   }
   EXPECT_GE(logged_retries, 2);
+}
+
+// Issue 18, item 1: exception 06 (server busy) means "retry later". More busy replies to the
+// stop than the transport retries per request: the supervisor sends the stop again, the drive
+// reaches standstill, and only then is the watchdog disarmed.
+TEST(RigSupervisor, BusyRepliesToTheStopAreRetriedUntilStandstill) {
+  auto bench = StartBench();
+  ASSERT_NE(bench, nullptr);
+  auto supervisor = RigSupervisor::Connect(bench->config, bench->log.get(), nullptr);
+  ASSERT_TRUE(supervisor.ok());
+  ASSERT_TRUE((*supervisor)->Arm().ok());
+  ASSERT_TRUE((*supervisor)->SetTargetHz(8.0).ok());
+  ASSERT_TRUE((*supervisor)->WaitSettled(15.0).ok());
+  bench->sim->ExceptionNextReplies(15, MODBUS_EXCEPTION_SLAVE_OR_SERVER_BUSY);
+  const Status stopped = (*supervisor)->RampToStop("test");
+  ASSERT_TRUE(stopped.ok()) << stopped.ToString();
+  EXPECT_EQ((*supervisor)->state(), RigState::kStopped);
+  EXPECT_EQ(bench->sim->state().output_hz, 0.0);
+  EXPECT_FALSE(bench->sim->state().run_commanded);
+  ASSERT_TRUE((*supervisor)->Close().ok());
+  bool closed_disarmed = false;
+  for (const Json& r : Records(*bench)) {
+    if (r["event"] == "close") closed_disarmed = r["watchdog_armed"] == false;
+  }
+  EXPECT_TRUE(closed_disarmed);
+}
+
+// Issue 18, item 1: a stop that never reaches standstill within safety.stop_timeout_s is
+// retried, then reported, and the drive's watchdog stays armed: once facedyn goes quiet the
+// drive stops itself (before the fix Close() wrote the watchdog to 0 and left it running).
+TEST(RigSupervisor, UnconfirmedStopLeavesTheWatchdogArmed) {
+  auto bench = StartBench(/*sim_watchdog_fault_code=*/0);
+  ASSERT_NE(bench, nullptr);
+  bench->config.safety.stop_timeout_s = 0.1;  // the sim needs 1.6 s from 8 Hz
+  auto supervisor = RigSupervisor::Connect(bench->config, bench->log.get(), nullptr);
+  ASSERT_TRUE(supervisor.ok());
+  ASSERT_TRUE((*supervisor)->Arm().ok());
+  ASSERT_TRUE((*supervisor)->SetTargetHz(8.0).ok());
+  ASSERT_TRUE((*supervisor)->WaitSettled(15.0).ok());
+  // Refuse every stop command (exception 04, final) for long enough that facedyn gives up.
+  bench->sim->ExceptionNextReplies(1000000, MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE);
+  const Status stopped = (*supervisor)->RampToStop("test");
+  ASSERT_FALSE(stopped.ok());
+  EXPECT_THAT(stopped.message(), HasSubstr("not confirmed after 3 attempts"));
+  EXPECT_THAT(stopped.message(), HasSubstr("left armed"));
+  const Status closed = (*supervisor)->Close();
+  ASSERT_FALSE(closed.ok());
+  EXPECT_THAT(closed.message(), HasSubstr("left armed"));
+  supervisor->reset();  // facedyn exits
+  bench->sim->ExceptionNextReplies(0, MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE);
+  const auto quiet = Clock::now();
+  while (!bench->sim->state().watchdog_fired && Clock::now() - quiet < std::chrono::seconds(4))
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_TRUE(bench->sim->state().watchdog_fired) << "the watchdog was disarmed";
+  std::this_thread::sleep_for(std::chrono::milliseconds(2000));  // the sim's ramp from 8 Hz
+  EXPECT_EQ(bench->sim->state().output_hz, 0.0);
+}
+
+// Issue 18, item 3: with the oscillation sensor reading 8% low and a trim allowed to add 5 Hz,
+// the command is still capped so the platform never exceeds limits.absolute_max_hz.
+TEST(RigSupervisor, AbsoluteMaxCapsTheCommandWhateverTheTrim) {
+  auto bench = std::make_unique<Bench>();
+  auto config = LoadRigConfig(testing::RigConfigPath("sim-tcp"));
+  ASSERT_TRUE(config.ok());
+  bench->config = *config;
+  bench->config.trim.max_correction_hz = 5.0;
+  bench->config.limits.motor_max_hz = 20.0;  // so only absolute_max_hz can cap the command
+  bench->config.safety.sensor_tolerance_hz = 5.0;  // the cross-check off: the cap alone
+  sim::DriveSimOptions options;
+  options.model.sensor_gain = 0.92;
+  auto sim = sim::DriveSim::Start(bench->config.profile, options);
+  ASSERT_TRUE(sim.ok());
+  bench->sim = std::move(sim).value();
+  bench->config.transport.port = bench->sim->port();
+  auto supervisor = RigSupervisor::Connect(bench->config, nullptr, nullptr);
+  ASSERT_TRUE(supervisor.ok());
+  ASSERT_TRUE((*supervisor)->Arm().ok());
+  ASSERT_TRUE((*supervisor)->SetTargetHz(11.0).ok());
+  std::atomic<bool> done{false};
+  double max_true_hz = 0.0;
+  std::thread watcher([&] {
+    while (!done) {
+      max_true_hz = std::max(max_true_hz, bench->sim->state().platform_hz);
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+  const Status settled = (*supervisor)->WaitSettled(8.0);
+  done = true;
+  watcher.join();
+  EXPECT_FALSE(settled.ok());  // the sensor never sees 11 Hz
+  EXPECT_GT(max_true_hz, 10.0);
+  EXPECT_LE(max_true_hz, bench->config.limits.absolute_max_hz);
+  EXPECT_EQ(bench->sim->state().output_hz, 0.0);
+}
+
+// Issue 18, item 3: the sensor is cross-checked against the drive's output frequency; a
+// sensor 8% low at 11 Hz disagrees by about 1 Hz and stops the platform, naming both.
+TEST(RigSupervisor, SensorDisagreeingWithTheDriveStopsThePlatform) {
+  auto bench = std::make_unique<Bench>();
+  auto config = LoadRigConfig(testing::RigConfigPath("sim-tcp"));
+  ASSERT_TRUE(config.ok());
+  bench->config = *config;
+  sim::DriveSimOptions options;
+  options.model.sensor_gain = 0.92;
+  auto sim = sim::DriveSim::Start(bench->config.profile, options);
+  ASSERT_TRUE(sim.ok());
+  bench->sim = std::move(sim).value();
+  bench->config.transport.port = bench->sim->port();
+  auto supervisor = RigSupervisor::Connect(bench->config, nullptr, nullptr);
+  ASSERT_TRUE(supervisor.ok());
+  ASSERT_TRUE((*supervisor)->Arm().ok());
+  ASSERT_TRUE((*supervisor)->SetTargetHz(11.0).ok());
+  const Status settled = (*supervisor)->WaitSettled(15.0);
+  ASSERT_FALSE(settled.ok());
+  EXPECT_THAT(settled.message(), HasSubstr("oscillation sensor reads"));
+  EXPECT_THAT(settled.message(), HasSubstr("safety.sensor_tolerance_hz"));
+  EXPECT_EQ((*supervisor)->state(), RigState::kStopped);
+  EXPECT_EQ(bench->sim->state().output_hz, 0.0);
+}
+
+// The cross-check does not fire on a healthy rig across the platform window.
+TEST(RigSupervisor, HealthySensorPassesTheCrossCheckAcrossTheWindow) {
+  for (double hz : {6.0, 11.0}) {
+    auto bench = StartBench();
+    ASSERT_NE(bench, nullptr);
+    auto supervisor = RigSupervisor::Connect(bench->config, nullptr, nullptr);
+    ASSERT_TRUE(supervisor.ok());
+    ASSERT_TRUE((*supervisor)->Arm().ok());
+    ASSERT_TRUE((*supervisor)->SetTargetHz(hz).ok());
+    const Status settled = (*supervisor)->WaitSettled(15.0);
+    EXPECT_TRUE(settled.ok()) << hz << " Hz: " << settled.ToString();
+  }
 }
 
 }  // namespace

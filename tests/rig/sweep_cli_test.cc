@@ -236,7 +236,7 @@ TEST(RigCommand, SetStatusStopWithConfig) {
   ASSERT_NE(stage, nullptr);
   std::string output;
   EXPECT_EQ(RunFacedyn("rig set --config " + stage->rig_path + " --hz 12", &output), 1);
-  EXPECT_THAT(output, HasSubstr("hz: 12 Hz is above limits.absolute_max_hz 11 Hz"));
+  EXPECT_THAT(output, HasSubstr("hz: 12 Hz is above limits.absolute_max_hz 11.6 Hz"));
   EXPECT_EQ(stage->sim->state().run_commanded, false);
   ASSERT_EQ(
       RunFacedyn("rig set --config " + stage->rig_path + " --hz 8.5 --seconds 0.5 --json", &output),

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -64,9 +65,14 @@ std::string UtcNowIso8601() {
 // ---------------------------------------------------------------------------- EventLog
 
 StatusOr<std::unique_ptr<EventLog>> EventLog::Open(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-  if (fd < 0) return UnavailableError(path + ": cannot open event log: " + std::strerror(errno));
-  return std::unique_ptr<EventLog>(new EventLog(path, fd));
+  // A torn last event (kill -9, a full disk) is moved to `path`.torn first, so the next event
+  // does not glue onto it and `session check` can read the log.
+  size_t torn_bytes = 0;
+  auto fd = OpenAppendLog(path, &torn_bytes);
+  if (!fd.ok()) return fd.status().WithContext("event log");
+  if (torn_bytes > 0)
+    spdlog::warn("{}: its last event was torn ({} bytes): kept in {}.torn", path, torn_bytes, path);
+  return std::unique_ptr<EventLog>(new EventLog(path, *fd));
 }
 
 EventLog::~EventLog() { ::close(fd_); }
@@ -75,13 +81,9 @@ Status EventLog::Append(Json event) {
   event["utc"] = UtcNowIso8601();
   const std::string line = event.dump() + "\n";
   std::lock_guard<std::mutex> lock(mutex_);
-  // O_APPEND + one write: a line is either wholly in the file or (torn by a crash) the last,
-  // unterminated line, which readers report and ignore.
-  const ssize_t n = ::write(fd_, line.data(), line.size());
-  if (n != static_cast<ssize_t>(line.size())) {
-    return UnavailableError(
-        path_ + ": event append failed: " + (n < 0 ? std::strerror(errno) : "short write"));
-  }
+  // All or nothing: a short write (ENOSPC) is rolled back; a crash mid-write leaves a torn
+  // last line, which readers skip and the next Open moves aside.
+  FACEDYN_RETURN_IF_ERROR(AppendLogLine(fd_, line, path_).WithContext("event append"));
   if (::fsync(fd_) != 0) return UnavailableError(path_ + ": fsync failed: " + std::strerror(errno));
   return Status::Ok();
 }

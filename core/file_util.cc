@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -50,6 +51,105 @@ Status WriteFileAtomic(const std::string& path, const std::string& contents) {
     const std::string reason = std::strerror(errno);
     ::unlink(tmp.c_str());
     return UnavailableError(path + ": rename failed: " + reason);
+  }
+  // The rename lives in the directory: without this a power cut can bring back the old file.
+  return SyncParentDirectory(path);
+}
+
+Status SyncParentDirectory(const std::string& path) {
+  std::string dir = std::filesystem::path(path).parent_path().string();
+  if (dir.empty()) dir = ".";
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return UnavailableError(dir + ": cannot open directory to sync: " + std::strerror(errno));
+  const int rc = ::fsync(fd);
+  const int error = errno;
+  ::close(fd);
+  // Some file systems (e.g. certain FUSE mounts) refuse fsync on a directory: nothing to do.
+  if (rc != 0 && error != EINVAL && error != EROFS)
+    return UnavailableError(dir + ": directory fsync failed: " + std::strerror(error));
+  return Status::Ok();
+}
+
+StatusOr<int> OpenAppendLog(const std::string& path, size_t* torn_bytes) {
+  if (torn_bytes) *torn_bytes = 0;
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  if (fd < 0) return UnavailableError(path + ": cannot open: " + std::strerror(errno));
+  const off_t size = ::lseek(fd, 0, SEEK_END);
+  if (size > 0) {
+    // Find the last '\n' by reading backwards in blocks.
+    off_t keep = 0;  // bytes up to and including the last newline
+    char block[4096];
+    off_t end = size;
+    bool last_byte_newline = false;
+    bool found = false;
+    while (end > 0 && !found) {
+      const off_t begin = std::max<off_t>(0, end - static_cast<off_t>(sizeof(block)));
+      const ssize_t n = ::pread(fd, block, static_cast<size_t>(end - begin), begin);
+      if (n != end - begin) {
+        const std::string reason = n < 0 ? std::strerror(errno) : "short read";
+        ::close(fd);
+        return UnavailableError(path + ": cannot read its tail: " + reason);
+      }
+      if (end == size) last_byte_newline = block[n - 1] == '\n';
+      if (last_byte_newline) {
+        keep = size;
+        found = true;
+        break;
+      }
+      for (ssize_t i = n - 1; i >= 0; --i) {
+        if (block[i] == '\n') {
+          keep = begin + i + 1;
+          found = true;
+          break;
+        }
+      }
+      end = begin;
+    }
+    if (keep < size) {
+      std::string fragment(static_cast<size_t>(size - keep), '\0');
+      if (::pread(fd, fragment.data(), fragment.size(), keep) !=
+          static_cast<ssize_t>(fragment.size())) {
+        ::close(fd);
+        return UnavailableError(path + ": cannot read its torn tail");
+      }
+      const std::string torn_path = path + ".torn";
+      const int torn = ::open(torn_path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+      fragment += '\n';
+      if (torn < 0 ||
+          ::write(torn, fragment.data(), fragment.size()) != static_cast<ssize_t>(fragment.size()) ||
+          ::fsync(torn) != 0) {
+        const std::string reason = std::strerror(errno);
+        if (torn >= 0) ::close(torn);
+        ::close(fd);
+        return UnavailableError(path + ": a torn last line could not be preserved in " +
+                                torn_path + ": " + reason + "; nothing was changed");
+      }
+      ::close(torn);
+      if (::ftruncate(fd, keep) != 0 || ::fsync(fd) != 0) {
+        const std::string reason = std::strerror(errno);
+        ::close(fd);
+        return UnavailableError(path + ": cannot cut its torn last line (kept in " + torn_path +
+                                "): " + reason);
+      }
+      if (torn_bytes) *torn_bytes = fragment.size() - 1;
+    }
+  }
+  return fd;
+}
+
+Status AppendLogLine(int fd, const std::string& line, const std::string& path_for_errors) {
+  const off_t before = ::lseek(fd, 0, SEEK_END);
+  size_t done = 0;
+  while (done < line.size()) {
+    const ssize_t n = ::write(fd, line.data() + done, line.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const std::string reason = n < 0 ? std::strerror(errno) : "wrote nothing";
+      // Roll back a partial record so the log never holds a fragment.
+      if (done > 0 && before >= 0) (void)!::ftruncate(fd, before);
+      return UnavailableError(path_for_errors + ": cannot append: " + reason);
+    }
+    done += static_cast<size_t>(n);
   }
   return Status::Ok();
 }

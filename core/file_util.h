@@ -14,6 +14,22 @@ StatusOr<std::string> ReadFileToString(const std::string& path);
 // Writes `contents` to `path` through `path.tmp` + fsync + rename.
 Status WriteFileAtomic(const std::string& path, const std::string& contents);
 
+// fsyncs the directory that holds `path`, so a rename or a new file in it survives a power cut.
+Status SyncParentDirectory(const std::string& path);
+
+// Append-only line logs (JSON Lines journals) that a kill -9 or a full disk cannot break.
+//
+// OpenAppendLog opens `path` for appending (creating it) after repairing a torn tail: if the
+// file does not end in '\n' (a crash or a short write mid-record), the unterminated fragment is
+// appended to `path`.torn (fsynced) and then cut from the log, so the next record starts on a
+// line of its own and nothing that was written is lost. `*torn_bytes` (may be null) gets the
+// fragment's size, 0 when the tail was whole.
+StatusOr<int> OpenAppendLog(const std::string& path, size_t* torn_bytes = nullptr);
+// Appends `line` (which must end in '\n') to a log opened by OpenAppendLog, all or nothing: a
+// failed or short write (ENOSPC) is rolled back to the previous size, so no fragment is left.
+// The caller serialises calls on one fd.
+Status AppendLogLine(int fd, const std::string& line, const std::string& path_for_errors);
+
 // Creates `dir` and its parents; OK when it already exists as a directory.
 Status MakeDirectories(const std::string& dir);
 

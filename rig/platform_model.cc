@@ -90,9 +90,10 @@ void VibrationExposure::Add(double platform_hz, double dt_s) {
   peak_rms_m_s2_ = std::max(peak_rms_m_s2_, rms_m_s2);
 }
 
-void VibrationExposure::Restore(double vibrating_s, double dose_m2_s3) {
+void VibrationExposure::Restore(double vibrating_s, double dose_m2_s3, double peak_rms_m_s2) {
   vibrating_s_ = vibrating_s;
   dose_m2_s3_ = dose_m2_s3;
+  peak_rms_m_s2_ = std::max(peak_rms_m_s2_, peak_rms_m_s2);
 }
 
 double VibrationExposure::A8_m_s2() const { return std::sqrt(dose_m2_s3_ / (8.0 * 3600.0)); }

@@ -108,8 +108,8 @@ class VibrationExposure {
  public:
   explicit VibrationExposure(double amplitude_mm) : amplitude_mm_(amplitude_mm) {}
   void Add(double platform_hz, double dt_s);
-  // Continues a session from logged totals (sweep --resume).
-  void Restore(double vibrating_s, double dose_m2_s3);
+  // Continues a session from logged totals (sweep --resume), keeping the higher peak.
+  void Restore(double vibrating_s, double dose_m2_s3, double peak_rms_m_s2);
   double vibrating_s() const { return vibrating_s_; }
   double dose_m2_s3() const { return dose_m2_s3_; }
   double A8_m_s2() const;

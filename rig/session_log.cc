@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -36,10 +37,15 @@ SessionLog::SessionLog(std::string path, int fd, int64_t start_t_ns)
 
 StatusOr<std::unique_ptr<SessionLog>> SessionLog::Open(const std::string& path,
                                                        int64_t start_t_ns) {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-  if (fd < 0) {
-    return UnavailableError(
-        fmt::format("{}: cannot open the session log: {}", path, std::strerror(errno)));
+  // A torn last record (kill -9, a full disk) is moved to `path`.torn so this session's
+  // records start on a line of their own and --resume can read the log.
+  size_t torn_bytes = 0;
+  auto opened = OpenAppendLog(path, &torn_bytes);
+  if (!opened.ok()) return opened.status().WithContext("the session log");
+  const int fd = *opened;
+  if (torn_bytes > 0) {
+    spdlog::warn("{}: its last record was torn ({} bytes, a crash mid-write): kept in {}.torn",
+                 path, torn_bytes, path);
   }
   return std::unique_ptr<SessionLog>(new SessionLog(path, fd, start_t_ns));
 }
@@ -62,19 +68,8 @@ void SessionLog::Write(const std::string& event, Json fields) {
   for (auto& [key, value] : fields.items()) record[key] = std::move(value);
   const std::string line = record.dump() + "\n";
   std::lock_guard<std::mutex> lock(mutex_);
-  size_t done = 0;
-  while (done < line.size()) {
-    const ssize_t n = ::write(fd_, line.data() + done, line.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      if (status_.ok()) {
-        status_ = UnavailableError(
-            fmt::format("{}: cannot append to the session log: {}", path_, std::strerror(errno)));
-      }
-      return;
-    }
-    done += static_cast<size_t>(n);
-  }
+  const Status appended = AppendLogLine(fd_, line, path_);
+  if (!appended.ok() && status_.ok()) status_ = appended;
 }
 
 Status SessionLog::status() const {

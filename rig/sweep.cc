@@ -259,6 +259,7 @@ struct PriorSession {
   int64_t last_t_ns = 0;
   double vibrating_s = 0.0;
   double dose_m2_s3 = 0.0;
+  double peak_rms_m_s2 = 0.0;
 };
 
 StatusOr<PriorSession> ReadPrior(const std::string& log_path, const SweepScript& script) {
@@ -268,12 +269,21 @@ StatusOr<PriorSession> ReadPrior(const std::string& log_path, const SweepScript&
   if (truncated)
     spdlog::warn("{}: the last line was cut off (crash mid-write); ignoring it", log_path);
   const std::string hash = fmt::format("{:016x}", script.text_hash);
+  size_t record_number = 0;
   for (const Json& r : records) {
-    const std::string event = r["event"].get<std::string>();
+    ++record_number;
+    // A record with a missing or mistyped field (a hand-edited or foreign log) is a clear
+    // error naming the record, never an exception escaping the resume.
+    try {
+    const std::string event = r.at("event").get<std::string>();
     prior.last_t_ns = std::max(prior.last_t_ns, r.value("t_ns", int64_t{0}));
     if (r.contains("vibrating_s") && r.contains("dose_m2_s3")) {
-      prior.vibrating_s = r["vibrating_s"].get<double>();
-      prior.dose_m2_s3 = r["dose_m2_s3"].get<double>();
+      prior.vibrating_s = r.at("vibrating_s").get<double>();
+      prior.dose_m2_s3 = r.at("dose_m2_s3").get<double>();
+    }
+    if (r.contains("exposure") && r.at("exposure").is_object()) {
+      prior.peak_rms_m_s2 =
+          std::max(prior.peak_rms_m_s2, r.at("exposure").value("peak_rms_m_s2", 0.0));
     }
     if (event == "sweep_start") {
       if (r.value("script_hash", std::string()) != hash) {
@@ -285,9 +295,9 @@ StatusOr<PriorSession> ReadPrior(const std::string& log_path, const SweepScript&
       }
       prior.started = true;
     } else if (event == "step_start") {
-      prior.interrupted = r["instance"].get<int>();
+      prior.interrupted = r.at("instance").get<int>();
     } else if (event == "step_done") {
-      const int instance = r["instance"].get<int>();
+      const int instance = r.at("instance").get<int>();
       if (prior.done.count(instance)) {
         return DataLossError(
             fmt::format("{}: step instance {} is marked done twice", log_path, instance));
@@ -301,6 +311,10 @@ StatusOr<PriorSession> ReadPrior(const std::string& log_path, const SweepScript&
       if (prior.interrupted == instance) prior.interrupted = -1;
     } else if (event == "sweep_done") {
       prior.finished = true;
+    }
+    } catch (const Json::exception& e) {
+      return DataLossError(fmt::format("{}: record {} is not a valid sweep record: {}", log_path,
+                                       record_number, e.what()));
     }
   }
   if (!prior.started) {
@@ -360,7 +374,7 @@ StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig,
   if (!all_done) {
     FACEDYN_ASSIGN_OR_RETURN(auto supervisor,
                              RigSupervisor::Connect(rig, log.get(), options.stop_requested));
-    supervisor->exposure().Restore(prior.vibrating_s, prior.dose_m2_s3);
+    supervisor->exposure().Restore(prior.vibrating_s, prior.dose_m2_s3, prior.peak_rms_m_s2);
     // A failure anywhere below ramps to stop inside the supervisor; the step stays undone.
     auto fail = [&](const SweepStepInfo* info, const Status& error) {
       log->Write("sweep_aborted",
@@ -425,7 +439,7 @@ StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig,
     FACEDYN_RETURN_IF_ERROR(supervisor->Close());
   } else {
     VibrationExposure exposure(rig.amplitude_mm);
-    exposure.Restore(prior.vibrating_s, prior.dose_m2_s3);
+    exposure.Restore(prior.vibrating_s, prior.dose_m2_s3, prior.peak_rms_m_s2);
     result.exposure = exposure.ToJson();
   }
   for (const auto& [instance, step] : prior.done) result.steps.push_back(step);

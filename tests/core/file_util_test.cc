@@ -5,6 +5,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <csignal>
 #include <filesystem>
 #include <string>
 
@@ -116,6 +121,45 @@ TEST(WriteJsonFile, PrettyOrderedAndParseable) {
             "  }\n"
             "}\n");
   EXPECT_EQ(Json::parse(text), json);
+}
+
+// Issue 18, item 5: a short write (the disk filled mid-record) is rolled back, so the log
+// never holds a fragment. RLIMIT_FSIZE in a child process makes the write stop part-way (EFBIG)
+// exactly as ENOSPC does.
+TEST(AppendLogLine, ShortWriteIsRolledBack) {
+  TempDir dir;
+  const std::string path = dir.Join("log.jsonl");
+  WriteBytes(path, "{\"event\":\"a\"}\n");
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);
+    auto fd = OpenAppendLog(path);
+    if (!fd.ok()) ::_exit(3);
+    struct rlimit limit {};
+    limit.rlim_cur = limit.rlim_max = 16 + 10;  // room for 10 bytes of a 100-byte record
+    if (::setrlimit(RLIMIT_FSIZE, &limit) != 0) ::_exit(4);
+    const Status appended = AppendLogLine(*fd, std::string(99, 'x') + "\n", path);
+    ::_exit(appended.ok() ? 1 : 0);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "the short write was not reported";
+  EXPECT_EQ(ReadBytes(path), "{\"event\":\"a\"}\n");  // the 10 bytes were rolled back
+}
+
+TEST(OpenAppendLog, FileWithoutAnyNewlineIsAllFragment) {
+  TempDir dir;
+  const std::string path = dir.Join("log.jsonl");
+  WriteBytes(path, "{\"eve");
+  size_t torn = 0;
+  auto fd = OpenAppendLog(path, &torn);
+  ASSERT_TRUE(fd.ok()) << fd.status().ToString();
+  ::close(*fd);
+  EXPECT_EQ(torn, 5u);
+  EXPECT_EQ(ReadBytes(path), "");
+  EXPECT_EQ(ReadBytes(path + ".torn"), "{\"eve\n");
 }
 
 }  // namespace

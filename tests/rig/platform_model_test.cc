@@ -82,8 +82,11 @@ TEST(VibrationExposure, MatchesTheSinusoidFormula) {
   exposure.Add(0.0, 10.0);  // standing still adds nothing
   EXPECT_NEAR(exposure.vibrating_s(), 60.0, 1e-9);
   VibrationExposure resumed(2.0);
-  resumed.Restore(exposure.vibrating_s(), exposure.dose_m2_s3());
+  resumed.Restore(exposure.vibrating_s(), exposure.dose_m2_s3(), exposure.peak_rms_m_s2());
   EXPECT_NEAR(resumed.A8_m_s2(), exposure.A8_m_s2(), 1e-12);
+  // The peak survives a resume (issue 18, item 6): it was reset to 0 before.
+  EXPECT_GT(exposure.peak_rms_m_s2(), 0.0);
+  EXPECT_EQ(resumed.peak_rms_m_s2(), exposure.peak_rms_m_s2());
 }
 
 }  // namespace

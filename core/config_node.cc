@@ -2,9 +2,14 @@
 
 #include <cmath>
 #include <limits>
+#include <map>
+#include <sstream>
 #include <type_traits>
+#include <vector>
 
 #include <fmt/format.h>
+#include <yaml-cpp/eventhandler.h>
+#include <yaml-cpp/parser.h>
 
 #include "core/file_util.h"
 
@@ -73,6 +78,73 @@ struct IsVector : std::false_type {};
 template <typename T>
 struct IsVector<std::vector<T>> : std::true_type {};
 
+// A pass over the parser's events before the document is built, for what yaml-cpp accepts
+// silently but a config must not: a key given twice in one map (yaml-cpp keeps the first, so
+// `max_hz: 11` then `max_hz: 8` meant 11) and aliases (`*name`), which make self-referential or
+// exponentially nested documents (a "billion laughs") that crash or exhaust the builder. No
+// shipped config uses anchors; refusing aliases costs nothing.
+class StrictYamlCheck : public YAML::EventHandler {
+ public:
+  std::string error;  // first problem, "line:column: message"
+
+  void OnDocumentStart(const YAML::Mark&) override {}
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark& mark, YAML::anchor_t) override { Value(mark, nullptr); }
+  void OnAlias(const YAML::Mark& mark, YAML::anchor_t) override {
+    Fail(mark, "aliases (*name) are not supported in facedyn configs; write the value out");
+    Value(mark, nullptr);
+  }
+  void OnScalar(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                const std::string& value) override {
+    Value(mark, &value);
+  }
+  void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                       YAML::EmitterStyle::value) override {
+    Value(mark, nullptr);
+    Push(mark, false);
+  }
+  void OnSequenceEnd() override { Pop(); }
+  void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                  YAML::EmitterStyle::value) override {
+    Value(mark, nullptr);
+    Push(mark, true);
+  }
+  void OnMapEnd() override { Pop(); }
+
+ private:
+  struct Container {
+    bool is_map = false;
+    bool expecting_key = true;
+    std::map<std::string, int> key_lines;  // key -> 1-based line
+  };
+
+  void Fail(const YAML::Mark& mark, const std::string& message) {
+    if (error.empty()) error = fmt::format("{}:{}: {}", mark.line + 1, mark.column + 1, message);
+  }
+  // Called for every node as it starts; in a map, alternate nodes are keys.
+  void Value(const YAML::Mark& mark, const std::string* scalar) {
+    if (stack_.empty() || !stack_.back().is_map) return;
+    Container& map = stack_.back();
+    const bool is_key = map.expecting_key;
+    map.expecting_key = !map.expecting_key;
+    if (!is_key || scalar == nullptr) return;
+    const auto [it, inserted] = map.key_lines.emplace(*scalar, mark.line + 1);
+    if (!inserted) {
+      Fail(mark, fmt::format("duplicate key '{}' (first on line {}): say it once", *scalar,
+                             it->second));
+    }
+  }
+  void Push(const YAML::Mark&, bool is_map) {
+    stack_.emplace_back();
+    stack_.back().is_map = is_map;
+  }
+  void Pop() {
+    if (!stack_.empty()) stack_.pop_back();
+  }
+
+  std::vector<Container> stack_;
+};
+
 }  // namespace
 
 StatusOr<ConfigNode> ConfigNode::ReadFile(const std::string& path) {
@@ -82,6 +154,15 @@ StatusOr<ConfigNode> ConfigNode::ReadFile(const std::string& path) {
 
 StatusOr<ConfigNode> ConfigNode::Parse(const std::string& text, const std::string& source_name) {
   try {
+    {
+      std::istringstream stream(text);
+      YAML::Parser parser(stream);
+      StrictYamlCheck check;
+      while (parser.HandleNextDocument(check) && check.error.empty()) {
+      }
+      if (!check.error.empty())
+        return InvalidArgumentError(fmt::format("{}:{}", source_name, check.error));
+    }
     YAML::Node root = YAML::Load(text);
     return ConfigNode(std::make_shared<const std::string>(source_name), root, "");
   } catch (const YAML::Exception& e) {

@@ -49,7 +49,16 @@ StatusOr<PointCache> ReadPc2(const std::string& path) {
   if (!std::isfinite(start_frame) || !std::isfinite(sampling) || sampling <= 0) {
     return DataLossError(fmt::format("{}: bad start frame {} or sampling {}", path, start_frame, sampling));
   }
-  const uint64_t frame_bytes = uint64_t(vertex_count) * 3 * sizeof(float);
+  const uint64_t frame_bytes = uint64_t(vertex_count) * 3 * sizeof(float);  // < 2^35
+  // frame_bytes * frame_count can pass 2^64 for a hostile header (and wrap to the file's size):
+  // compare by division against the bytes that are there before multiplying.
+  const uint64_t payload = bytes.size() - kPc2HeaderBytes;
+  if (frame_bytes > 0 && uint64_t(frame_count) > payload / frame_bytes) {
+    return DataLossError(fmt::format(
+        "{}: truncated: header declares {} frames of {} vertices but the file has {} bytes; "
+        "frame {} is incomplete",
+        path, frame_count, vertex_count, bytes.size(), payload / frame_bytes));
+  }
   const uint64_t expected = kPc2HeaderBytes + frame_bytes * uint64_t(frame_count);
   if (bytes.size() != expected) {
     if (bytes.size() < expected && frame_bytes > 0) {

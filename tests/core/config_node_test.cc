@@ -4,6 +4,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
+
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -321,6 +323,40 @@ TEST(ConfigNodeToJson, SubtreeOnly) {
   const ConfigNode cameras = *ParseOrDie(kRigYaml).Child("cameras");
   EXPECT_EQ(cameras.ToJson(), Json::parse(R"([{"serial": 1234, "exposure_us": 800},
                                               {"serial": 5678, "exposure_us": "long"}])"));
+}
+
+// Issue 18, item 7: yaml-cpp keeps the first of two equal keys, so `max_hz: 11` then
+// `max_hz: 8` silently meant 11. Both lines are named.
+TEST(ConfigNodeParse, DuplicateKeyIsAnErrorNamingBothLines) {
+  auto parsed = ConfigNode::Parse("limits:\n  max_hz: 11\n  min_hz: 6\n  max_hz: 8\n", "rig.yaml");
+  ASSERT_FALSE(parsed.ok());
+  EXPECT_THAT(parsed.status().message(), HasSubstr("rig.yaml:4:"));
+  EXPECT_THAT(parsed.status().message(), HasSubstr("duplicate key 'max_hz' (first on line 2)"));
+  // The same key in two different maps is fine.
+  EXPECT_TRUE(ConfigNode::Parse("a: {x: 1}\nb: {x: 2}\nc: [{x: 1}, {x: 2}]\n", "ok.yaml").ok());
+}
+
+TEST(ConfigNodeParse, DuplicateKeyInJsonIsAnError) {
+  auto parsed = ConfigNode::Parse("{\"fps\": 128,\n \"fps\": 64}", "take.json");
+  ASSERT_FALSE(parsed.ok());
+  EXPECT_THAT(parsed.status().message(), HasSubstr("duplicate key 'fps'"));
+}
+
+// A self-referential alias segfaulted yaml-cpp's builder; nested anchors ("billion laughs")
+// took 2.6 GB. Aliases are refused before anything is built.
+TEST(ConfigNodeParse, AliasesAreRefused) {
+  auto self = ConfigNode::Parse("a: &x [*x]\n", "take.json");
+  ASSERT_FALSE(self.ok());
+  EXPECT_THAT(self.status().message(), HasSubstr("aliases"));
+  std::string laughs = "a0: &a0 [x, x, x, x, x, x, x, x, x, x]\n";
+  for (int i = 1; i < 12; ++i) {
+    laughs += fmt::format("a{}: &a{} [", i, i);
+    for (int k = 0; k < 10; ++k) laughs += fmt::format("{}*a{}", k ? ", " : "", i - 1);
+    laughs += "]\n";
+  }
+  auto nested = ConfigNode::Parse(laughs, "bomb.yaml");
+  ASSERT_FALSE(nested.ok());
+  EXPECT_THAT(nested.status().message(), HasSubstr("bomb.yaml:2:"));
 }
 
 }  // namespace

@@ -320,5 +320,19 @@ TEST(ReadPc2, NonFiniteValueNamesFrameAndVertex) {
   EXPECT_THAT(read.status().message(), HasSubstr("frame 2 vertex 3"));
 }
 
+// Issue 18, item 7: a 64-byte file whose header sizes make 32 + 12·V·F wrap past 2^64 to 64
+// (V = 1824726041, F = 842443544: 12·V·F = 2^64 + 32) was accepted and then asked for 2^64
+// bytes (bad_alloc). It is a truncated file and the error says so.
+TEST(ReadPc2, HeaderWhoseSizeWrapsIsTruncatedNotAnAllocation) {
+  TempDir dir;
+  const std::string path = dir.Join("wrap.pc2");
+  WriteBytes(path, Pc2Bytes(1, 1824726041, 0.0f, 1.0f, 842443544, std::vector<float>(8, 0.0f)));
+  ASSERT_EQ(ReadBytes(path).size(), 64u);
+  const auto read = ReadPc2(path);
+  ASSERT_FALSE(read.ok());
+  EXPECT_EQ(read.status().code(), StatusCode::kDataLoss);
+  EXPECT_THAT(read.status().message(), HasSubstr("truncated"));
+}
+
 }  // namespace
 }  // namespace facedyn

@@ -6,6 +6,7 @@
 #include <spdlog/spdlog.h>
 #include <sys/select.h>
 #include <sys/socket.h>
+#include <poll.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -270,7 +271,7 @@ Status DriveSim::Listen() {
         fmt::format("simulated drive: cannot create a context for {}:{}: {}", options_.host,
                     options_.port, modbus_strerror(errno)));
   }
-  listen_socket_ = modbus_tcp_listen(ctx_, 8);
+  listen_socket_ = modbus_tcp_listen(ctx_, 128);  // a burst of connects must not wait on SYN retries
   if (listen_socket_ == -1) {
     return UnavailableError(fmt::format("simulated drive: cannot listen on {}:{}: {}",
                                         options_.host, options_.port, modbus_strerror(errno)));
@@ -399,6 +400,21 @@ void DriveSim::AdvanceModel() {
   last_advance_ = now;
 }
 
+bool DriveSim::IsAcceptableWrite(const uint8_t* query, int length) const {
+  const int h = header_length_;
+  if (length < h + 5) return false;
+  const int function = query[h];
+  const int address = (query[h + 1] << 8) | query[h + 2];
+  const int registers = mapping_->nb_registers;
+  if (function == MODBUS_FC_WRITE_SINGLE_REGISTER) return address < registers;
+  if (function != MODBUS_FC_WRITE_MULTIPLE_REGISTERS || length < h + 6) return false;
+  // Modbus Application Protocol v1.1b3, 6.12: quantity 1..123 (0x7B), byte count = 2 x quantity.
+  const int quantity = (query[h + 3] << 8) | query[h + 4];
+  const int byte_count = query[h + 5];
+  return quantity >= 1 && quantity <= MODBUS_MAX_WRITE_REGISTERS && byte_count == 2 * quantity &&
+         address + quantity <= registers;
+}
+
 bool DriveSim::Answer(const uint8_t* query, int length) {
   if (link_cut_ || drop_requests_ > 0) {
     if (!link_cut_) --drop_requests_;
@@ -425,7 +441,11 @@ bool DriveSim::Answer(const uint8_t* query, int length) {
     return modbus_reply_exception(ctx_, query, static_cast<unsigned>(exception_code_.load())) != -1;
   }
   // Replies to reads carry the refreshed values; writes land in the mapping and are then
-  // interpreted.
+  // interpreted — but only writes the drive accepts. modbus_reply answers an illegal request
+  // (an FC16 of 200 registers, an address past the map) with an exception and writes nothing,
+  // and such a request must change nothing here either: a real drive does not act on a write
+  // it refused (re-applying the mapping's run word restarted the motor).
+  const bool accepted_write = IsAcceptableWrite(query, length);
   if (modbus_reply(ctx_, query, length, mapping_) == -1) {
     spdlog::debug("simulated drive: reply failed: {}", modbus_strerror(errno));
     return false;
@@ -435,52 +455,73 @@ bool DriveSim::Answer(const uint8_t* query, int length) {
   const int count = function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS
                         ? ((query[header_length_ + 3] << 8) | query[header_length_ + 4])
                         : 1;
-  HandleWrite(function, address, count);
+  if (accepted_write) HandleWrite(function, address, count);
   RefreshRegisters();
   ++requests_served_;
   return true;
 }
 
 void DriveSim::Serve() {
-  std::vector<int> clients;
+  // poll(), not select(): select's fd_set stops at FD_SETSIZE (1024) and a flood of idle
+  // connections pushed descriptors past it (FD_SET out of bounds aborted the server). Clients
+  // beyond kMaxClients are refused at accept, and a client silent for kClientIdleS is closed, so
+  // idle connections cannot starve the one that drives the platform.
+  constexpr size_t kMaxClients = 64;
+  constexpr double kClientIdleS = 60.0;
+  struct Client {
+    int fd;
+    Clock::time_point last_request;
+  };
+  std::vector<Client> clients;
+  std::vector<pollfd> polled;
   uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH];
   while (!stopping_) {
-    fd_set readable;
-    FD_ZERO(&readable);
-    FD_SET(listen_socket_, &readable);
-    int highest = listen_socket_;
-    for (const int fd : clients) {
-      FD_SET(fd, &readable);
-      highest = std::max(highest, fd);
-    }
-    timeval timeout{0, static_cast<suseconds_t>(options_.step_s * 1e6)};
-    const int ready = select(highest + 1, &readable, nullptr, nullptr, &timeout);
+    polled.clear();
+    polled.push_back({listen_socket_, POLLIN, 0});
+    for (const Client& client : clients) polled.push_back({client.fd, POLLIN, 0});
+    const int timeout_ms = std::max(1, static_cast<int>(options_.step_s * 1e3));
+    const int ready = ::poll(polled.data(), polled.size(), timeout_ms);
     AdvanceModel();
-    if (ready <= 0) continue;
-
-    if (FD_ISSET(listen_socket_, &readable)) {
+    const auto now = Clock::now();
+    // Accept every pending connection (a burst must not wait one poll round each).
+    for (bool pending = ready > 0 && (polled[0].revents & POLLIN); pending;) {
       const int fd = ::accept(listen_socket_, nullptr, nullptr);
-      if (fd >= 0) clients.push_back(fd);
-    }
-    for (auto it = clients.begin(); it != clients.end();) {
-      const int fd = *it;
-      if (!FD_ISSET(fd, &readable)) {
-        ++it;
-        continue;
-      }
-      modbus_set_socket(ctx_, fd);
-      const int length = modbus_receive(ctx_, query);
-      if (length == -1) {  // peer closed or sent garbage: drop the connection
+      if (fd < 0) break;
+      // libmodbus's modbus_receive select()s on the socket internally, so a descriptor at or
+      // past FD_SETSIZE cannot be served at all (in a process with many files open).
+      if (clients.size() >= kMaxClients || fd >= FD_SETSIZE) {
+        spdlog::debug("simulated drive: refusing a connection: {} clients already", kMaxClients);
         ::close(fd);
-        it = clients.erase(it);
+      } else {
+        clients.push_back({fd, now});
+      }
+      pollfd again{listen_socket_, POLLIN, 0};
+      pending = ::poll(&again, 1, 0) > 0 && (again.revents & POLLIN);
+    }
+    // Serve the clients polled this round (a new client is polled from the next round on).
+    std::vector<Client> kept;
+    kept.reserve(clients.size());
+    for (size_t i = 0; i < clients.size(); ++i) {
+      Client client = clients[i];
+      const short events = i + 1 < polled.size() ? polled[i + 1].revents : 0;
+      if (ready > 0 && (events & (POLLIN | POLLHUP | POLLERR))) {
+        modbus_set_socket(ctx_, client.fd);
+        const int length = modbus_receive(ctx_, query);
+        if (length == -1) {  // peer closed or sent garbage: drop the connection
+          ::close(client.fd);
+          continue;
+        }
+        client.last_request = now;
+        if (length > 0) Answer(query, length);  // 0: addressed to another unit
+      } else if (std::chrono::duration<double>(now - client.last_request).count() > kClientIdleS) {
+        ::close(client.fd);
         continue;
       }
-      ++it;
-      if (length == 0) continue;  // addressed to another unit
-      Answer(query, length);
+      kept.push_back(client);
     }
+    clients.swap(kept);
   }
-  for (const int fd : clients) ::close(fd);
+  for (const Client& client : clients) ::close(client.fd);
 }
 
 void DriveSim::ServeRtu() {

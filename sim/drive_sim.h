@@ -187,6 +187,8 @@ class DriveSim {
   void ServeRtu();
   // Handles one received frame on the current socket; false when the reply could not be sent.
   bool Answer(const uint8_t* query, int length);
+  // True for a write function (06, 16) that a drive accepts: in range and well formed.
+  bool IsAcceptableWrite(const uint8_t* query, int length) const;
   void HandleWrite(int function, int address, int count);
   void RefreshRegisters();
   void AdvanceModel();

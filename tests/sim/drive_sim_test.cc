@@ -4,11 +4,19 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "rig/drive_client.h"
 #include "rig/modbus_transport.h"
@@ -220,6 +228,98 @@ TEST(DriveSim, OptionsCheckNamesField) {
   DriveSimOptions options;
   options.model.accel_hz_per_s = 0.0;
   EXPECT_THAT(options.Check().message(), ::testing::HasSubstr("accel_hz_per_s"));
+}
+
+// A raw Modbus TCP request on a fresh socket; returns the reply's function byte (0x90 = an
+// exception to FC16) or -1.
+int RawRequest(int port, const std::vector<uint8_t>& pdu) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<uint16_t>(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  std::vector<uint8_t> frame = {0x00, 0x01, 0x00, 0x00, static_cast<uint8_t>((pdu.size() + 1) >> 8),
+                                static_cast<uint8_t>((pdu.size() + 1) & 0xFF), 0x01};
+  frame.insert(frame.end(), pdu.begin(), pdu.end());
+  (void)!::write(fd, frame.data(), frame.size());
+  timeval timeout{2, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
+  uint8_t reply[260];
+  const ssize_t n = ::read(fd, reply, sizeof(reply));
+  ::close(fd);
+  return n >= 8 ? reply[7] : -1;
+}
+
+// Issue 18, item 8: a write the drive refuses with an exception changes nothing. Before, an
+// FC16 of quantity 200 got exception 03 and then re-applied the mapping's words, so a drive
+// its watchdog had stopped started again (its command word still said "run").
+TEST(DriveSim, RefusedWriteChangesNothing) {
+  const rig::DriveProfile profile = testing::LoadProfileOrDie("sim");
+  DriveSimOptions options;
+  options.model.accel_hz_per_s = 50.0;
+  auto sim = DriveSim::Start(profile, options);
+  ASSERT_TRUE(sim.ok());
+  {
+    rig::TransportOptions transport_options;
+    transport_options.port = (*sim)->port();
+    auto transport = rig::ModbusTransport::Open(transport_options);
+    ASSERT_TRUE(transport.ok());
+    ASSERT_TRUE((*transport)->WriteRegister(*profile.comm_watchdog->register_address, 3).ok());
+    rig::DriveClient client(transport->get(), profile);
+    ASSERT_TRUE(client.SetFrequencyHz(8.0).ok());
+    ASSERT_TRUE(client.Start().ok());
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));  // silence: the watchdog stops it
+  ASSERT_TRUE((*sim)->state().watchdog_fired);
+  ASSERT_FALSE((*sim)->state().run_commanded);
+  // FC16 at register 0, quantity 200 (> 123), byte count 144 (400 mod 256) and 144 data bytes.
+  std::vector<uint8_t> pdu = {0x10, 0x00, 0x00, 0x00, 200, 144};
+  pdu.resize(pdu.size() + 144, 0);
+  EXPECT_EQ(RawRequest((*sim)->port(), pdu), 0x90);  // exception reply
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_FALSE((*sim)->state().run_commanded);
+  EXPECT_EQ((*sim)->state().output_hz, 0.0);
+}
+
+// Issue 18, item 8: more idle connections than select() can watch (FD_SETSIZE 1024) no longer
+// abort the server; the connection limit refuses the extra ones and a client still gets served.
+TEST(DriveSim, ManyIdleConnectionsDoNotStopTheServer) {
+  const rig::DriveProfile profile = testing::LoadProfileOrDie("sim");
+  auto sim = DriveSim::Start(profile, DriveSimOptions());
+  ASSERT_TRUE(sim.ok());
+  rlimit limit{};
+  ::getrlimit(RLIMIT_NOFILE, &limit);
+  const int wanted = 1100;
+  if (limit.rlim_cur < static_cast<rlim_t>(2 * wanted + 64)) {
+    limit.rlim_cur = std::min<rlim_t>(limit.rlim_max, 2 * wanted + 64);
+    ::setrlimit(RLIMIT_NOFILE, &limit);
+  }
+  std::vector<int> idle;
+  for (int i = 0; i < wanted; ++i) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    if (fd < 0) break;
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(static_cast<uint16_t>((*sim)->port()));
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) != 0) {
+      ::close(fd);
+      break;
+    }
+    idle.push_back(fd);
+  }
+  EXPECT_GE(idle.size(), 1000u) << "could not open enough sockets to test";
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  // FC03 read of 1 register at 2: a normal reply (function 0x03).
+  EXPECT_EQ(RawRequest((*sim)->port(), {0x03, 0x00, 0x02, 0x00, 0x01}), -1)
+      << "served past the connection limit";
+  for (size_t i = 0; i < idle.size(); ++i) ::close(idle[i]);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(RawRequest((*sim)->port(), {0x03, 0x00, 0x02, 0x00, 0x01}), 0x03);
 }
 
 }  // namespace

@@ -50,6 +50,23 @@ std::unique_ptr<Bench> StartBench(double sim_watchdog_fault_code = 10) {
   return bench;
 }
 
+// sim-tcp.yaml on a simulated drive whose oscillation sensor reports `gain` times the truth.
+std::unique_ptr<Bench> StartBenchWithSensorGain(double gain) {
+  auto bench = std::make_unique<Bench>();
+  auto config = LoadRigConfig(testing::RigConfigPath("sim-tcp"));
+  EXPECT_TRUE(config.ok()) << config.status().ToString();
+  if (!config.ok()) return nullptr;
+  bench->config = *config;
+  sim::DriveSimOptions options;
+  options.model.sensor_gain = gain;
+  auto sim = sim::DriveSim::Start(bench->config.profile, options);
+  EXPECT_TRUE(sim.ok()) << sim.status().ToString();
+  if (!sim.ok()) return nullptr;
+  bench->sim = std::move(sim).value();
+  bench->config.transport.port = bench->sim->port();
+  return bench;
+}
+
 std::vector<Json> Records(const Bench& bench) {
   auto records = ReadSessionLog(bench.dir.Join("log.jsonl"));
   EXPECT_TRUE(records.ok()) << records.status().ToString();
@@ -317,19 +334,11 @@ TEST(RigSupervisor, UnconfirmedStopLeavesTheWatchdogArmed) {
 // Issue 18, item 3: with the oscillation sensor reading 8% low and a trim allowed to add 5 Hz,
 // the command is still capped so the platform never exceeds limits.absolute_max_hz.
 TEST(RigSupervisor, AbsoluteMaxCapsTheCommandWhateverTheTrim) {
-  auto bench = std::make_unique<Bench>();
-  auto config = LoadRigConfig(testing::RigConfigPath("sim-tcp"));
-  ASSERT_TRUE(config.ok());
-  bench->config = *config;
+  auto bench = StartBenchWithSensorGain(0.92);
+  ASSERT_NE(bench, nullptr);
   bench->config.trim.max_correction_hz = 5.0;
   bench->config.limits.motor_max_hz = 20.0;  // so only absolute_max_hz can cap the command
   bench->config.safety.sensor_tolerance_hz = 5.0;  // the cross-check off: the cap alone
-  sim::DriveSimOptions options;
-  options.model.sensor_gain = 0.92;
-  auto sim = sim::DriveSim::Start(bench->config.profile, options);
-  ASSERT_TRUE(sim.ok());
-  bench->sim = std::move(sim).value();
-  bench->config.transport.port = bench->sim->port();
   auto supervisor = RigSupervisor::Connect(bench->config, nullptr, nullptr);
   ASSERT_TRUE(supervisor.ok());
   ASSERT_TRUE((*supervisor)->Arm().ok());
@@ -354,16 +363,8 @@ TEST(RigSupervisor, AbsoluteMaxCapsTheCommandWhateverTheTrim) {
 // Issue 18, item 3: the sensor is cross-checked against the drive's output frequency; a
 // sensor 8% low at 11 Hz disagrees by about 1 Hz and stops the platform, naming both.
 TEST(RigSupervisor, SensorDisagreeingWithTheDriveStopsThePlatform) {
-  auto bench = std::make_unique<Bench>();
-  auto config = LoadRigConfig(testing::RigConfigPath("sim-tcp"));
-  ASSERT_TRUE(config.ok());
-  bench->config = *config;
-  sim::DriveSimOptions options;
-  options.model.sensor_gain = 0.92;
-  auto sim = sim::DriveSim::Start(bench->config.profile, options);
-  ASSERT_TRUE(sim.ok());
-  bench->sim = std::move(sim).value();
-  bench->config.transport.port = bench->sim->port();
+  auto bench = StartBenchWithSensorGain(0.92);
+  ASSERT_NE(bench, nullptr);
   auto supervisor = RigSupervisor::Connect(bench->config, nullptr, nullptr);
   ASSERT_TRUE(supervisor.ok());
   ASSERT_TRUE((*supervisor)->Arm().ok());

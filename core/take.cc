@@ -1,5 +1,6 @@
 #include "core/take.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -35,9 +36,19 @@ bool IsValidChannelName(const std::string& name) {
   return true;
 }
 
+int FirstHeldFrame(const Take& take) {
+  if (!take.info.hold_start_s || !(take.info.fps > 0)) return 0;
+  const double frame = std::ceil(*take.info.hold_start_s * take.info.fps - 1e-9);
+  return static_cast<int>(std::clamp(frame, 0.0, static_cast<double>(take.frame_count())));
+}
+
 Status Take::Validate() const {
   if (!(info.fps > 0) || !std::isfinite(info.fps)) {
     return InvalidArgumentError(fmt::format("take: fps must be positive, got {}", info.fps));
+  }
+  if (info.hold_start_s && !(*info.hold_start_s >= 0 && std::isfinite(*info.hold_start_s))) {
+    return InvalidArgumentError(
+        fmt::format("take: hold_start_s must be finite and >= 0, got {}", *info.hold_start_s));
   }
   FACEDYN_RETURN_IF_ERROR(topology.Validate("take topology"));
   if (positions.vertex_count != vertex_count()) {
@@ -135,6 +146,9 @@ StatusOr<Take> LoadTake(const std::string& dir) {
   if (json.Has("platform_hz")) {
     FACEDYN_ASSIGN_OR_RETURN(take.info.platform_hz, json.GetInRange("platform_hz", 0.0, 1000.0));
   }
+  if (json.Has("hold_start_s")) {
+    FACEDYN_ASSIGN_OR_RETURN(take.info.hold_start_s, json.GetInRange("hold_start_s", 0.0, 1e6));
+  }
   FACEDYN_ASSIGN_OR_RETURN(const std::vector<std::string> channels,
                            json.GetOr<std::vector<std::string>>("channels", {}));
   if (json.Has("metadata")) {
@@ -221,6 +235,7 @@ Status SaveTake(const Take& take, const std::string& dir) {
   json["expression"] = take.info.expression;
   json["motion"] = take.info.motion;
   json["platform_hz"] = take.info.platform_hz ? Json(*take.info.platform_hz) : Json(nullptr);
+  if (take.info.hold_start_s) json["hold_start_s"] = *take.info.hold_start_s;
   json["source"] = take.info.source;
   json["channels"] = channel_names;
   json["metadata"] = take.info.metadata.is_object() ? take.info.metadata : Json::object();

@@ -37,6 +37,12 @@ struct TakeInfo {
   std::string motion;    // platform | walk | run | jump | none | captured ...
   std::string source;    // what produced the take: "sim", "reconstruct", "dynamics remove", ...
   std::optional<double> platform_hz;  // platform oscillation frequency, when there was one
+  // Time (s, from the first frame) from which the expression is held and the head motion is
+  // steady, so a held-expression target (the moving average, the platform-synchronous fit)
+  // holds: the simulator writes its expression and motion fade-ins plus the tissue's settling.
+  // Absent: no such time is known (a performance, or a capture that records after its sweep
+  // step settled and the actor was prompted: every frame counts as held).
+  std::optional<double> hold_start_s;
   Json metadata = Json::object();
 };
 
@@ -62,6 +68,10 @@ struct Take {
   // Checks the in-memory invariants LoadTake checks on disk.
   Status Validate() const;
 };
+
+// First frame of the held part: ceil(hold_start_s * fps) (with 1e-9 of slack for rounding), 0
+// without hold_start_s, at most frame_count.
+int FirstHeldFrame(const Take& take);
 
 // Channel names are file stems: lower-case letters, digits and '_', not "positions".
 bool IsValidChannelName(const std::string& name);

@@ -379,6 +379,22 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
     *targets = out_inv_std.asDiagonal() * *targets;
   };
 
+  // Per-dimension loss weights (1 x output_size): std_d^2 / mean(std^2) in output units, else 1.
+  // The reported losses are multiplied back by mean(std^2), so they are in units^2.
+  const double mean_variance = out_std.cwiseAbs2().cast<double>().mean();
+  torch::Tensor loss_weights =
+      torch::ones({1, static_cast<long>(out_std.size())}, torch::kFloat32);
+  double report_scale = 1.0;
+  if (options.loss_in_output_units && mean_variance > 0) {
+    for (long d = 0; d < out_std.size(); ++d) {
+      loss_weights[0][d] = static_cast<float>(out_std[d] * out_std[d] / mean_variance);
+    }
+    report_scale = mean_variance;
+  }
+  auto weighted_mse = [&](const torch::Tensor& predicted, const torch::Tensor& target) {
+    return ((predicted - target).square() * loss_weights).mean();
+  };
+
   Net& net = MlpTrainer::NetOf(*model);
   net->train();
   // Plain Adam without weight decay (the paper's, and bitwise what facedyn always trained with);
@@ -423,12 +439,12 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
                                           torch::randn(batch_inputs.sizes(), noise_generator);
       }
       const torch::Tensor loss =
-          torch::mse_loss(net->ForwardNormalised(batch_inputs), AsRowMajorTensor(targets));
+          weighted_mse(net->ForwardNormalised(batch_inputs), AsRowMajorTensor(targets));
       loss.backward();
       optimizer->step();
       loss_sum += loss.item<double>() * static_cast<double>(n);
     }
-    local.train_loss.push_back(loss_sum / static_cast<double>(order.size()));
+    local.train_loss.push_back(report_scale * loss_sum / static_cast<double>(order.size()));
     char status[96];
     if (!validation_rows.empty()) {
       torch::NoGradGuard no_grad;
@@ -440,12 +456,13 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
             std::min(validation_rows.size() - begin, static_cast<size_t>(eval_batch)));
         data.Gather(validation_rows.data() + begin, n, &inputs, &targets);
         normalise(&inputs, &targets);
-        validation_sum += torch::mse_loss(net->ForwardNormalised(AsRowMajorTensor(inputs)),
-                                          AsRowMajorTensor(targets))
+        validation_sum += weighted_mse(net->ForwardNormalised(AsRowMajorTensor(inputs)),
+                                       AsRowMajorTensor(targets))
                               .item<double>() *
                           static_cast<double>(n);
       }
-      local.validation_loss.push_back(validation_sum / static_cast<double>(validation_rows.size()));
+      local.validation_loss.push_back(report_scale * validation_sum /
+                                      static_cast<double>(validation_rows.size()));
       std::snprintf(status, sizeof(status), "loss %.4g val %.4g", local.train_loss.back(),
                     local.validation_loss.back());
     } else {

@@ -125,6 +125,12 @@ struct MlpTrainOptions {
   // (not to validation rows): smooths the fitted function around the training features. 0, the
   // default, adds none.
   double input_noise_std = 0.0;
+  // The loss: false is the mean squared error of the per-dimension normalised outputs, where a
+  // quiet output (a forehead sample of H, F's least varying axis) weighs as much as a cheek;
+  // true, the default, weights dimension d by std_d^2 / mean(std^2), so the loss is the squared
+  // error in the outputs' own units (mm, Zoss et al. 2020's L2) up to that one constant, which
+  // keeps the step size of the normalised loss.
+  bool loss_in_output_units = true;
   uint64_t seed = 1;    // initialisation, shuffling and input noise
   int num_threads = 0;  // LibTorch intra-op threads; 0 keeps the current setting
   bool show_progress = true;
@@ -137,15 +143,17 @@ struct MlpTrainOptions {
 struct MlpTrainSummary {
   long training_rows = 0;
   long validation_rows = 0;
-  std::vector<double> train_loss;       // per epoch, mean L2 on normalised outputs
+  // Per epoch, the mean squared error per output dimension: in the outputs' units squared (mm^2)
+  // with loss_in_output_units, else of the normalised outputs.
+  std::vector<double> train_loss;
   std::vector<double> validation_loss;  // per epoch (empty without validation rows)
   double train_s = 0.0;                 // wall time of the optimisation
   double rows_per_s = 0.0;              // training rows through forward + backward per second
 };
 
 // Fits the normalisation to the training rows (mean and standard deviation per dimension;
-// constant dimensions get std 1), then minimises the mean squared error of the normalised
-// outputs with Adam over shuffled mini-batches. `model` must have the dataset's sizes.
+// constant dimensions get std 1), then minimises the squared error of the outputs (weighted per
+// dimension, see loss_in_output_units) with Adam over shuffled mini-batches. `model` must have the dataset's sizes.
 // Errors: no training rows, a size mismatch.
 Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
                 const std::vector<long>& validation_rows, const MlpTrainOptions& options,

@@ -10,6 +10,7 @@
 #include "core/check.h"
 #include "dynamics/model_file.h"
 #include "dynamics/quasistatic.h"
+#include "dynamics/training_frames.h"
 
 namespace facedyn::dynamics {
 
@@ -211,7 +212,8 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
     FACEDYN_ASSIGN_OR_RETURN(learner,
                              PropagationLearner::ForRig(*takes[0].rig, options.propagation));
   }
-  std::vector<std::pair<int, int>> frames;  // (take, frame) usable for training
+  std::vector<FrameRange> ranges;  // per take, the frames usable for training
+  long usable_frames = 0;
   for (size_t k = 0; k < takes.size(); ++k) {
     const Take& take = *takes[k].take;
     const FaceRig& rig = *takes[k].rig;
@@ -253,34 +255,37 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
     StatusOr<PointCache> offsets = targets();
     if (!offsets.ok()) return offsets.status().WithContext(context);
     const int margin = std::max(window, target_window);
-    if (learner && take.frame_count() > 2 * margin) {
-      if (Status status = learner->Add(*offsets, margin, take.frame_count() - margin);
-          !status.ok()) {
+    // Estimated targets assume a held expression: frames before the take's hold start are not
+    // trained on (training_frames.h). Exact targets hold everywhere.
+    const FrameRange range =
+        UsableFrames(take, margin, options.targets != RemovalTargets::kExact);
+    if (learner && !range.empty()) {
+      if (Status status = learner->Add(*offsets, range.begin, range.end); !status.ok()) {
         return status.WithContext(context);
       }
     }
     data.Add(std::move(features).value(), SampleCache(*offsets, rig.skin_samples));
-    for (int t = margin; t < take.frame_count() - margin; ++t) {
-      frames.emplace_back(static_cast<int>(k), t);
-    }
+    ranges.push_back(range);
+    usable_frames += range.size();
   }
-  if (frames.empty()) {
+  if (usable_frames == 0) {
     return FailedPreconditionError(
-        "train-removal: every take is shorter than two feature (or target estimate) windows "
-        "(at least " +
-        std::to_string(2 * window + 1) + " frames)");
+        "train-removal: no take has a frame whose feature (or target estimate) window lies "
+        "inside its held part (at least " +
+        std::to_string(2 * window + 2) + " frames after hold_start_s)");
   }
 
-  // Validation split by whole frames, seeded.
-  std::mt19937_64 rng(options.train.seed);
-  std::shuffle(frames.begin(), frames.end(), rng);
-  const size_t validation_frames = static_cast<size_t>(
-      std::floor(options.validation_fraction * static_cast<double>(frames.size())));
+  // Validation by contiguous blocks with a gap, seeded (training_frames.h).
+  const FrameSplit split =
+      SplitByBlocks(ranges, options.validation_fraction, ValidationBlockFrames(window),
+                    ValidationGapFrames(window), options.train.seed);
   std::vector<long> train_rows, validation_rows;
-  for (size_t f = 0; f < frames.size(); ++f) {
-    std::vector<long>& rows = f < validation_frames ? validation_rows : train_rows;
-    for (int i = 0; i < config.sample_count; ++i) {
-      rows.push_back(data.RowOf(frames[f].first, frames[f].second, i));
+  for (const auto& [frames, rows] :
+       {std::pair{&split.train, &train_rows}, std::pair{&split.validation, &validation_rows}}) {
+    for (const TakeFrame& frame : *frames) {
+      for (int i = 0; i < config.sample_count; ++i) {
+        rows->push_back(data.RowOf(frame.first, frame.second, i));
+      }
     }
   }
   FACEDYN_RETURN_IF_ERROR(

@@ -110,7 +110,7 @@ StatusOr<RemovalTargets> ParseRemovalTargets(const std::string& name);
 struct RemovalTrainOptions {
   // Optimisation: the paper's 250 epochs, batch 10,000 and Adam at 1e-3 (sec. 5.2).
   MlpTrainOptions train = Defaults();
-  double validation_fraction = 0.1;  // fraction of (take, frame) pairs held out, all samples
+  double validation_fraction = 0.1;  // fraction of usable frames held out (blocks), all samples
   int hidden_units = 128;
   // F plus a linear map of its inputs (MlpShape::linear_skip); false is the paper's network.
   // On by default: trained on 6-9 Hz simulated takes and tested on 10 Hz (bench/dynamics_bench
@@ -148,8 +148,10 @@ struct RemovalTrainOptions {
 // Trains F on the takes (which must share fps, landmarks and samples). Frames within the
 // feature window of either end of a take are left out (their windows read replicated frames),
 // and so are frames within the target estimate's window (the platform-synchronous fit's is
-// wider at low platform frequencies: 1.5 periods, 32 frames at 6 Hz and 128 fps).
-// The validation split holds out whole frames (all their samples), seeded.
+// wider at low platform frequencies: 1.5 periods, 32 frames at 6 Hz and 128 fps); with
+// estimated (held-expression) targets so are frames whose window reaches before the take's
+// hold_start_s (training_frames.h). The validation split holds out contiguous blocks of frames
+// (all their samples) with a gap of 2w frames to any training frame of the same take, seeded.
 // Errors: no takes, mismatched takes, exact targets requested for a take without them.
 StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
                                     const RemovalTrainOptions& options,

@@ -10,6 +10,7 @@
 #include "core/check.h"
 #include "dynamics/features.h"
 #include "dynamics/model_file.h"
+#include "dynamics/training_frames.h"
 
 namespace facedyn::dynamics {
 
@@ -192,7 +193,8 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   if (options.learn_propagation) {
     FACEDYN_ASSIGN_OR_RETURN(learner, PropagationLearner::ForRig(*decomposed[0].rig, options.propagation));
   }
-  std::vector<long> rows;
+  std::vector<FrameRange> ranges;  // per take, the frames usable for training
+  long usable_frames = 0;
   for (size_t k = 0; k < decomposed.size(); ++k) {
     const Take& take = *decomposed[k].take;
     const FaceRig& rig = *decomposed[k].rig;
@@ -222,27 +224,32 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
     StatusOr<Eigen::MatrixXf> features =
         SynthesisFeatures(take, take.world_from_skull, rig, config, stencil);
     if (!features.ok()) return features.status().WithContext(context);
-    if (learner && take.frame_count() > 2 * window) {
-      if (Status status = learner->Add(offsets->second, window, take.frame_count() - window);
-          !status.ok()) {
+    // A decomposition by F of a held-expression take is an estimate that assumes the hold:
+    // frames before hold_start_s are left out (training_frames.h); exact ones do not need it,
+    // but a take cannot tell which it is, so the rule is the same for both.
+    const FrameRange range = UsableFrames(take, window, true);
+    if (learner && !range.empty()) {
+      if (Status status = learner->Add(offsets->second, range.begin, range.end); !status.ok()) {
         return status.WithContext(context);
       }
     }
     data.Add(std::move(features).value(), SampleOffsetsByFrame(offsets->second, rig.skin_samples));
-    for (int t = window; t < take.frame_count() - window; ++t) {
-      rows.push_back(data.RowOf(static_cast<int>(k), t));
-    }
+    ranges.push_back(range);
+    usable_frames += range.size();
   }
-  if (rows.empty()) {
+  if (usable_frames == 0) {
     return FailedPreconditionError(
-        "train-synthesis: every take is shorter than two feature windows");
+        "train-synthesis: no take has a frame whose feature window lies inside its held part "
+        "(at least " + std::to_string(2 * window + 2) + " frames after hold_start_s)");
   }
-  std::mt19937_64 rng(options.train.seed);
-  std::shuffle(rows.begin(), rows.end(), rng);
-  const size_t validation_count = static_cast<size_t>(
-      std::floor(options.validation_fraction * static_cast<double>(rows.size())));
-  const std::vector<long> validation_rows(rows.begin(), rows.begin() + validation_count);
-  const std::vector<long> train_rows(rows.begin() + validation_count, rows.end());
+  const FrameSplit split =
+      SplitByBlocks(ranges, options.validation_fraction, ValidationBlockFrames(window),
+                    ValidationGapFrames(window), options.train.seed);
+  std::vector<long> train_rows, validation_rows;
+  for (const TakeFrame& frame : split.train) train_rows.push_back(data.RowOf(frame.first, frame.second));
+  for (const TakeFrame& frame : split.validation) {
+    validation_rows.push_back(data.RowOf(frame.first, frame.second));
+  }
   FACEDYN_RETURN_IF_ERROR(
       TrainMlp(data, train_rows, validation_rows, options.train, model.mutable_mlp(), summary));
   if (learner) {

@@ -76,7 +76,7 @@ class SynthesisModel {
 struct SynthesisTrainOptions {
   // Optimisation: the paper's 30 epochs, batch 50 and Adam at 1e-3 (sec. 6.2).
   MlpTrainOptions train = Defaults();
-  double validation_fraction = 0.1;  // fraction of frames held out
+  double validation_fraction = 0.1;  // fraction of usable frames held out (blocks, with a gap)
   int hidden_units = 256;
   double window_s = 0.08;
   double stretch_step_mm = 2.0;  // Eq. (8)'s ~2 mm uv steps
@@ -102,7 +102,8 @@ struct SynthesisTrainOptions {
 StatusOr<Take> DecomposeExact(const Take& simulated);
 
 // Trains H on decomposed takes (positions quasistatic, channel "dynamic_offset"). Frames within
-// the feature window of either end are left out. Errors: no takes, a take without the channel,
+// the feature window of either end, or of the first frame, or before the take's hold_start_s,
+// are left out; validation holds out contiguous blocks with a gap (training_frames.h). Errors: no takes, a take without the channel,
 // mismatched rigs.
 StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decomposed,
                                         const SynthesisTrainOptions& options,

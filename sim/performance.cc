@@ -13,6 +13,9 @@
 namespace facedyn::sim {
 namespace {
 
+// Fade-in of a held expression (MakeHeldExpression's ramp_s).
+constexpr double kExpressionRamp_s = 0.3;
+
 // skull_from_jaw: rotation by `angle` about the rig's hinge axis through its pivot.
 Rigid3 SkullFromJaw(const FaceRig& rig, double angle_rad) {
   const Eigen::Quaterniond q(Eigen::AngleAxisd(angle_rad, rig.jaw.axis_in_skull.normalized()));
@@ -93,7 +96,7 @@ StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions&
     curve = MakeSpeechSequence(keys, 4.5, options.seed);
   } else {
     FACEDYN_ASSIGN_OR_RETURN(reference_weights, ExpressionWeights(rig, options.expression));
-    curve = MakeHeldExpression(reference_weights, 0.3, 0.02, options.seed);
+    curve = MakeHeldExpression(reference_weights, kExpressionRamp_s, 0.02, options.seed);
   }
   FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<SkullMotion> motion, MakeSkullMotion(options.motion));
   FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<SoftTissueModel> model, SoftTissueModel::Create(rig, options.tissue));
@@ -168,6 +171,20 @@ StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions&
   progress.Finish();
   take.channels["quasistatic"] = std::move(quasistatic);
   take.channels["dynamic_offset"] = std::move(offset);
+  if (options.expression != "speech") {
+    // The expression forms over kExpressionRamp_s and the motion fades in over its ramp_in_s;
+    // the tissue's transient from both then decays as exp(-zeta omega t): three time constants
+    // leave 5% of it. Before that a held-expression target (moving average, platform fit) is
+    // wrong by up to 0.5 mm at the mouth corners (smile, 8 Hz), so training and evaluation
+    // start there (dynamics/valid_frames.h).
+    const double motion_ramp_s =
+        (options.motion.kind == MotionKind::kNone || options.motion.kind == MotionKind::kFile)
+            ? 0.0
+            : options.motion.ramp_in_s;
+    const double settle_s =
+        3.0 / (2 * M_PI * options.tissue.fundamental_hz * options.tissue.damping_ratio);
+    take.info.hold_start_s = std::max(kExpressionRamp_s, motion_ramp_s) + settle_s;
+  }
 
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   take.info.metadata = {

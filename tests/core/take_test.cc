@@ -67,6 +67,7 @@ Take MakeTake() {
   take.info.motion = "platform";
   take.info.source = "take_test";
   take.info.platform_hz = 8.5;
+  take.info.hold_start_s = 0.5;
   take.info.metadata = Json{{"seed", 7},
                             {"amplitude_mm", 1.25},
                             {"note", "synthetic"},
@@ -168,6 +169,8 @@ TEST(SaveTake, RoundTripKeepsEveryField) {
   EXPECT_EQ(t.info.source, "take_test");
   ASSERT_TRUE(t.info.platform_hz.has_value());
   EXPECT_EQ(*t.info.platform_hz, 8.5);
+  ASSERT_TRUE(t.info.hold_start_s.has_value());
+  EXPECT_EQ(*t.info.hold_start_s, 0.5);
   EXPECT_EQ(t.info.metadata, take.info.metadata) << t.info.metadata.dump();
 
   EXPECT_EQ(t.frame_count(), kFrames);
@@ -224,6 +227,7 @@ TEST(SaveTake, RoundTripWithoutJawChannelsOrPlatform) {
   take.skull_from_jaw.clear();
   take.channels.clear();
   take.info.platform_hz.reset();
+  take.info.hold_start_s.reset();
   take.info.metadata = Json::object();
   // First save a take with a jaw, then overwrite it: the stale jaw.csv must go.
   ASSERT_TRUE(SaveTake(MakeTake(), dir.path()).ok());
@@ -235,6 +239,7 @@ TEST(SaveTake, RoundTripWithoutJawChannelsOrPlatform) {
   EXPECT_TRUE(loaded->skull_from_jaw.empty());
   EXPECT_TRUE(loaded->channels.empty());
   EXPECT_FALSE(loaded->info.platform_hz.has_value());
+  EXPECT_FALSE(loaded->info.hold_start_s.has_value());
   EXPECT_TRUE(loaded->info.metadata.is_object());
   EXPECT_TRUE(loaded->info.metadata.empty());
 }

@@ -5,6 +5,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 
 #include "tests/support/test_support.h"
@@ -68,7 +69,10 @@ TEST(TrainMlp, FitsALinearMapInRawUnits) {
   EXPECT_EQ(summary.training_rows, 1800);
   EXPECT_EQ(summary.validation_rows, 200);
   ASSERT_EQ(summary.train_loss.size(), 60u);
-  EXPECT_LT(summary.validation_loss.back(), 0.01);  // normalised units
+  // The loss is in the outputs' units squared: 1% of their mean variance.
+  const Eigen::MatrixXf centred = data.targets_.colwise() - data.targets_.rowwise().mean();
+  const double mean_variance = centred.squaredNorm() / centred.size();
+  EXPECT_LT(summary.validation_loss.back(), 0.01 * mean_variance);
   // Predictions come back in raw units (the normalisation is inside the model).
   Eigen::MatrixXf inputs(4, 200);
   for (int r = 0; r < 200; ++r) inputs.col(r) = data.inputs_.col(validation[r]);
@@ -78,6 +82,80 @@ TEST(TrainMlp, FitsALinearMapInRawUnits) {
   const double spread =
       std::sqrt((truth.colwise() - truth.rowwise().mean()).squaredNorm() / truth.size());
   EXPECT_LT(rms, 0.1 * spread) << "rms " << rms << " spread " << spread;
+}
+
+// Two outputs 1000x apart in scale, more than a tiny network can fit both of: y0 = 1000
+// sin(x0), y1 = sin(x1).
+class TwoScaleDataset final : public MlpDataset {
+ public:
+  explicit TwoScaleDataset(int rows) {
+    inputs_ = Eigen::MatrixXf::Random(2, rows) * 3.0f;
+    targets_.resize(2, rows);
+    for (int r = 0; r < rows; ++r) {
+      targets_(0, r) = 1000.0f * std::sin(inputs_(0, r));
+      targets_(1, r) = std::sin(inputs_(1, r));
+    }
+  }
+  int input_size() const override { return 2; }
+  int output_size() const override { return 2; }
+  void Gather(const long* rows, long n, Eigen::MatrixXf* inputs,
+              Eigen::MatrixXf* targets) const override {
+    inputs->resize(2, n);
+    targets->resize(2, n);
+    for (long r = 0; r < n; ++r) {
+      inputs->col(r) = inputs_.col(rows[r]);
+      targets->col(r) = targets_.col(rows[r]);
+    }
+  }
+  Eigen::MatrixXf inputs_, targets_;
+};
+
+// Relative RMS error of each output after training with or without the output-unit loss, and
+// the reported final validation loss next to the mean squared raw error computed here.
+struct TwoScaleFit {
+  double relative_rms[2] = {0, 0};
+  double reported_loss = 0, measured_mse = 0;
+};
+TwoScaleFit FitTwoScales(bool loss_in_output_units) {
+  const TwoScaleDataset data(3000);
+  std::vector<long> train, validation;
+  for (long r = 0; r < 3000; ++r) (r % 5 == 0 ? validation : train).push_back(r);
+  MlpShape shape;
+  shape.input_size = 2;
+  shape.hidden_units = 3;
+  shape.output_size = 2;
+  Mlp model = Mlp::Create(shape, 5).value();
+  MlpTrainOptions options;
+  options.epochs = 40;
+  options.batch_size = 64;
+  options.show_progress = false;
+  options.loss_in_output_units = loss_in_output_units;
+  MlpTrainSummary summary;
+  EXPECT_TRUE(TrainMlp(data, train, validation, options, &model, &summary).ok());
+  Eigen::MatrixXf inputs(2, validation.size()), truth(2, validation.size());
+  for (size_t r = 0; r < validation.size(); ++r) {
+    inputs.col(r) = data.inputs_.col(validation[r]);
+    truth.col(r) = data.targets_.col(validation[r]);
+  }
+  const Eigen::MatrixXf error = model.Predict(inputs) - truth;
+  TwoScaleFit fit;
+  for (int d = 0; d < 2; ++d) {
+    fit.relative_rms[d] = std::sqrt(error.row(d).squaredNorm() / truth.row(d).squaredNorm());
+  }
+  fit.reported_loss = summary.validation_loss.back();
+  fit.measured_mse = error.squaredNorm() / error.size();
+  return fit;
+}
+
+TEST(TrainMlp, LossInOutputUnitsWeighsTheLargeOutputAndIsReportedInUnitsSquared) {
+  const TwoScaleFit units = FitTwoScales(true);
+  const TwoScaleFit normalised = FitTwoScales(false);
+  // Reported in units^2: the mean squared raw error over both outputs, computed independently.
+  EXPECT_NEAR(units.reported_loss, units.measured_mse, 1e-3 * units.measured_mse);
+  // The squared error in units is dominated by y0, so that weighting fits y0 better and y1
+  // worse than the normalised loss, which weighs both alike.
+  EXPECT_LT(units.relative_rms[0], normalised.relative_rms[0]);
+  EXPECT_GT(units.relative_rms[1], normalised.relative_rms[1]);
 }
 
 TEST(MlpTrainOptions, CheckNamesTheField) {

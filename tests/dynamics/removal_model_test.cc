@@ -200,6 +200,36 @@ TEST(TrainRemoval, DeterministicForASeed) {
   EXPECT_NE(TrainRemoval(takes, other).value().FlatParameters(), a.FlatParameters());
 }
 
+// Estimated (held-expression) targets are not trained on before the take's hold start, nor on
+// a window that reaches frame 0 (whose velocity is zero by policy); exact targets need no hold.
+TEST(TrainRemoval, LeavesOutTheOnsetWithHeldExpressionTargets) {
+  const FaceRig rig = TinyRig();
+  Take take = SyntheticTake(rig, 200, 128.0, 0.0);
+  take.info.hold_start_s = 80 / 128.0;  // frame 80
+  const int w = WindowFrames(0.08, 128.0);
+  const long samples = static_cast<long>(rig.skin_samples.size());
+  auto rows = [&](RemovalTargets targets) {
+    RemovalTrainOptions options = QuickOptions(1);
+    options.targets = targets;
+    options.validation_fraction = 0.0;
+    MlpTrainSummary summary;
+    EXPECT_TRUE(TrainRemoval({{&take, &rig}}, options, &summary).ok());
+    return summary.training_rows;
+  };
+  // Moving average: its window is the feature window, so frames [80 + w, 200 - w).
+  EXPECT_EQ(rows(RemovalTargets::kMovingAverage), samples * (200 - w - (80 + w)));
+  // Exact: frames [1 + w, 200 - w): every window slot from frame 1 on.
+  EXPECT_EQ(rows(RemovalTargets::kExact), samples * (200 - w - (1 + w)));
+  // Without a hold start the whole take counts as held.
+  take.info.hold_start_s.reset();
+  EXPECT_EQ(rows(RemovalTargets::kMovingAverage), samples * (200 - w - (1 + w)));
+  // A hold start that leaves no full window is a clear error, not an empty training set.
+  take.info.hold_start_s = 190 / 128.0;
+  RemovalTrainOptions options = QuickOptions(1);
+  options.targets = RemovalTargets::kMovingAverage;
+  EXPECT_THAT(TrainRemoval({{&take, &rig}}, options).status().message(), HasSubstr("held part"));
+}
+
 // F carries a linear map of its inputs unless asked for the paper's network alone; the choice
 // is part of the saved model.
 TEST(TrainRemoval, LinearSkipByDefaultSavedWithTheModel) {
@@ -226,8 +256,10 @@ TEST(TrainRemoval, LinearSkipByDefaultSavedWithTheModel) {
 
 TEST(TrainRemoval, LearnsAKnownSmoothFunctionOfTheFeatures) {
   const FaceRig rig = TinyRig();
-  const Take take_a = SyntheticTake(rig, 128, 128.0, 0.0);
-  const Take take_b = SyntheticTake(rig, 128, 128.0, 1.3);
+  // Two seconds each: validation holds out whole blocks of 40 frames plus a 20-frame gap on
+  // each side (training_frames.h), which one second would leave too few training frames for.
+  const Take take_a = SyntheticTake(rig, 256, 128.0, 0.0);
+  const Take take_b = SyntheticTake(rig, 256, 128.0, 1.3);
   MlpTrainSummary summary;
   const auto model = TrainRemoval({{&take_a, &rig}, {&take_b, &rig}}, QuickOptions(20), &summary);
   ASSERT_TRUE(model.ok()) << model.status().message();
@@ -247,7 +279,7 @@ TEST(TrainRemoval, LearnsAKnownSmoothFunctionOfTheFeatures) {
   const PointCache& truth = take_b.channels.at("quasistatic");
   double error = 0, offset = 0;
   long count = 0;
-  for (int t = 10; t < 118; ++t) {
+  for (int t = 10; t < 246; ++t) {
     error += (removed.positions.Frame(t) - truth.Frame(t)).colwise().norm().sum();
     offset += (take_b.positions.Frame(t) - truth.Frame(t)).colwise().norm().sum();
     count += rig.vertex_count();
@@ -283,9 +315,10 @@ TEST(TrainRemoval, PlatformSynchronousWhereKnownMixesTargetsPerTake) {
   EXPECT_THAT(train(other, RemovalTargets::kPlatformSynchronous).status().message(),
               HasSubstr("platform_hz"));
 
-  // Frames are used only where the target estimate's window lies inside the take: the moving
-  // average's is the feature window (10 frames at 128 fps), the 7 Hz fit's spans 1.5 periods
-  // (ceil(0.75 * 128 / 7) = 14 frames).
+  // Frames are used only where the target estimate's window lies inside the take and starts at
+  // frame 1 (frame 0's velocity is zero by policy): the moving average's is the feature window
+  // (10 frames at 128 fps), the 7 Hz fit's spans 1.5 periods (ceil(0.75 * 128 / 7) = 14
+  // frames). An 80-frame take is too short for a validation block, so every frame trains.
   auto rows = [&](const Take& take, RemovalTargets targets) {
     RemovalTrainOptions options = QuickOptions(1);
     options.targets = targets;
@@ -294,8 +327,8 @@ TEST(TrainRemoval, PlatformSynchronousWhereKnownMixesTargetsPerTake) {
     return summary.training_rows + summary.validation_rows;
   };
   const long samples = static_cast<long>(rig.skin_samples.size());
-  EXPECT_EQ(rows(other, RemovalTargets::kMovingAverage), (80 - 2 * 10) * samples);
-  EXPECT_EQ(rows(platform, RemovalTargets::kPlatformSynchronous), (80 - 2 * 14) * samples);
+  EXPECT_EQ(rows(other, RemovalTargets::kMovingAverage), (80 - 2 * 10 - 1) * samples);
+  EXPECT_EQ(rows(platform, RemovalTargets::kPlatformSynchronous), (80 - 2 * 14 - 1) * samples);
 
   EXPECT_EQ(ParseRemovalTargets("platform-synchronous-where-known").value(),
             RemovalTargets::kPlatformSynchronousWhereKnown);

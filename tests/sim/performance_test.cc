@@ -48,6 +48,31 @@ double MeanPeakOffset(const Take& take, const std::string& region, double skip_s
   return sum / vertices.size();
 }
 
+// A held expression's take says from when it is held (take.json hold_start_s): the fade-ins of
+// the expression (0.3 s) and the motion (0.25 s) plus three of the tissue's decay times
+// 1 / (zeta 2 pi f0). After it the quasistatic skin barely changes in the skull frame (drift
+// only); before it, it forms. Speech is never held.
+TEST(SimulatePerformance, HeldExpressionRecordsWhenItIsHeld) {
+  const Take take = Perform("smile", MotionKind::kPlatform, 8.0, 1.0);
+  ASSERT_TRUE(take.info.hold_start_s.has_value());
+  const double settle_s = 3.0 / (2 * M_PI * 11.0 * 0.22);
+  EXPECT_NEAR(*take.info.hold_start_s, 0.3 + settle_s, 1e-9);
+  const PointCache& quasistatic = take.channels.at("quasistatic");
+  auto in_skull = [&](int f) {
+    return take.world_from_skull[f].Inverse().Apply(quasistatic.Frame(f).cast<double>());
+  };
+  const int held = FirstHeldFrame(take);
+  double onset_change = 0, held_change = 0;
+  for (int f = 1; f < take.frame_count(); ++f) {
+    const double change = (in_skull(f) - in_skull(f - 1)).colwise().norm().maxCoeff();
+    (f <= held ? onset_change : held_change) =
+        std::max(f <= held ? onset_change : held_change, change);
+  }
+  EXPECT_GT(onset_change, 0.05);  // mm per frame while the smile forms
+  EXPECT_LT(held_change, 0.05 * onset_change) << onset_change << " " << held_change;
+  EXPECT_FALSE(Perform("speech", MotionKind::kPlatform, 8.0, 0.5).info.hold_start_s.has_value());
+}
+
 TEST(SimulatePerformance, NoMotionHeldExpressionIsQuasistatic) {
   const Take take = Perform("smile", MotionKind::kNone, 8.0, 1.5);
   const PointCache& quasistatic = take.channels.at("quasistatic");

@@ -2,7 +2,7 @@
 // drive behind a real Modbus TCP server and a scripted sweep (app/rig_demo.h); the take format's
 // save/reload/export round trip; a simulated face on the platform; a simulated multi-view capture
 // (app/capture_demo.h); calibration and reconstruction of the 11 Hz take (app/reconstruct_demo.h);
-// a simulated-data reference study with exact targets (app/dynamics_study.h); removal,
+// a simulated-data reference study with exact targets (eval/dynamics_study.h); removal,
 // synthesis and retargeting trained on reconstructed takes (app/demo_dynamics.h); renders,
 // metrics.json and the self-contained report.html (app/report.h).
 
@@ -20,7 +20,7 @@
 #include "app/capture_demo.h"
 #include "app/command.h"
 #include "app/demo_dynamics.h"
-#include "app/dynamics_study.h"
+#include "eval/dynamics_study.h"
 #include "app/reconstruct_demo.h"
 #include "app/report.h"
 #include "app/rig_demo.h"
@@ -178,10 +178,10 @@ Status RunDemo(const DemoOptions& options) {
   clock.Lap("calibration and reconstruction");
 
   // Simulated-data reference: F trained on SIMULATED takes with the exact quasistatic as target,
-  // which only a simulator can give (app/dynamics_study.h); its F is also applied to the
+  // which only a simulator can give (eval/dynamics_study.h); its F is also applied to the
   // reconstructed held-out take below, next to F trained on reconstructed takes.
   // Small: the demo's main dynamics work is on reconstructed takes below.
-  DynamicsStudyOptions study;
+  eval::DynamicsStudyOptions study;
   study.train_hz = options.quick ? std::vector<double>{8, 10} : std::vector<double>{6, 8, 10};
   study.expressions = options.quick ? std::vector<std::string>{"neutral"}
                                     : std::vector<std::string>{"neutral", "smile"};
@@ -196,8 +196,8 @@ Status RunDemo(const DemoOptions& options) {
   study.test_hz = 11;
   study.vertices = sim::ProceduralFaceOptions().target_vertex_count;  // the demo's face
   std::printf("\nSimulated-data reference: removal F trained on simulated takes, exact targets\n");
-  DynamicsStudyArtifacts study_artifacts;
-  FACEDYN_ASSIGN_OR_RETURN(const Json study_metrics, RunDynamicsStudy(study, &study_artifacts));
+  eval::DynamicsStudyArtifacts study_artifacts;
+  FACEDYN_ASSIGN_OR_RETURN(const Json study_metrics, eval::RunDynamicsStudy(study, &study_artifacts));
   std::printf("  %-16s %-26s %10s %10s\n", "take", "method", "mean mm", "of offset");
   for (const Json& entry : study_metrics["removal"]) {
     for (const auto& [method, figures] : entry["methods"].items()) {

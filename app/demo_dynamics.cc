@@ -15,7 +15,8 @@
 #include "app/face_render.h"
 #include "core/file_util.h"
 #include "dynamics/baselines.h"
-#include "dynamics/evaluate.h"
+#include "eval/metrics.h"
+#include "eval/skull_frame.h"
 #include "dynamics/features.h"
 #include "dynamics/mlp.h"
 #include "dynamics/synthesis_model.h"
@@ -37,11 +38,12 @@ std::string TakeName(const std::string& expression, double hz) {
   return fmt::format("{}@{:g}Hz", expression, hz);
 }
 
-// Mean |offset| (mm) over `vertices` and frames [skip, F - skip).
-double MeanNorm(const PointCache& offsets, const std::vector<int>& vertices, int skip) {
+// Mean |offset| (mm) over `vertices` and `frames`.
+double MeanNorm(const PointCache& offsets, const std::vector<int>& vertices,
+                dynamics::FrameRange frames) {
   PointCache zero = offsets;
   zero.positions.setZero();
-  return dynamics::MeanDistanceOverVertices(offsets, zero, vertices, skip);
+  return eval::MeanDistanceOverVertices(offsets, zero, vertices, frames);
 }
 
 // The held shape of a take in the skull frame (3 x V): mean over frames [skip, F - skip) of
@@ -289,21 +291,23 @@ StatusOr<dynamics::SynthesisModel> TrainH(const std::vector<Take>& decomposed, c
 // the quasistatic estimate's own error.
 Json SynthesisErrors(const Take& synthesised, const Take& truth, const std::vector<int>& vertices,
                      int skip) {
+  const dynamics::FrameRange scored = dynamics::ScoredFrames(truth, skip);
   const PointCache& truth_offsets = truth.channels.at("dynamic_offset");
-  return {{"position_mean_mm", Round4(dynamics::MeanDistanceOverVertices(
-                                   synthesised.positions, truth.positions, vertices, skip))},
+  return {{"position_mean_mm", Round4(eval::MeanDistanceOverVertices(
+                                   synthesised.positions, truth.positions, vertices, scored))},
           {"offset_mean_mm",
-           Round4(dynamics::MeanDistanceOverVertices(synthesised.channels.at("dynamic_offset"),
-                                                     truth_offsets, vertices, skip))}};
+           Round4(eval::MeanDistanceOverVertices(synthesised.channels.at("dynamic_offset"),
+                                                     truth_offsets, vertices, scored))}};
 }
 
 // The same figures for a take without dynamics: its positions are the quasistatic itself.
 Json NoDynamicsErrors(const Take& quasistatic, const Take& truth, const std::vector<int>& vertices,
                       int skip) {
+  const dynamics::FrameRange scored = dynamics::ScoredFrames(truth, skip);
   const PointCache& truth_offsets = truth.channels.at("dynamic_offset");
-  return {{"position_mean_mm", Round4(dynamics::MeanDistanceOverVertices(
-                                   quasistatic.positions, truth.positions, vertices, skip))},
-          {"offset_mean_mm", Round4(MeanNorm(truth_offsets, vertices, skip))}};
+  return {{"position_mean_mm", Round4(eval::MeanDistanceOverVertices(
+                                   quasistatic.positions, truth.positions, vertices, scored))},
+          {"offset_mean_mm", Round4(MeanNorm(truth_offsets, vertices, scored))}};
 }
 
 void PrintRow(const std::string& what, const std::string& method, double mm, double of) {
@@ -311,7 +315,7 @@ void PrintRow(const std::string& what, const std::string& method, double mm, dou
 }
 
 // F against the baselines on one held-out reconstructed take: errors over its jiggling vertices
-// against the exact quasistatic of the simulation that was filmed, printed and returned as the
+// against the exact quasistatic of the simulation it was reconstructed from, printed and returned as the
 // metrics section. `reference` (may be null): F trained on simulated takes with exact targets.
 // *removed (may be null): F's removal. The simulated take must have the exact channels
 // (quasistatic, dynamic_offset; RunDemoDynamicsStage checks the held-out one up front).
@@ -319,20 +323,25 @@ StatusOr<Json> CompareRemoval(const dynamics::RemovalModel& f_model,
                               const dynamics::RemovalModel* reference, const std::string& take_name,
                               const Take& simulated, const Take& reconstructed, const FaceRig& face,
                               int skip, Take* removed_out) {
+  const dynamics::FrameRange scored = dynamics::ScoredFrames(simulated, skip);
   const PointCache& truth = simulated.channels.at("quasistatic");
   const std::vector<int> jiggle =
-      dynamics::JigglingVertices(simulated.channels.at("dynamic_offset"), skip);
-  const double offset_mm = MeanNorm(simulated.channels.at("dynamic_offset"), jiggle, skip);
+      eval::JigglingVertices(simulated.channels.at("dynamic_offset"), scored);
+  const double offset_mm = MeanNorm(simulated.channels.at("dynamic_offset"), jiggle, scored);
   FACEDYN_ASSIGN_OR_RETURN(Take removed, dynamics::RemoveDynamics(f_model, reconstructed, face));
-  dynamics::EvaluateOptions evaluate;
-  evaluate.skip_edge_frames = skip;
-  FACEDYN_ASSIGN_OR_RETURN(const dynamics::Evaluation evaluation,
-                           dynamics::Evaluate(removed, simulated, &reconstructed, &face, evaluate));
+  eval::EvaluateOptions evaluate;  // scored frames: ScoredFrames(simulated, window), as above
+  FACEDYN_ASSIGN_OR_RETURN(const eval::Evaluation evaluation,
+                           eval::Evaluate(removed, simulated, &reconstructed, &face, evaluate));
   Json methods = Json::object();
   auto add_method = [&](const std::string& name, const PointCache& predicted,
-                        const dynamics::ErrorStats& face_stats) {
-    const double error_mm = dynamics::MeanDistanceOverVertices(predicted, truth, jiggle, skip);
+                        const eval::ErrorStats& face_stats) {
+    const double error_mm = eval::MeanDistanceOverVertices(predicted, truth, jiggle, scored);
+    // The stabilised expression in the skull frame (eval/skull_frame.h): the method's in the
+    // reconstruction's estimated skull frame against the exact one in the simulator's.
+    const double skull_mm = eval::SkullFrameMeanDistance(
+        predicted, reconstructed.world_from_skull, truth, simulated.world_from_skull, jiggle, scored);
     methods[name] = {{"mean_mm", Round4(face_stats.mean_mm)},
+                     {"skull_frame_jiggle_mean_mm", Round4(skull_mm)},
                      {"p95_mm", Round4(face_stats.p95_mm)},
                      {"max_mm", Round4(face_stats.max_mm)},
                      {"jiggle_mean_mm", Round4(error_mm)},
@@ -342,42 +351,34 @@ StatusOr<Json> CompareRemoval(const dynamics::RemovalModel& f_model,
   if (reference != nullptr) {
     FACEDYN_ASSIGN_OR_RETURN(const Take by_reference,
                              dynamics::RemoveDynamics(*reference, reconstructed, face));
-    FACEDYN_ASSIGN_OR_RETURN(const dynamics::Evaluation reference_evaluation,
-                             dynamics::Evaluate(by_reference, simulated, nullptr, &face, evaluate));
+    FACEDYN_ASSIGN_OR_RETURN(const eval::Evaluation reference_evaluation,
+                             eval::Evaluate(by_reference, simulated, nullptr, &face, evaluate));
     add_method("F_exact_targets_simulated", by_reference.positions,
                reference_evaluation.reports.front().face);
   }
   for (size_t r = 1; r < evaluation.reports.size(); ++r) {
     const std::string& name = evaluation.reports[r].name;
-    dynamics::BaselineKind kind = dynamics::BaselineKind::kMovingAverage;
-    for (dynamics::BaselineKind k :
-         {dynamics::BaselineKind::kNoRemoval, dynamics::BaselineKind::kLowPass,
-          dynamics::BaselineKind::kMovingAverage}) {
-      if (name == dynamics::BaselineName(k)) kind = k;
-    }
-    FACEDYN_ASSIGN_OR_RETURN(const PointCache baseline,
-                             dynamics::ComputeBaseline(reconstructed, kind, evaluate.baselines));
+    FACEDYN_ASSIGN_OR_RETURN(
+        const PointCache baseline,
+        eval::BaselinePositions(reconstructed, evaluation, name, evaluate.baselines));
     add_method(name, baseline, evaluation.reports[r].face);
+    if (name == "lowpass") methods[name]["cutoff_hz"] = Round4(evaluation.rule_cutoff_hz);
+    if (name == "lowpass_oracle") {
+      methods[name]["cutoff_hz"] = evaluation.oracle_cutoff_hz;
+      methods[name]["oracle"] = true;
+    }
   }
   // What the reconstruction itself gets wrong (its positions vs the simulated ones, dynamics
   // included): a floor for any removal that only subtracts dynamics, which a temporal filter
   // like the low-pass can go below by smoothing the reconstruction's frame-to-frame noise.
-  const double reconstruction_error_mm = dynamics::MeanDistanceOverVertices(
-      reconstructed.positions, simulated.positions, jiggle, skip);
-  // A removal works in the skull frame the reconstruction estimated and maps its result back to
-  // the world with that pose. Even a perfect one (the exact quasistatic in the skull frame) then
-  // carries the pose's error: the exact quasistatic moved by estimated_from_true skull. This
-  // floor is common to every method, the low-pass included; on a held expression, where the
-  // stabilised quasistatic is constant, a low-pass gets close to it.
-  PointCache perfect_removal = truth;
-  for (int f = 0; f < perfect_removal.frame_count(); ++f) {
-    const Rigid3 estimated_from_true =
-        reconstructed.world_from_skull[f] * simulated.world_from_skull[f].Inverse();
-    perfect_removal.Frame(f) =
-        estimated_from_true.Apply(perfect_removal.Frame(f).cast<double>()).cast<float>();
-  }
-  const double perfect_removal_mm =
-      dynamics::MeanDistanceOverVertices(perfect_removal, truth, jiggle, skip);
+  const double reconstruction_error_mm = eval::MeanDistanceOverVertices(
+      reconstructed.positions, simulated.positions, jiggle, scored);
+  // The lower reference (eval/skull_frame.h): Eq. 7 with the exact offsets in the estimated
+  // skull frame, the error a perfect F would leave on this reconstruction.
+  const PointCache exact_offsets_removed =
+      eval::RemoveExactOffsets(reconstructed, simulated.channels.at("dynamic_offset"));
+  const double exact_offsets_removed_mm =
+      eval::MeanDistanceOverVertices(exact_offsets_removed, truth, jiggle, scored);
   const double f_mm = methods["F"]["jiggle_mean_mm"].get<double>();
   const double lowpass_mm = methods["lowpass"]["jiggle_mean_mm"].get<double>();
   std::printf(
@@ -389,16 +390,20 @@ StatusOr<Json> CompareRemoval(const dynamics::RemovalModel& f_model,
              figures["relative_to_offset"].get<double>());
   }
   std::printf(
-      "  (the reconstruction itself is %.3f mm from the simulated positions there; a perfect "
-      "removal in its estimated skull frame would be %.3f mm from the exact quasistatic)\n",
-      reconstruction_error_mm, perfect_removal_mm);
+      "  (the reconstruction itself is %.3f mm from the simulated positions there; Eq. 7 with the "
+      "exact offsets in its estimated skull frame is %.3f mm from the exact quasistatic; "
+      "low-pass cutoff by rule %.2f Hz, the oracle's %.1f Hz)\n",
+      reconstruction_error_mm, exact_offsets_removed_mm, evaluation.rule_cutoff_hz,
+      evaluation.oracle_cutoff_hz);
   if (removed_out != nullptr) *removed_out = std::move(removed);
   return Json{{"take", take_name + " reconstructed"},
-              {"truth", "exact quasistatic of the simulation that was filmed"},
+              {"truth", "exact quasistatic of the simulation whose projected marker centres were "
+                        "reconstructed"},
+              {"scored_frames", {scored.begin, scored.end}},
               {"jiggle_vertices", jiggle.size()},
               {"mean_dynamic_offset_mm", Round4(offset_mm)},
               {"reconstruction_error_mm", Round4(reconstruction_error_mm)},
-              {"perfect_removal_mm", Round4(perfect_removal_mm)},
+              {"exact_offsets_removed_mm", Round4(exact_offsets_removed_mm)},
               {"methods", methods},
               {"lowpass_over_F", Round4(f_mm > 0 ? lowpass_mm / f_mm : 0.0)}};
 }
@@ -563,16 +568,18 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
                            CompareRemoval(f_model, reference_removal, test_name, test_simulated,
                                           test_reconstructed, face, skip, &removed));
   result["removal"]["F_targets"] = dynamics::RemovalTargetsName(options.removal_targets);
+  const dynamics::FrameRange test_scored = dynamics::ScoredFrames(test_simulated, skip);
   const std::vector<int> jiggle =
-      dynamics::JigglingVertices(test_simulated.channels.at("dynamic_offset"), skip);
+      eval::JigglingVertices(test_simulated.channels.at("dynamic_offset"), test_scored);
   const double test_offset_mm =
-      MeanNorm(test_simulated.channels.at("dynamic_offset"), jiggle, skip);
+      MeanNorm(test_simulated.channels.at("dynamic_offset"), jiggle, test_scored);
   const PointCache& test_truth = test_simulated.channels.at("quasistatic");
   // A copy: Json is an ordered_json, whose objects are vectors that move on insertion.
   const Json methods = result["removal"]["methods"];
   const double f_mm = methods["F"]["jiggle_mean_mm"].get<double>();
 
-  // Two more takes of subject A, never trained on, simulated, filmed and reconstructed together
+  // Two more takes of subject A, never trained on, simulated and reconstructed from projected
+  // marker centres together
   // (two at a time, as the training takes):
   // - a performance on the held-out frequency: the expression changes (speech), which is what F
   //   is for and where a temporal low-pass smears the performance with the dynamics. F never
@@ -630,7 +637,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
         FACEDYN_ASSIGN_OR_RETURN(const Take subset_removed,
                                  dynamics::RemoveDynamics(model, test_reconstructed, face));
         error_mm =
-            dynamics::MeanDistanceOverVertices(subset_removed.positions, test_truth, jiggle, skip);
+            eval::MeanDistanceOverVertices(subset_removed.positions, test_truth, jiggle, test_scored);
       }
       subsets.push_back(
           {{"train_hz",
@@ -669,12 +676,12 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
       Take resynthesised,
       dynamics::SynthesizeDynamics(h_model, removed, test_reconstructed.world_from_skull,
                                    test_reconstructed.info.motion, face));
-  const double residual_mm = dynamics::MeanDistanceOverVertices(
-      resynthesised.positions, test_reconstructed.positions, jiggle, skip);
-  const double removed_only_mm = dynamics::MeanDistanceOverVertices(
-      removed.positions, test_reconstructed.positions, jiggle, skip);
-  const double vs_simulated_mm = dynamics::MeanDistanceOverVertices(
-      resynthesised.positions, test_simulated.positions, jiggle, skip);
+  const double residual_mm = eval::MeanDistanceOverVertices(
+      resynthesised.positions, test_reconstructed.positions, jiggle, test_scored);
+  const double removed_only_mm = eval::MeanDistanceOverVertices(
+      removed.positions, test_reconstructed.positions, jiggle, test_scored);
+  const double vs_simulated_mm = eval::MeanDistanceOverVertices(
+      resynthesised.positions, test_simulated.positions, jiggle, test_scored);
   Json synthesis;
   synthesis["resynthesis"] = {
       {"take", test_name + " reconstructed"},
@@ -697,10 +704,11 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   FACEDYN_ASSIGN_OR_RETURN(Take walk_synthesised,
                            dynamics::SynthesizeDynamics(h_model, walk_quasistatic,
                                                         walk_truth.world_from_skull, "walk", face));
+  const dynamics::FrameRange walk_scored = dynamics::ScoredFrames(walk_truth, skip);
   const std::vector<int> walk_jiggle =
-      dynamics::JigglingVertices(walk_truth.channels.at("dynamic_offset"), skip);
+      eval::JigglingVertices(walk_truth.channels.at("dynamic_offset"), walk_scored);
   const double walk_offset_mm =
-      MeanNorm(walk_truth.channels.at("dynamic_offset"), walk_jiggle, skip);
+      MeanNorm(walk_truth.channels.at("dynamic_offset"), walk_jiggle, walk_scored);
   Json walk_methods = {
       {"H", SynthesisErrors(walk_synthesised, walk_truth, walk_jiggle, skip)},
       {"no_dynamics", NoDynamicsErrors(walk_quasistatic, walk_truth, walk_jiggle, skip)}};
@@ -759,9 +767,10 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   // exact source dynamics, the most it could have.
   FACEDYN_ASSIGN_OR_RETURN(Take naive,
                            dynamics::NaiveDeltaTransfer(walk_truth, face, b_quasistatic, face_b));
+  const dynamics::FrameRange b_scored = dynamics::ScoredFrames(retarget_truth, skip);
   const std::vector<int> b_jiggle =
-      dynamics::JigglingVertices(retarget_truth.channels.at("dynamic_offset"), skip);
-  const double b_offset_mm = MeanNorm(retarget_truth.channels.at("dynamic_offset"), b_jiggle, skip);
+      eval::JigglingVertices(retarget_truth.channels.at("dynamic_offset"), b_scored);
+  const double b_offset_mm = MeanNorm(retarget_truth.channels.at("dynamic_offset"), b_jiggle, b_scored);
   Json retarget_methods = {
       {"H_B_retarget", SynthesisErrors(retargeted, retarget_truth, b_jiggle, skip)},
       {"naive_delta_transfer", SynthesisErrors(naive, retarget_truth, b_jiggle, skip)},
@@ -787,7 +796,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
 
   Json train_hz_json = options.train_hz;
   result["setup"] = {
-      {"data", "simulated takes filmed by 8 simulated cameras and reconstructed"},
+      {"data", "simulated takes reconstructed from projected marker centres (8 simulated cameras, 0.2 px noise; no rendered images)"},
       {"targets", dynamics::RemovalTargetsName(options.removal_targets)},
       {"targets_note",
        "reconstructed takes have no exact channel; platform-synchronous: the fit at the take's "

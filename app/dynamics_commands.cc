@@ -11,7 +11,7 @@
 #include "app/command.h"
 #include "core/face_rig.h"
 #include "core/take.h"
-#include "dynamics/evaluate.h"
+#include "eval/metrics.h"
 #include "dynamics/quasistatic.h"
 
 namespace facedyn::app {
@@ -107,7 +107,7 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
     std::string channel = "quasistatic";
     int skip_frames = -1;
     double window_ms = 80.0;
-    double lowpass_hz = 4.0;
+    double lowpass_hz = 0.0;  // 0: the rule (dynamics/baselines.h LowPassCutoffByRule)
     bool json = false;
   };
   auto eval_options = std::make_shared<EvalCommandOptions>();
@@ -130,12 +130,14 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
   eval->add_option("--window-ms", eval_options->window_ms,
                    "Moving-average baseline half-window and default skip, milliseconds")
       ->capture_default_str();
-  eval->add_option("--lowpass-hz", eval_options->lowpass_hz, "Low-pass baseline cutoff, Hz")
+  eval->add_option("--lowpass-hz", eval_options->lowpass_hz,
+                   "Low-pass baseline cutoff, Hz (0: a third of the head motion's dominant "
+                   "frequency, the recorded platform_hz when there is one)")
       ->capture_default_str();
   eval->add_flag("--json", eval_options->json, "Print JSON on stdout");
   eval->callback([eval_options, selected] {
     *selected = [eval_options]() -> Status {
-      dynamics::EvaluateOptions options;
+      eval::EvaluateOptions options;
       options.truth_channel = eval_options->channel;
       options.skip_edge_frames = eval_options->skip_frames;
       options.window_s = eval_options->window_ms * 1e-3;
@@ -153,13 +155,13 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
         FACEDYN_ASSIGN_OR_RETURN(rig, LoadFaceRig(eval_options->face_dir));
       }
       FACEDYN_ASSIGN_OR_RETURN(
-          const dynamics::Evaluation evaluation,
-          dynamics::Evaluate(predicted, truth, input ? &*input : nullptr, rig ? &*rig : nullptr,
+          const eval::Evaluation evaluation,
+          eval::Evaluate(predicted, truth, input ? &*input : nullptr, rig ? &*rig : nullptr,
                              options));
       if (eval_options->json) {
-        std::printf("%s\n", dynamics::EvaluationToJson(evaluation).dump(2).c_str());
+        std::printf("%s\n", eval::EvaluationToJson(evaluation).dump(2).c_str());
       } else {
-        std::printf("%s", dynamics::EvaluationToText(evaluation).c_str());
+        std::printf("%s", eval::EvaluationToText(evaluation).c_str());
       }
       return Status::Ok();
     };

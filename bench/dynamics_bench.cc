@@ -1,6 +1,6 @@
 // dynamics_bench: the figures of issue 4, printed as JSON.
 //
-//   - fidelity (app/dynamics_study.h): removal trained on platform takes at 6-10 Hz, tested on
+//   - fidelity (eval/dynamics_study.h): removal trained on platform takes at 6-10 Hz, tested on
 //     11 Hz never seen and on a speech take, against the simulator's exact quasistatic, next to
 //     the baselines (no removal, zero-phase low-pass, moving average); remove-then-resynthesise
 //     residual (paper Fig. 7);
@@ -41,7 +41,7 @@
 #include <string>
 #include <vector>
 
-#include "app/dynamics_study.h"
+#include "eval/dynamics_study.h"
 #include "bench/bench_flags.h"
 #include "core/log.h"
 #include "core/progress.h"
@@ -128,7 +128,7 @@ Json RemovalSpeed(double seconds) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  facedyn::app::DynamicsStudyOptions options;
+  facedyn::eval::DynamicsStudyOptions options;
   // F's batch: 2,000 rather than the paper's 10,000 (the CLI default). With 40 epochs over
   // ~1.5M rows, 10,000 gives only ~5,800 Adam steps and leaves F under-trained (validation loss
   // 0.0010 against 0.0007 at 2,000, the same epochs); --batch 10000 reproduces the paper's.
@@ -235,7 +235,7 @@ int main(int argc, char** argv) {
     options.synthesis_epochs = 10;
   }
   options.threads = threads;
-  const auto study = facedyn::app::RunDynamicsStudy(options);
+  const auto study = facedyn::eval::RunDynamicsStudy(options);
   if (!study.ok()) {
     std::fprintf(stderr, "dynamics_bench: %s\n", study.status().message().c_str());
     return 1;

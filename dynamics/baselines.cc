@@ -24,8 +24,8 @@ const char* BaselineName(BaselineKind kind) {
 }
 
 Status BaselineOptions::Check() const {
-  if (!std::isfinite(lowpass_cutoff_hz) || lowpass_cutoff_hz <= 0.0) {
-    return InvalidArgumentError("BaselineOptions.lowpass_cutoff_hz must be > 0, got " +
+  if (!std::isfinite(lowpass_cutoff_hz) || lowpass_cutoff_hz < 0.0) {
+    return InvalidArgumentError("BaselineOptions.lowpass_cutoff_hz must be > 0 (or 0 for the rule), got " +
                                 std::to_string(lowpass_cutoff_hz));
   }
   if (!std::isfinite(window_s) || window_s < 0.0 || window_s > 1.0) {
@@ -118,6 +118,55 @@ StatusOr<PointCache> LowPassBaseline(const Take& take, double cutoff_hz) {
   return result;
 }
 
+double DominantHeadMotionHz(const Take& take) {
+  if (take.info.platform_hz && *take.info.platform_hz > 0) return *take.info.platform_hz;
+  const int frames = static_cast<int>(take.world_from_skull.size());
+  const double fps = take.info.fps;
+  if (frames < 8 || !(fps > 0)) return 0.0;
+  // Detrended skull origin (a walk's forward speed is a linear trend, not an oscillation).
+  Eigen::MatrixXd origin(3, frames);
+  for (int t = 0; t < frames; ++t) origin.col(t) = take.world_from_skull[t].translation();
+  const Eigen::VectorXd time = Eigen::VectorXd::LinSpaced(frames, 0.0, frames - 1.0);
+  const double t_mean = time.mean();
+  const double t_var = (time.array() - t_mean).square().sum();
+  for (int axis = 0; axis < 3; ++axis) {
+    const double mean = origin.row(axis).mean();
+    const double slope = ((time.array() - t_mean) * (origin.row(axis).transpose().array() - mean)).sum() / t_var;
+    for (int t = 0; t < frames; ++t) origin(axis, t) -= mean + slope * (t - t_mean);
+  }
+  // Hann window (a take is a few periods long; without it the leakage of the strongest
+  // oscillation, weighted by f^2 below, outgrows the peak at high frequencies).
+  for (int t = 0; t < frames; ++t) {
+    origin.col(t) *= 0.5 - 0.5 * std::cos(2 * M_PI * t / (frames - 1));
+  }
+  // Direct DFT on a 0.1 Hz grid (takes are seconds long; this runs once per take).
+  double best_hz = 0.0, best_power = 0.0;
+  for (double hz = 0.5; hz <= 0.5 * fps; hz += 0.1) {
+    double power = 0.0;
+    for (int axis = 0; axis < 3; ++axis) {
+      double re = 0, im = 0;
+      for (int t = 0; t < frames; ++t) {
+        const double phase = 2 * M_PI * hz * t / fps;
+        re += origin(axis, t) * std::cos(phase);
+        im -= origin(axis, t) * std::sin(phase);
+      }
+      power += (re * re + im * im) * hz * hz;  // velocity: |X| f, squared
+    }
+    if (power > best_power) {
+      best_power = power;
+      best_hz = hz;
+    }
+  }
+  return best_power > 1e-12 ? best_hz : 0.0;
+}
+
+double LowPassCutoffByRule(const Take& take) {
+  const double nyquist_cap = 0.45 * take.info.fps;
+  const double dominant = DominantHeadMotionHz(take);
+  if (!(dominant > 0)) return nyquist_cap;
+  return std::clamp(dominant / 3.0, 0.25, nyquist_cap);
+}
+
 StatusOr<PointCache> ComputeBaseline(const Take& take, BaselineKind kind,
                                      const BaselineOptions& options) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
@@ -125,7 +174,8 @@ StatusOr<PointCache> ComputeBaseline(const Take& take, BaselineKind kind,
     case BaselineKind::kNoRemoval:
       return take.positions;
     case BaselineKind::kLowPass:
-      return LowPassBaseline(take, options.lowpass_cutoff_hz);
+      return LowPassBaseline(take, options.lowpass_cutoff_hz > 0 ? options.lowpass_cutoff_hz
+                                                                 : LowPassCutoffByRule(take));
     case BaselineKind::kMovingAverage:
       if (!(take.info.fps > 0.0)) return FailedPreconditionError("take has no valid fps");
       return MovingAverageInSkull(take.positions, take.world_from_skull,

@@ -28,7 +28,9 @@ enum class BaselineKind { kNoRemoval, kLowPass, kMovingAverage };
 const char* BaselineName(BaselineKind kind);
 
 struct BaselineOptions {
-  double lowpass_cutoff_hz = 4.0;  // low-pass cutoff; must be in (0, fps / 2)
+  // Low-pass cutoff (Hz, in (0, fps / 2)); 0, the default, picks it per take by the rule of
+  // LowPassCutoffByRule. Round 1 fixed it at 4 Hz for every take, walks included.
+  double lowpass_cutoff_hz = 0.0;
   double window_s = 0.08;          // moving-average half-window (quasistatic.h)
   // lowpass_cutoff_hz > 0 and window_s in [0, 1] s. The message names the field.
   Status Check() const;
@@ -46,6 +48,21 @@ Biquad ButterworthLowPass(double cutoff_hz, double sample_hz);
 // Errors when the cutoff is not in (0, sample_hz / 2).
 StatusOr<Eigen::MatrixXd> ZeroPhaseLowPass(const Eigen::MatrixXd& signal, double cutoff_hz,
                                            double sample_hz);
+
+// The dominant frequency (Hz) of the head's motion in a take, from what any capture has: the
+// take's recorded platform frequency when it has one, else the largest peak of the skull
+// origin's velocity spectrum (|Hann-windowed DFT of the detrended translation| * f, 0.5 Hz up
+// to fps / 2) — for a walk, its step rate or a harmonic. 0 when the head does not move.
+double DominantHeadMotionHz(const Take& take);
+
+// The low-pass a user would set without any truth: one cutoff a factor 3 below the head
+// motion's dominant frequency (DominantHeadMotionHz), where the forward-backward 2nd-order
+// Butterworth passes 1 / (1 + 3^4) = 1.2% of a steady jiggle at that frequency; clamped to
+// [0.25 Hz, 0.45 fps]. It needs only the recorded frequency or the estimated skull motion, and
+// the factor is fixed by the filter's response, not fitted to any take. A head that does not
+// move gets 0.45 fps (nothing to remove). eval/ reports the best cutoff against the truth
+// beside it, labelled an oracle.
+double LowPassCutoffByRule(const Take& take);
 
 // Low-pass baseline positions (world frame) for all vertices of `take`.
 StatusOr<PointCache> LowPassBaseline(const Take& take, double cutoff_hz);

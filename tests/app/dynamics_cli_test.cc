@@ -65,7 +65,10 @@ TEST(DynamicsCli, TrainRemoveSynthesizeRetargetEvaluate) {
             0)
       << out;
   const auto evaluation = nlohmann::json::parse(out.substr(out.find('{')));
-  EXPECT_EQ(evaluation["reports"].size(), 4u) << out;
+  // prediction, no_removal, lowpass (cutoff by rule), moving_average, lowpass_oracle.
+  EXPECT_EQ(evaluation["reports"].size(), 5u) << out;
+  EXPECT_TRUE(evaluation["reports"].contains("lowpass_oracle")) << out;
+  EXPECT_NEAR(evaluation["lowpass_cutoff_hz"].get<double>(), 8.0 / 3, 1e-9) << out;
 
   ASSERT_EQ(RunCommand(Facedyn("dynamics train-synthesis --takes " + takes.Join("p7") + " " +
                                takes.Join("p9") + " --removal-model " + dir.Join("F.pt") +

@@ -106,11 +106,66 @@ TEST(ComputeBaseline, LowPassRemovesStabilisedJiggleButNotHeadMotion) {
 TEST(BaselineOptions, CheckNamesTheField) {
   BaselineOptions options;
   EXPECT_TRUE(options.Check().ok());
-  options.lowpass_cutoff_hz = 0;
+  options.lowpass_cutoff_hz = 0;  // the rule
+  EXPECT_TRUE(options.Check().ok());
+  options.lowpass_cutoff_hz = -1;
   EXPECT_THAT(options.Check().message(), ::testing::HasSubstr("lowpass_cutoff_hz"));
   options = BaselineOptions();
   options.window_s = 2;
   EXPECT_THAT(options.Check().message(), ::testing::HasSubstr("window_s"));
+}
+
+}  // namespace
+}  // namespace facedyn::dynamics
+
+namespace facedyn::dynamics {
+namespace {
+
+// A take whose skull bobs vertically at `bob_hz` (and walks forward at 1 m/s) and records no
+// platform frequency; its truth channels are whatever the caller puts there.
+Take BobbingTake(double bob_hz, int frames, double fps) {
+  Take take;
+  take.info.fps = fps;
+  take.topology = MakeEllipsoidPatch(40, 50, 45, 1.0, 0.8, 4, 4);
+  take.positions.vertex_count = take.topology.vertex_count();
+  take.positions.positions.resize(3 * take.positions.vertex_count, frames);
+  for (int t = 0; t < frames; ++t) {
+    const double s = t / fps;
+    const Rigid3 pose = Rigid3::FromAxisAngle(Eigen::Vector3d::UnitY(), 0.0,
+                                              {0.0, 20 * std::sin(2 * kPi * bob_hz * s), 1000 * s});
+    take.world_from_skull.push_back(pose);
+    take.positions.Frame(t) = pose.Apply(take.topology.positions_mm).cast<float>();
+  }
+  take.SetUniformTimes();
+  return take;
+}
+
+// The tuned low-pass needs no truth: its cutoff comes from the recorded platform frequency, or
+// from the estimated skull motion's spectrum, and the truth channels do not change it.
+TEST(LowPassCutoffByRule, FromThePlatformFrequencyOrTheSkullMotionNeverTheTruth) {
+  Take take = BobbingTake(1.9, 384, 128.0);
+  EXPECT_NEAR(DominantHeadMotionHz(take), 1.9, 0.1);
+  EXPECT_NEAR(LowPassCutoffByRule(take), 1.9 / 3, 0.05);
+  take.info.platform_hz = 9.0;  // a platform take: its recorded frequency decides
+  EXPECT_DOUBLE_EQ(LowPassCutoffByRule(take), 3.0);
+  take.info.platform_hz.reset();
+  const PointCache without_truth =
+      ComputeBaseline(take, BaselineKind::kLowPass, BaselineOptions()).value();
+  take.channels["quasistatic"] = take.positions;
+  take.channels["quasistatic"].positions.setRandom();
+  take.channels["dynamic_offset"] = take.channels["quasistatic"];
+  const PointCache with_truth =
+      ComputeBaseline(take, BaselineKind::kLowPass, BaselineOptions()).value();
+  EXPECT_EQ(with_truth.positions, without_truth.positions);
+  // A head that does not move: nothing to remove, the cutoff sits at 0.45 fps.
+  Take still = BobbingTake(1.9, 384, 128.0);
+  for (Rigid3& pose : still.world_from_skull) pose = Rigid3();
+  EXPECT_DOUBLE_EQ(LowPassCutoffByRule(still), 0.45 * 128.0);
+  // An explicit cutoff overrides the rule.
+  BaselineOptions fixed;
+  fixed.lowpass_cutoff_hz = 4.0;
+  EXPECT_NE(ComputeBaseline(take, BaselineKind::kLowPass, fixed).value().positions,
+            without_truth.positions);
 }
 
 }  // namespace

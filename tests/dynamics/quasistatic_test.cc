@@ -10,7 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "core/mesh_primitives.h"
-#include "dynamics/evaluate.h"
+#include "eval/metrics.h"
 #include "sim/performance.h"
 #include "sim/procedural_face.h"
 #include "tests/support/test_support.h"
@@ -279,15 +279,16 @@ TEST_F(SimulatedTakes, PlatformAt11HzMovingAverageBeatsNoRemoval) {
   const Take estimate = ExtractQuasistatic(take, QuasistaticOptions()).value();
   const double extract_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  EvaluateOptions options;
+  eval::EvaluateOptions options;
   options.skip_edge_frames = 64;  // skip the 0.25 s ramp-in plus the window
-  const Evaluation evaluation = Evaluate(estimate, take, &take, &Face(), options).value();
-  std::printf("%s", EvaluationToText(evaluation).c_str());
+  const eval::Evaluation evaluation = eval::Evaluate(estimate, take, &take, &Face(), options).value();
+  std::printf("%s", eval::EvaluationToText(evaluation).c_str());
   std::printf("extraction %.1f ms for %d frames x %d vertices\n", extract_s * 1e3,
               take.frame_count(), take.vertex_count());
-  ASSERT_EQ(evaluation.reports.size(), 4u);
-  const ErrorReport& moving_average = evaluation.reports[0];
-  const ErrorReport& no_removal = evaluation.reports[1];
+  ASSERT_EQ(evaluation.reports.size(), 5u);  // prediction, 3 baselines, the low-pass oracle
+  EXPECT_EQ(evaluation.reports[4].name, "lowpass_oracle");
+  const eval::ErrorReport& moving_average = evaluation.reports[0];
+  const eval::ErrorReport& no_removal = evaluation.reports[1];
   EXPECT_EQ(no_removal.name, "no_removal");
   EXPECT_LT(moving_average.face.mean_mm, 0.5 * no_removal.face.mean_mm);
   EXPECT_LT(moving_average.face.p95_mm, no_removal.face.p95_mm);
@@ -306,7 +307,7 @@ TEST_F(SimulatedTakes, PlatformAt11HzMovingAverageBeatsNoRemoval) {
   QuasistaticOptions synchronous;
   synchronous.method = QuasistaticMethod::kPlatformSynchronous;
   const Take fitted = ExtractQuasistatic(take, synchronous).value();
-  const Evaluation fitted_evaluation = Evaluate(fitted, take, nullptr, &Face(), options).value();
+  const eval::Evaluation fitted_evaluation = eval::Evaluate(fitted, take, nullptr, &Face(), options).value();
   std::printf("platform-synchronous: mean %.4f mm (moving average %.4f, no removal %.4f)\n",
               fitted_evaluation.reports[0].face.mean_mm, moving_average.face.mean_mm,
               no_removal.face.mean_mm);

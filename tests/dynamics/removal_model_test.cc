@@ -11,7 +11,7 @@
 #include <cstring>
 
 #include "core/mesh_primitives.h"
-#include "dynamics/evaluate.h"
+#include "eval/metrics.h"
 #include "sim/performance.h"
 #include "sim/procedural_face.h"
 #include "tests/support/test_support.h"
@@ -371,8 +371,11 @@ TEST(TrainRemoval, LearnsItsPropagationAndSavesIt) {
               HasSubstr("vertex_count"));
 }
 
-// Simulated platform takes (sim/performance.h): train at 7 and 9 Hz, test at 8 Hz.
-TEST(RemoveDynamics, HeldOutPlatformFrequencyBeatsNoRemoval) {
+// Simulated platform takes (sim/performance.h): train at 7 and 9 Hz with platform-synchronous
+// targets, test at 8 Hz. F must beat no removal and the paper's own estimator (the moving
+// average of Eq. 5) on the held part. It does not beat the zero-phase low-pass here (0.030 vs
+// 0.011 mm when this was written, 8 epochs on two takes): a claim this test does not make.
+TEST(RemoveDynamics, HeldOutPlatformFrequencyBeatsNoRemovalAndTheMovingAverage) {
   sim::ProceduralFaceOptions face_options;
   face_options.target_vertex_count = 4000;
   const FaceRig rig = sim::MakeProceduralFace(face_options).value();
@@ -391,6 +394,7 @@ TEST(RemoveDynamics, HeldOutPlatformFrequencyBeatsNoRemoval) {
   options.train.epochs = 8;
   options.train.batch_size = 2000;
   options.train.show_progress = false;
+  options.targets = RemovalTargets::kPlatformSynchronous;
   MlpTrainSummary summary;
   const auto model = TrainRemoval({{&take7, &rig}, {&take9, &rig}}, options, &summary);
   ASSERT_TRUE(model.ok()) << model.status().message();
@@ -405,16 +409,20 @@ TEST(RemoveDynamics, HeldOutPlatformFrequencyBeatsNoRemoval) {
   std::printf("remove: %d frames x %d vertices, %.1f frames/s (predict %.3f s, propagate %.3f s)\n",
               take8.frame_count(), take8.vertex_count(), removal.frames_per_s, removal.predict_s,
               removal.propagate_s);
-  const auto evaluation = Evaluate(*removed, take8, &take8, &rig, EvaluateOptions());
+  const auto evaluation = eval::Evaluate(*removed, take8, &take8, &rig, eval::EvaluateOptions());
   ASSERT_TRUE(evaluation.ok()) << evaluation.status().message();
-  std::printf("%s", EvaluationToText(*evaluation).c_str());
-  const ErrorReport& prediction = evaluation->reports.front();
-  const ErrorReport* no_removal = nullptr;
-  for (const ErrorReport& report : evaluation->reports) {
+  std::printf("%s", eval::EvaluationToText(*evaluation).c_str());
+  const eval::ErrorReport& prediction = evaluation->reports.front();
+  const eval::ErrorReport* no_removal = nullptr;
+  const eval::ErrorReport* moving_average = nullptr;
+  for (const eval::ErrorReport& report : evaluation->reports) {
     if (report.name == BaselineName(BaselineKind::kNoRemoval)) no_removal = &report;
+    if (report.name == BaselineName(BaselineKind::kMovingAverage)) moving_average = &report;
   }
   ASSERT_NE(no_removal, nullptr);
-  EXPECT_LT(prediction.face.mean_mm, no_removal->face.mean_mm);
+  ASSERT_NE(moving_average, nullptr);
+  EXPECT_LT(prediction.face.mean_mm, 0.1 * no_removal->face.mean_mm);
+  EXPECT_LT(prediction.face.mean_mm, 0.5 * moving_average->face.mean_mm);
 }
 
 }  // namespace

@@ -98,7 +98,9 @@ TEST(SimulatePerformance, PlatformAt11HzJigglesCheeksNotForehead) {
 TEST(SimulatePerformance, SmileChangesCheekJiggle) {
   const double neutral = MeanPeakOffset(Perform("neutral", MotionKind::kPlatform, 11.0, 2.5), "cheeks", 1.0);
   const double smile = MeanPeakOffset(Perform("smile", MotionKind::kPlatform, 11.0, 2.5), "cheeks", 1.0);
-  EXPECT_GT(std::abs(neutral - smile) / neutral, 0.20) << "neutral " << neutral << " smile " << smile;
+  // Active flesh is stiffer (the muscle springs of soft_tissue.h), which moves its resonance
+  // above the 11 Hz platform: a smile's cheeks jiggle less, by more than 20%.
+  EXPECT_LT(smile, 0.8 * neutral) << "neutral " << neutral << " smile " << smile;
 }
 
 // Cheek offset per unit of head acceleration rises toward the configured 11 Hz resonance.

@@ -5,10 +5,14 @@
 // "quasistatic" channel (sim/performance.h), which lets facedyn measure what Zoss et al. 2020
 // could only estimate (their Fig. 5 reports average error).
 //
-// The first and last `skip_edge_frames` frames are left out (default: the feature window,
-// round(0.08 s * fps)), where every windowed method runs on replicated edge frames.
+// Scored frames (dynamics/training_frames.h ScoredFrames): those whose feature window
+// (round(0.08 s * fps)) lies inside the take, starts at frame 1 or later and, for a
+// held-expression take, after its hold_start_s — so no method is scored where every windowed
+// method reads replicated edge frames, nor charged for smearing an onset that a held-expression
+// protocol leaves out of training. An explicit skip_edge_frames keeps the old symmetric skip.
 #pragma once
 
+#include <algorithm>
 #include <map>
 #include <string>
 #include <vector>
@@ -19,8 +23,9 @@
 #include "core/status.h"
 #include "core/take.h"
 #include "dynamics/baselines.h"
+#include "dynamics/training_frames.h"
 
-namespace facedyn::dynamics {
+namespace facedyn::eval {
 
 struct ErrorStats {
   long count = 0;  // (vertex, frame) pairs
@@ -41,44 +46,61 @@ struct ErrorReport {
 struct EvaluateOptions {
   // Truth channel of the truth take; "positions" compares against its positions.
   std::string truth_channel = "quasistatic";
-  int skip_edge_frames = -1;  // frames left out at each end; -1: round(window_s * fps)
+  int skip_edge_frames = -1;  // frames left out at each end; -1: ScoredFrames(truth, window)
   double window_s = 0.08;     // default skip, and the moving-average baseline's window
-  BaselineOptions baselines;
+  dynamics::BaselineOptions baselines;
   // truth_channel non-empty, skip_edge_frames >= -1, window_s in [0, 1], baselines valid.
   Status Check() const;
 };
 
-// Errors of one point cache against another over frames [skip, F - skip). Errors name what
-// differs (vertex count, frame count), a FaceRig of another vertex count, or too few frames.
+// Errors of one point cache against another over `frames`. Errors name what differs (vertex
+// count, frame count), a FaceRig of another vertex count, or an empty or out-of-range range.
 StatusOr<ErrorReport> ComparePositions(const PointCache& predicted, const PointCache& truth,
-                                       const FaceRig* rig, int skip_edge_frames,
+                                       const FaceRig* rig, dynamics::FrameRange frames,
                                        const std::string& name);
 
 struct Evaluation {
   std::string truth_channel;
   int frame_count = 0;
   int vertex_count = 0;
-  int skip_edge_frames = 0;
+  int skip_edge_frames = 0;  // the window margin
+  dynamics::FrameRange scored;  // the frames every figure is over
+  double rule_cutoff_hz = 0.0;    // the "lowpass" baseline's cutoff (with an input)
+  double oracle_cutoff_hz = 0.0;  // "lowpass_oracle"'s (with an input)
   std::vector<ErrorReport> reports;  // the prediction first, then each baseline
 };
 
 // The prediction's positions against the truth's `truth_channel`; with `input` (the dynamic
 // take the prediction was made from) also the no-removal, low-pass and moving-average
-// baselines computed from it. `rig` may be null (face only). Takes must agree in vertex
+// baselines computed from it (the low-pass with its cutoff by rule, dynamics/baselines.h), and
+// "lowpass_oracle": the low-pass at the cutoff of a 0.5..12 Hz sweep that is best against this
+// truth — what no user could set, reported so the rule's cost is visible. `rig` may be null (face only). Takes must agree in vertex
 // count, frame count and fps; the message says which differs and the two values.
 StatusOr<Evaluation> Evaluate(const Take& predicted, const Take& truth, const Take* input,
                               const FaceRig* rig, const EvaluateOptions& options);
 
 // The vertices "where the face jiggles" (issue 4): those whose mean |true dynamic offset| over
-// frames [skip, F - skip) reaches 20% of the largest vertex's. Without it the forehead and the
+// `frames` reaches 20% of the largest vertex's. Without it the forehead and the
 // nose bridge, which hardly move against the skull, dilute every relative figure.
-std::vector<int> JigglingVertices(const PointCache& true_offsets, int skip);
+std::vector<int> JigglingVertices(const PointCache& true_offsets, dynamics::FrameRange frames);
 
-// Mean |a - b| (mm) over `vertices` and frames [skip, F - skip); both caches in one frame.
+// Mean |a - b| (mm) over `vertices` and `frames`; both caches in one frame. Preconditions
+// (CHECKed, naming both counts): equal vertex and frame counts, vertices and frames in range.
 double MeanDistanceOverVertices(const PointCache& a, const PointCache& b,
-                                const std::vector<int>& vertices, int skip);
+                                const std::vector<int>& vertices, dynamics::FrameRange frames);
+
+// The symmetric range [skip, F - skip) of a take of `frame_count` frames (empty if too short).
+inline dynamics::FrameRange EdgeSkipped(int frame_count, int skip) {
+  return {skip, std::max(skip, frame_count - skip)};
+}
+
+// The positions of the baseline `name` of an Evaluation made with `input` (its reports' names:
+// no_removal, lowpass, moving_average, lowpass_oracle at the evaluation's oracle cutoff).
+StatusOr<PointCache> BaselinePositions(const Take& input, const Evaluation& evaluation,
+                                       const std::string& name,
+                                       const dynamics::BaselineOptions& options);
 
 Json EvaluationToJson(const Evaluation& evaluation);
 std::string EvaluationToText(const Evaluation& evaluation);
 
-}  // namespace facedyn::dynamics
+}  // namespace facedyn::eval

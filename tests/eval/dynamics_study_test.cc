@@ -1,12 +1,12 @@
-// Option checks of the dynamics validation study (app/dynamics_study.h). The study itself runs in
+// Option checks of the dynamics validation study (eval/dynamics_study.h). The study itself runs in
 // bench/dynamics_bench and, small, in `facedyn demo` (tests/app/cli_test.cc).
 
-#include "app/dynamics_study.h"
+#include "eval/dynamics_study.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-namespace facedyn::app {
+namespace facedyn::eval {
 namespace {
 
 using ::testing::HasSubstr;
@@ -49,4 +49,4 @@ TEST(DynamicsStudyOptions, CheckNamesTheField) {
 }
 
 }  // namespace
-}  // namespace facedyn::app
+}  // namespace facedyn::eval

@@ -1,13 +1,13 @@
 // Evaluation statistics on hand-built cases, and the errors for takes that disagree.
 
-#include "dynamics/evaluate.h"
+#include "eval/metrics.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "tests/support/test_support.h"
 
-namespace facedyn::dynamics {
+namespace facedyn::eval {
 namespace {
 
 using ::testing::HasSubstr;
@@ -53,7 +53,7 @@ TEST(ComputeErrorStats, MeanPercentileMax) {
 
 TEST(ComparePositions, FaceAndRegionsOnAHandBuiltCase) {
   const FaceRig rig = RigWithRegions(100);
-  const ErrorReport report = ComparePositions(KnownErrors(100, 3), Zeros(100, 3), &rig, 0, "p").value();
+  const ErrorReport report = ComparePositions(KnownErrors(100, 3), Zeros(100, 3), &rig, EdgeSkipped(3, 0), "p").value();
   EXPECT_EQ(report.face.count, 300);
   EXPECT_NEAR(report.face.mean_mm, 50.5, 1e-9);
   EXPECT_NEAR(report.face.p95_mm, 95.05, 1e-4);
@@ -71,25 +71,25 @@ TEST(ComparePositions, SkipsEdgeFrames) {
   predicted.Frame(0).setConstant(1000.0f);
   predicted.Frame(6).setConstant(1000.0f);
   predicted.Frame(3)(1, 2) = 2.0f;
-  const ErrorReport report = ComparePositions(predicted, Zeros(4, 7), nullptr, 1, "p").value();
+  const ErrorReport report = ComparePositions(predicted, Zeros(4, 7), nullptr, EdgeSkipped(7, 1), "p").value();
   EXPECT_EQ(report.face.count, 4 * 5);
   EXPECT_NEAR(report.face.max_mm, 2.0, 1e-9);
   EXPECT_NEAR(report.face.mean_mm, 2.0 / 20, 1e-9);
   EXPECT_TRUE(report.regions.empty());
-  const auto too_few = ComparePositions(predicted, Zeros(4, 7), nullptr, 4, "p");
+  const auto too_few = ComparePositions(predicted, Zeros(4, 7), nullptr, EdgeSkipped(7, 4), "p");
   ASSERT_FALSE(too_few.ok());
   EXPECT_THAT(too_few.status().message(), HasSubstr("7 frames"));
 }
 
 TEST(ComparePositions, MismatchesNameWhatDiffers) {
-  const auto vertices = ComparePositions(Zeros(5, 3), Zeros(6, 3), nullptr, 0, "p");
+  const auto vertices = ComparePositions(Zeros(5, 3), Zeros(6, 3), nullptr, EdgeSkipped(3, 0), "p");
   ASSERT_FALSE(vertices.ok());
   EXPECT_THAT(vertices.status().message(), HasSubstr("vertex count differs: prediction has 5, truth has 6"));
-  const auto frames = ComparePositions(Zeros(5, 3), Zeros(5, 4), nullptr, 0, "p");
+  const auto frames = ComparePositions(Zeros(5, 3), Zeros(5, 4), nullptr, EdgeSkipped(4, 0), "p");
   ASSERT_FALSE(frames.ok());
   EXPECT_THAT(frames.status().message(), HasSubstr("frame count differs: prediction has 3, truth has 4"));
   const FaceRig rig = RigWithRegions(50);
-  const auto rig_mismatch = ComparePositions(Zeros(5, 3), Zeros(5, 3), &rig, 0, "p");
+  const auto rig_mismatch = ComparePositions(Zeros(5, 3), Zeros(5, 3), &rig, EdgeSkipped(3, 0), "p");
   ASSERT_FALSE(rig_mismatch.ok());
   EXPECT_THAT(rig_mismatch.status().message(), HasSubstr("50 vertices"));
 }
@@ -108,14 +108,18 @@ TEST(Evaluate, TruthChannelBaselinesAndJson) {
   Take truth = TakeOf(KnownErrors(20, 30), 128.0);
   truth.channels["quasistatic"] = Zeros(20, 30);
   const Take predicted = TakeOf(Zeros(20, 30), 128.0);
-  EvaluateOptions options;  // skip = round(0.08 * 128) = 10
+  EvaluateOptions options;  // window = round(0.08 * 128) = 10
   const Evaluation evaluation = Evaluate(predicted, truth, &truth, nullptr, options).value();
   EXPECT_EQ(evaluation.skip_edge_frames, 10);
-  ASSERT_EQ(evaluation.reports.size(), 4u);
+  // Windows inside the take and from frame 1: frames 11..19.
+  EXPECT_EQ(evaluation.scored.begin, 11);
+  EXPECT_EQ(evaluation.scored.end, 20);
+  ASSERT_EQ(evaluation.reports.size(), 5u);
+  EXPECT_EQ(evaluation.reports[4].name, "lowpass_oracle");
   EXPECT_EQ(evaluation.reports[0].name, "prediction");
   EXPECT_NEAR(evaluation.reports[0].face.max_mm, 0.0, 1e-12);
   // The input is static, so every baseline leaves it as it is: errors 1..20 mm.
-  for (size_t i = 1; i < 4; ++i) {
+  for (size_t i = 1; i < 5; ++i) {
     EXPECT_NEAR(evaluation.reports[i].face.mean_mm, 10.5, 1e-4) << evaluation.reports[i].name;
     EXPECT_NEAR(evaluation.reports[i].face.max_mm, 20.0, 1e-4);
   }
@@ -125,6 +129,35 @@ TEST(Evaluate, TruthChannelBaselinesAndJson) {
   // Against positions instead of a channel.
   options.truth_channel = "positions";
   EXPECT_NEAR(Evaluate(predicted, truth, nullptr, nullptr, options).value().reports[0].face.mean_mm, 10.5, 1e-4);
+}
+
+// A held-expression truth is scored only after its hold start plus the window: a baseline that
+// smears the onset is not charged for it, and neither is the prediction.
+TEST(Evaluate, ScoresOnlyTheHeldPart) {
+  // The prediction is 5 mm off before frame 60 and exact after it.
+  PointCache predicted = Zeros(10, 200);
+  for (int t = 0; t < 60; ++t) predicted.Frame(t).row(0).setConstant(5.0f);
+  Take truth = TakeOf(Zeros(10, 200), 128.0);
+  truth.channels["quasistatic"] = Zeros(10, 200);
+  const Take prediction = TakeOf(predicted, 128.0);
+  EXPECT_GT(Evaluate(prediction, truth, nullptr, nullptr, EvaluateOptions()).value()
+                .reports[0].face.mean_mm, 1.0);
+  truth.info.hold_start_s = 50 / 128.0;  // frame 50: scored from 60 on
+  const Evaluation held = Evaluate(prediction, truth, nullptr, nullptr, EvaluateOptions()).value();
+  EXPECT_EQ(held.scored.begin, 60);
+  EXPECT_EQ(held.scored.end, 190);
+  EXPECT_NEAR(held.reports[0].face.max_mm, 0.0, 1e-12);
+  // Nothing left to score is an error naming the frames, not a zero.
+  truth.info.hold_start_s = 190 / 128.0;
+  EXPECT_THAT(Evaluate(prediction, truth, nullptr, nullptr, EvaluateOptions()).status().message(),
+              HasSubstr("no frames to score"));
+}
+
+TEST(MeanDistanceOverVerticesDeathTest, RefusesCachesOfOtherSizes) {
+  EXPECT_DEATH(MeanDistanceOverVertices(Zeros(5, 3), Zeros(6, 3), {0}, EdgeSkipped(3, 0)),
+               "5 vs 6 vertices");
+  EXPECT_DEATH(MeanDistanceOverVertices(Zeros(5, 3), Zeros(5, 4), {0}, EdgeSkipped(3, 0)),
+               "3 vs 4 frames");
 }
 
 TEST(Evaluate, MismatchedTakesAndMissingChannels) {
@@ -155,13 +188,13 @@ TEST(JigglingVertices, KeepsVerticesAboveAFifthOfTheLargestAndAveragesOverThem) 
     offsets.Frame(t).col(1) << 0, 0.5f, 0;   // half of it: kept
     offsets.Frame(t).col(2) << 0, 0, 0.1f;   // a tenth: left out
   }                                          // vertex 3 never moves: left out
-  const std::vector<int> vertices = JigglingVertices(offsets, 1);
+  const std::vector<int> vertices = JigglingVertices(offsets, EdgeSkipped(5, 1));
   EXPECT_EQ(vertices, (std::vector<int>{0, 1}));
   PointCache zero = offsets;
   zero.positions.setZero();
-  EXPECT_NEAR(MeanDistanceOverVertices(offsets, zero, vertices, 1), 0.75, 1e-6);
-  EXPECT_EQ(MeanDistanceOverVertices(offsets, zero, {}, 1), 0.0);
+  EXPECT_NEAR(MeanDistanceOverVertices(offsets, zero, vertices, EdgeSkipped(5, 1)), 0.75, 1e-6);
+  EXPECT_EQ(MeanDistanceOverVertices(offsets, zero, {}, EdgeSkipped(5, 1)), 0.0);
 }
 
 }  // namespace
-}  // namespace facedyn::dynamics
+}  // namespace facedyn::eval

@@ -1,13 +1,16 @@
-#include "dynamics/evaluate.h"
+#include "eval/metrics.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include "core/check.h"
+#include <fmt/format.h>
+#include <optional>
 
 #include "dynamics/features.h"
 
-namespace facedyn::dynamics {
+namespace facedyn::eval {
 
 ErrorStats ComputeErrorStats(std::vector<float>* errors_mm) {
   ErrorStats stats;
@@ -48,7 +51,7 @@ Status EvaluateOptions::Check() const {
 }
 
 StatusOr<ErrorReport> ComparePositions(const PointCache& predicted, const PointCache& truth,
-                                       const FaceRig* rig, int skip_edge_frames,
+                                       const FaceRig* rig, dynamics::FrameRange frames,
                                        const std::string& name) {
   if (predicted.vertex_count != truth.vertex_count) {
     return FailedPreconditionError(name + ": vertex count differs: prediction has " +
@@ -67,13 +70,11 @@ StatusOr<ErrorReport> ComparePositions(const PointCache& predicted, const PointC
                                    std::to_string(rig->vertex_count()) + " vertices, takes have " +
                                    std::to_string(vertex_count));
   }
-  if (skip_edge_frames < 0) return InvalidArgumentError("skip_edge_frames must be >= 0");
-  const int first = skip_edge_frames;
-  const int end = frame_count - skip_edge_frames;
-  if (end <= first) {
-    return FailedPreconditionError("take has " + std::to_string(frame_count) +
-                                   " frames: nothing left after skipping " +
-                                   std::to_string(skip_edge_frames) + " at each end");
+  const int first = frames.begin;
+  const int end = frames.end;
+  if (frames.empty() || first < 0 || end > frame_count) {
+    return FailedPreconditionError(fmt::format(
+        "{}: take has {} frames: no frames to score in [{}, {})", name, frame_count, first, end));
   }
   const int used_frames = end - first;
   // Per-vertex, per-frame errors, vertex-major so regions gather contiguous runs.
@@ -160,26 +161,67 @@ StatusOr<Evaluation> Evaluate(const Take& predicted, const Take& truth, const Ta
   evaluation.truth_channel = options.truth_channel;
   evaluation.frame_count = truth.frame_count();
   evaluation.vertex_count = truth.positions.vertex_count;
-  evaluation.skip_edge_frames = options.skip_edge_frames >= 0
-                                    ? options.skip_edge_frames
-                                    : WindowFrames(options.window_s, truth.info.fps);
+  if (options.skip_edge_frames >= 0) {
+    evaluation.skip_edge_frames = options.skip_edge_frames;
+    evaluation.scored = EdgeSkipped(truth.frame_count(), options.skip_edge_frames);
+  } else {
+    evaluation.skip_edge_frames = dynamics::WindowFrames(options.window_s, truth.info.fps);
+    evaluation.scored = dynamics::ScoredFrames(truth, evaluation.skip_edge_frames);
+  }
   FACEDYN_ASSIGN_OR_RETURN(ErrorReport prediction,
                            ComparePositions(predicted.positions, *truth_positions, rig,
-                                            evaluation.skip_edge_frames, "prediction"));
+                                            evaluation.scored, "prediction"));
   evaluation.reports.push_back(std::move(prediction));
   if (input != nullptr) {
-    BaselineOptions baseline_options = options.baselines;
+    dynamics::BaselineOptions baseline_options = options.baselines;
     baseline_options.window_s = options.window_s;
-    for (BaselineKind kind :
-         {BaselineKind::kNoRemoval, BaselineKind::kLowPass, BaselineKind::kMovingAverage}) {
-      FACEDYN_ASSIGN_OR_RETURN(const PointCache baseline, ComputeBaseline(*input, kind, baseline_options));
+    for (dynamics::BaselineKind kind :
+         {dynamics::BaselineKind::kNoRemoval, dynamics::BaselineKind::kLowPass, dynamics::BaselineKind::kMovingAverage}) {
+      FACEDYN_ASSIGN_OR_RETURN(const PointCache baseline, dynamics::ComputeBaseline(*input, kind, baseline_options));
       FACEDYN_ASSIGN_OR_RETURN(ErrorReport report,
                                ComparePositions(baseline, *truth_positions, rig,
-                                                evaluation.skip_edge_frames, BaselineName(kind)));
+                                                evaluation.scored, dynamics::BaselineName(kind)));
       evaluation.reports.push_back(std::move(report));
     }
+    // The oracle: the cutoff of a sweep that is best against this very truth.
+    std::optional<ErrorReport> oracle;
+    double oracle_hz = 0.0;
+    for (double hz = 0.5; hz <= 12.0 + 1e-9 && hz < 0.5 * truth.info.fps; hz += 0.5) {
+      FACEDYN_ASSIGN_OR_RETURN(const PointCache filtered, dynamics::LowPassBaseline(*input, hz));
+      FACEDYN_ASSIGN_OR_RETURN(ErrorReport report,
+                               ComparePositions(filtered, *truth_positions, rig, evaluation.scored,
+                                                "lowpass_oracle"));
+      if (!oracle || report.face.mean_mm < oracle->face.mean_mm) {
+        oracle = std::move(report);
+        oracle_hz = hz;
+      }
+    }
+    if (oracle) {
+      evaluation.reports.push_back(std::move(*oracle));
+      evaluation.oracle_cutoff_hz = oracle_hz;
+    }
+    evaluation.rule_cutoff_hz = options.baselines.lowpass_cutoff_hz > 0
+                                    ? options.baselines.lowpass_cutoff_hz
+                                    : dynamics::LowPassCutoffByRule(*input);
   }
   return evaluation;
+}
+
+StatusOr<PointCache> BaselinePositions(const Take& input, const Evaluation& evaluation,
+                                       const std::string& name,
+                                       const dynamics::BaselineOptions& options) {
+  if (name == "lowpass_oracle") {
+    if (!(evaluation.oracle_cutoff_hz > 0)) {
+      return FailedPreconditionError("the evaluation has no low-pass oracle (made without input)");
+    }
+    return dynamics::LowPassBaseline(input, evaluation.oracle_cutoff_hz);
+  }
+  for (dynamics::BaselineKind kind : {dynamics::BaselineKind::kNoRemoval,
+                                      dynamics::BaselineKind::kLowPass,
+                                      dynamics::BaselineKind::kMovingAverage}) {
+    if (name == dynamics::BaselineName(kind)) return dynamics::ComputeBaseline(input, kind, options);
+  }
+  return InvalidArgumentError("no baseline named '" + name + "'");
 }
 
 Json EvaluationToJson(const Evaluation& evaluation) {
@@ -188,6 +230,9 @@ Json EvaluationToJson(const Evaluation& evaluation) {
   json["frame_count"] = evaluation.frame_count;
   json["vertex_count"] = evaluation.vertex_count;
   json["skip_edge_frames"] = evaluation.skip_edge_frames;
+  json["scored_frames"] = {evaluation.scored.begin, evaluation.scored.end};
+  if (evaluation.rule_cutoff_hz > 0) json["lowpass_cutoff_hz"] = evaluation.rule_cutoff_hz;
+  if (evaluation.oracle_cutoff_hz > 0) json["lowpass_oracle_cutoff_hz"] = evaluation.oracle_cutoff_hz;
   Json reports = Json::object();
   for (const ErrorReport& report : evaluation.reports) {
     Json entry = Json::object();
@@ -207,9 +252,9 @@ std::string EvaluationToText(const Evaluation& evaluation) {
   std::string text;
   char line[256];
   std::snprintf(line, sizeof(line),
-                "truth channel %s, %d vertices, %d frames (%d skipped at each end)\n",
+                "truth channel %s, %d vertices, %d frames (scored: frames %d..%d)\n",
                 evaluation.truth_channel.c_str(), evaluation.vertex_count, evaluation.frame_count,
-                evaluation.skip_edge_frames);
+                evaluation.scored.begin, evaluation.scored.end - 1);
   text += line;
   std::snprintf(line, sizeof(line), "%-16s %-16s %9s %9s %9s\n", "method", "region", "mean_mm",
                 "p95_mm", "max_mm");
@@ -226,9 +271,9 @@ std::string EvaluationToText(const Evaluation& evaluation) {
   return text;
 }
 
-std::vector<int> JigglingVertices(const PointCache& true_offsets, int skip) {
+std::vector<int> JigglingVertices(const PointCache& true_offsets, dynamics::FrameRange frames) {
   Eigen::VectorXd mean_norm = Eigen::VectorXd::Zero(true_offsets.vertex_count);
-  for (int t = skip; t < true_offsets.frame_count() - skip; ++t) {
+  for (int t = std::max(0, frames.begin); t < std::min(frames.end, true_offsets.frame_count()); ++t) {
     mean_norm += true_offsets.Frame(t).colwise().norm().transpose().cast<double>();
   }
   std::vector<int> vertices;
@@ -241,16 +286,24 @@ std::vector<int> JigglingVertices(const PointCache& true_offsets, int skip) {
 }
 
 double MeanDistanceOverVertices(const PointCache& a, const PointCache& b,
-                                const std::vector<int>& vertices, int skip) {
+                                const std::vector<int>& vertices, dynamics::FrameRange frames) {
+  FACEDYN_CHECK(a.vertex_count == b.vertex_count && a.frame_count() == b.frame_count(),
+                fmt::format("MeanDistanceOverVertices: {} vs {} vertices, {} vs {} frames",
+                            a.vertex_count, b.vertex_count, a.frame_count(), b.frame_count()));
+  FACEDYN_CHECK(frames.begin >= 0 && frames.end <= a.frame_count(),
+                "MeanDistanceOverVertices: frames out of range");
   double sum = 0.0;
   long count = 0;
-  for (int t = skip; t < a.frame_count() - skip; ++t) {
+  for (int t = frames.begin; t < frames.end; ++t) {
     const auto frame_a = a.Frame(t);
     const auto frame_b = b.Frame(t);
-    for (int v : vertices) sum += (frame_a.col(v) - frame_b.col(v)).norm();
+    for (int v : vertices) {
+      FACEDYN_CHECK(v >= 0 && v < a.vertex_count, "MeanDistanceOverVertices: vertex out of range");
+      sum += (frame_a.col(v) - frame_b.col(v)).norm();
+    }
     count += static_cast<long>(vertices.size());
   }
   return count > 0 ? sum / count : 0.0;
 }
 
-}  // namespace facedyn::dynamics
+}  // namespace facedyn::eval

@@ -22,7 +22,7 @@
 #include "core/take.h"
 #include "dynamics/removal_model.h"
 
-namespace facedyn::app {
+namespace facedyn::eval {
 
 struct DynamicsStudyOptions {
   std::vector<double> train_hz = {6, 7, 8, 9, 10};
@@ -97,4 +97,4 @@ struct DynamicsStudyArtifacts {
 StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                                 DynamicsStudyArtifacts* artifacts = nullptr);
 
-}  // namespace facedyn::app
+}  // namespace facedyn::eval

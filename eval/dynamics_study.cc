@@ -1,4 +1,4 @@
-#include "app/dynamics_study.h"
+#include "eval/dynamics_study.h"
 
 #include <spdlog/spdlog.h>
 
@@ -10,7 +10,7 @@
 #include <utility>
 
 #include "dynamics/baselines.h"
-#include "dynamics/evaluate.h"
+#include "eval/metrics.h"
 #include "dynamics/mlp.h"
 #include "dynamics/propagation.h"
 #include "dynamics/quasistatic.h"
@@ -20,7 +20,7 @@
 #include "sim/procedural_face.h"
 #include "sim/skull_motion.h"
 
-namespace facedyn::app {
+namespace facedyn::eval {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -30,7 +30,7 @@ double SecondsSince(Clock::time_point start) {
 
 double Round4(double x) { return std::round(x * 1e4) / 1e4; }
 
-Json StatsJson(const dynamics::ErrorStats& stats) {
+Json StatsJson(const eval::ErrorStats& stats) {
   return {{"mean_mm", Round4(stats.mean_mm)},
           {"p95_mm", Round4(stats.p95_mm)},
           {"max_mm", Round4(stats.max_mm)}};
@@ -222,23 +222,24 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
 
   // --- removal evaluation against the exact quasistatic ---
   Json removal = Json::array();
-  dynamics::EvaluateOptions evaluate_options;
+  eval::EvaluateOptions evaluate_options;
   const int skip = dynamics::WindowFrames(evaluate_options.window_s, options.fps);
   std::vector<Take> removed_by_best;  // F_exact's removal of each test take (for synthesis)
   for (const SimTake& t : test) {
+    const dynamics::FrameRange scored = dynamics::ScoredFrames(t.take, skip);
     const PointCache& truth = t.take.channels.at("quasistatic");
     const std::vector<int> mask =
-        dynamics::JigglingVertices(t.take.channels.at("dynamic_offset"), skip);
+        eval::JigglingVertices(t.take.channels.at("dynamic_offset"), scored);
     const double offset_mm =
-        dynamics::MeanDistanceOverVertices(t.take.positions, truth, mask, skip);
+        eval::MeanDistanceOverVertices(t.take.positions, truth, mask, scored);
     Json entry;
     entry["take"] = t.name;
     entry["jiggle_vertices"] = mask.size();
     entry["mean_dynamic_offset_mm"] = Round4(offset_mm);
     Json methods = Json::object();
     auto add_method = [&](const std::string& name, const PointCache& predicted,
-                          const dynamics::ErrorStats& face) {
-      const double error_mm = dynamics::MeanDistanceOverVertices(predicted, truth, mask, skip);
+                          const eval::ErrorStats& face) {
+      const double error_mm = eval::MeanDistanceOverVertices(predicted, truth, mask, scored);
       methods[name] = StatsJson(face);
       methods[name]["jiggle_mean_mm"] = Round4(error_mm);
       methods[name]["relative_to_offset"] = Round4(offset_mm > 0 ? error_mm / offset_mm : 0.0);
@@ -250,21 +251,22 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
           Take removed,
           dynamics::RemoveDynamics(trained.model, t.take, rig, &propagation, &removal_summary));
       FACEDYN_ASSIGN_OR_RETURN(
-          const dynamics::Evaluation evaluation,
-          dynamics::Evaluate(removed, t.take, baselines_done ? nullptr : &t.take, &rig,
+          const eval::Evaluation evaluation,
+          eval::Evaluate(removed, t.take, baselines_done ? nullptr : &t.take, &rig,
                              evaluate_options));
       add_method(trained.name, removed.positions, evaluation.reports.front().face);
       if (!baselines_done) {
         for (size_t r = 1; r < evaluation.reports.size(); ++r) {
           const std::string& name = evaluation.reports[r].name;
-          const dynamics::BaselineKind kind =
-              name == "no_removal" ? dynamics::BaselineKind::kNoRemoval
-              : name == "lowpass"  ? dynamics::BaselineKind::kLowPass
-                                   : dynamics::BaselineKind::kMovingAverage;
-          FACEDYN_ASSIGN_OR_RETURN(
-              const PointCache baseline,
-              dynamics::ComputeBaseline(t.take, kind, evaluate_options.baselines));
+          FACEDYN_ASSIGN_OR_RETURN(const PointCache baseline,
+                                   BaselinePositions(t.take, evaluation, name,
+                                                     evaluate_options.baselines));
           add_method(name, baseline, evaluation.reports[r].face);
+          if (name == "lowpass") methods[name]["cutoff_hz"] = Round4(evaluation.rule_cutoff_hz);
+          if (name == "lowpass_oracle") {
+            methods[name]["cutoff_hz"] = evaluation.oracle_cutoff_hz;
+            methods[name]["oracle"] = true;
+          }
         }
         baselines_done = true;
       }
@@ -278,8 +280,8 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
       FACEDYN_ASSIGN_OR_RETURN(const Take filtered,
                                dynamics::ExtractQuasistatic(t.take, synchronous));
       FACEDYN_ASSIGN_OR_RETURN(
-          const dynamics::Evaluation evaluation,
-          dynamics::Evaluate(filtered, t.take, nullptr, &rig, evaluate_options));
+          const eval::Evaluation evaluation,
+          eval::Evaluate(filtered, t.take, nullptr, &rig, evaluate_options));
       add_method("platform_synchronous", filtered.positions, evaluation.reports.front().face);
     }
     entry["methods"] = methods;
@@ -302,7 +304,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
       auto floor_of = [&](const dynamics::SamplePropagation& used) {
         PointCache offsets, positions;
         dynamics::ComposeOffsets(t.take, used, exact_samples, -1.0f, &offsets, &positions);
-        return Round4(dynamics::MeanDistanceOverVertices(positions, truth, mask, skip) / offset_mm);
+        return Round4(eval::MeanDistanceOverVertices(positions, truth, mask, scored) / offset_mm);
       };
       Json diagnostics;
       diagnostics["exact_samples_laplacian_relative"] = floor_of(propagation);
@@ -312,7 +314,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
       FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXf predicted,
                                dynamics::PredictSampleOffsets(model, t.take, rig));
       double error = 0, magnitude = 0;
-      for (int f = skip; f < exact.frame_count() - skip; ++f) {
+      for (int f = scored.begin; f < scored.end; ++f) {
         const auto columns = Eigen::seqN(static_cast<Eigen::Index>(f) * sample_count, sample_count);
         error += (predicted(Eigen::all, columns) - exact_samples(Eigen::all, columns))
                      .colwise()
@@ -367,23 +369,28 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
   // frequencies (held expressions of the slowest k frequencies).
   if (options.frequency_subsets && options.train_hz.size() > 1) {
     const SimTake& probe = test.front();
+    const dynamics::FrameRange scored = dynamics::ScoredFrames(probe.take, skip);
     const PointCache& truth = probe.take.channels.at("quasistatic");
     const std::vector<int> mask =
-        dynamics::JigglingVertices(probe.take.channels.at("dynamic_offset"), skip);
+        eval::JigglingVertices(probe.take.channels.at("dynamic_offset"), scored);
     const double offset_mm =
-        dynamics::MeanDistanceOverVertices(probe.take.positions, truth, mask, skip);
+        eval::MeanDistanceOverVertices(probe.take.positions, truth, mask, scored);
     Json subsets = Json::array();
     const size_t per_frequency = options.expressions.size() * options.train_amplitudes_mm.size();
     for (size_t k = 1; k <= options.train_hz.size(); ++k) {
+      // Every bar, the full set included, is trained here with the same options and the same
+      // number of Adam steps (epochs scaled by n / k for k of n frequencies): the bars differ
+      // only in their training frequencies. (Round 1 took the last bar from the main model,
+      // which also trained on speech takes, so fewer frequencies and less data were confounded.)
       double error_mm = 0;
-      if (k == options.train_hz.size()) {
-        error_mm = removal.front()["methods"]["F_exact_targets"]["jiggle_mean_mm"].get<double>();
-      } else {
+      {
         const std::vector<dynamics::TrainingTake> subset(held_training.begin(),
                                                          held_training.begin() + k * per_frequency);
         dynamics::RemovalTrainOptions subset_options;
-        subset_options.train.epochs =
+        const int full_epochs =
             options.subset_epochs > 0 ? options.subset_epochs : options.removal_epochs;
+        subset_options.train.epochs = static_cast<int>(std::ceil(
+            full_epochs * static_cast<double>(options.train_hz.size()) / static_cast<double>(k)));
         subset_options.train.batch_size = options.removal_batch;
         subset_options.train.learning_rate = options.learning_rate;
         subset_options.train.weight_decay = options.removal_weight_decay;
@@ -401,10 +408,15 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                                  dynamics::TrainRemoval(subset, subset_options));
         FACEDYN_ASSIGN_OR_RETURN(const Take removed,
                                  dynamics::RemoveDynamics(model, probe.take, rig, &propagation));
-        error_mm = dynamics::MeanDistanceOverVertices(removed.positions, truth, mask, skip);
+        error_mm = eval::MeanDistanceOverVertices(removed.positions, truth, mask, scored);
       }
+      const int full_epochs =
+          options.subset_epochs > 0 ? options.subset_epochs : options.removal_epochs;
       subsets.push_back({{"train_hz", std::vector<double>(options.train_hz.begin(),
                                                           options.train_hz.begin() + k)},
+                         {"epochs", static_cast<int>(std::ceil(
+                                        full_epochs * static_cast<double>(options.train_hz.size()) /
+                                        static_cast<double>(k)))},
                          {"jiggle_mean_mm", Round4(error_mm)},
                          {"relative_to_offset", Round4(offset_mm > 0 ? error_mm / offset_mm : 0)}});
     }
@@ -464,19 +476,20 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     Json synthesis_json = Json::array();
     for (size_t k = 0; k < test.size(); ++k) {
       const Take& original = test[k].take;
+      const dynamics::FrameRange scored = dynamics::ScoredFrames(original, skip);
       FACEDYN_ASSIGN_OR_RETURN(
           const Take resynthesised,
           dynamics::SynthesizeDynamics(synthesis, removed_by_best[k], original.world_from_skull,
                                        original.info.motion, rig, &propagation));
       const std::vector<int> mask =
-          dynamics::JigglingVertices(original.channels.at("dynamic_offset"), skip);
-      const double offset_mm = dynamics::MeanDistanceOverVertices(
-          original.positions, original.channels.at("quasistatic"), mask, skip);
-      const double residual_mm = dynamics::MeanDistanceOverVertices(resynthesised.positions,
-                                                                    original.positions, mask, skip);
+          eval::JigglingVertices(original.channels.at("dynamic_offset"), scored);
+      const double offset_mm = eval::MeanDistanceOverVertices(
+          original.positions, original.channels.at("quasistatic"), mask, scored);
+      const double residual_mm = eval::MeanDistanceOverVertices(resynthesised.positions,
+                                                                    original.positions, mask, scored);
       // Without synthesis, the residual of the removed take is the dynamics themselves.
-      const double removed_only_mm = dynamics::MeanDistanceOverVertices(
-          removed_by_best[k].positions, original.positions, mask, skip);
+      const double removed_only_mm = eval::MeanDistanceOverVertices(
+          removed_by_best[k].positions, original.positions, mask, scored);
       if (artifacts != nullptr && k == 0) artifacts->resynthesised = resynthesised;
       synthesis_json.push_back(
           {{"take", test[k].name},
@@ -507,4 +520,4 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
   return result;
 }
 
-}  // namespace facedyn::app
+}  // namespace facedyn::eval

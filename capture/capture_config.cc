@@ -81,6 +81,8 @@ CameraSettings CaptureConfig::SettingsFor(int camera) const {
 
 Status CaptureConfig::Check() const {
   const std::string where = source_path + ": ";
+  // kMaxTriggersPerTake (capture/frame.h) is 1000 fps x 3600 s: frame-file readers refuse any
+  // trigger index beyond it, so raise it with these limits.
   if (!(fps >= 1 && fps <= 1000)) return InvalidArgumentError(where + "fps must be in 1..1000");
   if (!(duration_s > 0 && duration_s <= 3600))
     return InvalidArgumentError(where + "duration_s must be in (0, 3600]");
@@ -118,6 +120,33 @@ Status CaptureConfig::Check() const {
       return InvalidArgumentError(where +
                                   "cameras: give calibration or size_px [width, height] for the " +
                                   backend + " cameras");
+    }
+  }
+  // Frame buffers are sized from these (width x height x bytes per pixel, per frame, per queue
+  // slot), so a calibration or size_px claiming 100000 x 100000 px is refused here rather than
+  // attempted as a 10 GB allocation per frame. Same caps as a frame file (capture/frame.h).
+  for (const std::vector<CameraModel>* list : {&cameras, &uncalibrated_sizes}) {
+    for (const CameraModel& camera : *list) {
+      const std::string field = list == &cameras
+                                    ? (calibration_path.empty() ? "cameras.ring" : calibration_path)
+                                    : "cameras.size_px";
+      if (camera.width_px < 1 || camera.width_px > kMaxFrameSidePx || camera.height_px < 1 ||
+          camera.height_px > kMaxFrameSidePx) {
+        return InvalidArgumentError(where + field + ": camera " + camera.name + " is " +
+                                    std::to_string(camera.width_px) + "x" +
+                                    std::to_string(camera.height_px) + " px, outside 1.." +
+                                    std::to_string(kMaxFrameSidePx) + " a side");
+      }
+      // Both sides are at most 2^16 and a pixel at most 3 bytes: no wrap.
+      const uint64_t bytes = uint64_t(camera.width_px) * uint64_t(camera.height_px) *
+                             uint64_t(BytesPerPixel(pixel_format));
+      if (bytes > kMaxFrameBytes) {
+        return InvalidArgumentError(
+            where + field + ": camera " + camera.name + " at " + std::to_string(camera.width_px) +
+            "x" + std::to_string(camera.height_px) + " " + PixelFormatName(pixel_format) +
+            " needs " + std::to_string(bytes) + " bytes a frame, more than " +
+            std::to_string(kMaxFrameBytes));
+      }
     }
   }
   if (!platform.rig_path.empty()) {

@@ -17,6 +17,18 @@ namespace facedyn::capture {
 
 enum class PixelFormat : uint32_t { kMono8 = 1, kMono16 = 2, kBgr8 = 3 };
 
+// Limits a frame read from outside (a frame file, a camera) must respect; anything beyond is
+// corrupt or hostile, never a real frame. The largest machine-vision sensors are about
+// 14,000 x 10,600 px (151 MP, 453 MB in bgr8), so 65,536 px a side and 1 GiB a frame leave
+// room while keeping width x height x bytes far from wrapping 64 bits and every allocation
+// one a workstation can make.
+inline constexpr int64_t kMaxFrameSidePx = 65536;
+inline constexpr uint64_t kMaxFrameBytes = uint64_t{1} << 30;
+// Trigger indices count pulses from 0 and a take is at most 3600 s at 1000 fps
+// (CaptureConfig::Check), so no index of a real take reaches this. Readers that size arrays by
+// the largest index seen (reconstruct/session_input.cc) rely on it.
+inline constexpr int64_t kMaxTriggersPerTake = int64_t{1000} * 3600;
+
 int BytesPerPixel(PixelFormat format);
 const char* PixelFormatName(PixelFormat format);  // "mono8", "mono16", "bgr8"
 StatusOr<PixelFormat> ParsePixelFormat(const std::string& name);

@@ -48,26 +48,42 @@ void EncodeHeader(const Frame& frame, uint8_t* header) {
   Put<uint64_t>(header, 56, Fnv1a64(header, 56));
 }
 
-// Empty string when the header is valid.
+// Empty string when the header is valid. Sizes are checked one field at a time against
+// capture/frame.h's caps before they are multiplied: width and height are uint32 on disk, and
+// 0xFFFFFFFF x 0xFFFFFFFF x 1 wraps 64 bits to 1, which once matched a 1-byte payload and gave
+// a "valid" frame of -1 x -1 pixels.
 std::string DecodeHeader(const uint8_t* header, int64_t offset, FrameRecord* record) {
   if (std::memcmp(header, kMagic, 4) != 0) return "bad record magic";
   if (Get<uint32_t>(header, 4) != kFrameHeaderBytes) return "bad header size";
   if (Get<uint64_t>(header, 56) != Fnv1a64(header, 56)) return "header checksum mismatch";
+  const uint32_t width = Get<uint32_t>(header, 28);
+  const uint32_t height = Get<uint32_t>(header, 32);
+  if (width < 1 || width > kMaxFrameSidePx || height < 1 || height > kMaxFrameSidePx) {
+    return "frame size " + std::to_string(width) + "x" + std::to_string(height) +
+           " px is outside 1.." + std::to_string(kMaxFrameSidePx) + " a side";
+  }
+  const uint32_t format = Get<uint32_t>(header, 36);
+  if (format < 1 || format > 3) return "unknown pixel format " + std::to_string(format);
   record->offset = offset;
   record->trigger_index = Get<int64_t>(header, 8);
   record->timestamp_ns = Get<int64_t>(header, 16);
   record->exposure_us = Get<int32_t>(header, 24);
-  record->width_px = static_cast<int>(Get<uint32_t>(header, 28));
-  record->height_px = static_cast<int>(Get<uint32_t>(header, 32));
-  const uint32_t format = Get<uint32_t>(header, 36);
-  if (format < 1 || format > 3) return "unknown pixel format " + std::to_string(format);
+  record->width_px = static_cast<int>(width);
+  record->height_px = static_cast<int>(height);
   record->format = static_cast<PixelFormat>(format);
   record->payload_bytes = Get<uint64_t>(header, 40);
   record->camera_index = static_cast<int>(Get<uint32_t>(header, 48));
-  const uint64_t expected =
-      static_cast<uint64_t>(record->width_px) * record->height_px * BytesPerPixel(record->format);
+  // At most 2^16 * 2^16 * 3 < 2^34: cannot wrap.
+  const uint64_t expected = uint64_t{width} * height * BytesPerPixel(record->format);
+  if (expected > kMaxFrameBytes) {
+    return "frame of " + std::to_string(width) + "x" + std::to_string(height) + " " +
+           PixelFormatName(record->format) + " needs " + std::to_string(expected) +
+           " bytes, more than the " + std::to_string(kMaxFrameBytes) + "-byte limit";
+  }
   if (record->payload_bytes != expected)
-    return "payload size disagrees with width x height x format";
+    return "payload size " + std::to_string(record->payload_bytes) + " disagrees with " +
+           std::to_string(width) + "x" + std::to_string(height) + " " +
+           PixelFormatName(record->format) + " (" + std::to_string(expected) + " bytes)";
   return "";
 }
 
@@ -181,7 +197,18 @@ StatusOr<std::unique_ptr<FrameFileReader>> FrameFileReader::Open(const std::stri
                           " at byte " + std::to_string(offset);
       break;
     }
-    scan.records.push_back(record);
+    // Its framing is sound (checksum, sizes), so one record with an impossible trigger index
+    // is left out and named, and the records after it are still read: skipping it loses only
+    // that frame, where stopping would lose the rest of the take.
+    if (record.trigger_index < 0 || record.trigger_index >= kMaxTriggersPerTake) {
+      scan.record_problems.push_back(
+          path + ": record " + std::to_string(scan.records.size() + scan.record_problems.size()) +
+          " at byte " + std::to_string(offset) + " has trigger_index " +
+          std::to_string(record.trigger_index) + ", outside 0.." +
+          std::to_string(kMaxTriggersPerTake - 1) + " (no take is longer); left out");
+    } else {
+      scan.records.push_back(record);
+    }
     offset = end;
   }
   scan.valid_bytes =

@@ -20,7 +20,10 @@
 // Records are in arrival order (normally trigger order). A record is only counted once its
 // last byte is on disk; a torn tail (kill -9, disk full) is detected by length and ignored by
 // readers, who report it. The header checksum detects a corrupted header; payloads carry no
-// checksum (a CRC would cost as much CPU as the copy at these rates).
+// checksum (a CRC would cost as much CPU as the copy at these rates). Readers also refuse what
+// no camera produces (capture/frame.h): a side outside 1..65,536 px or a payload over 1 GiB
+// ends the scan like a corrupt header; a trigger index outside 0..kMaxTriggersPerTake-1 drops
+// that one record, named, and the scan goes on.
 #pragma once
 
 #include <cstdint>
@@ -82,6 +85,10 @@ struct FrameFileScan {
   int64_t file_bytes = 0;
   int64_t valid_bytes = 0;   // end of the last complete record
   std::string tail_problem;  // "" when the file ends cleanly after a record
+  // Records whose framing is sound but whose content is impossible (a trigger index no take
+  // can reach), each named with the file, its record number, byte offset and value. They are
+  // not in `records`; the scan goes on after them.
+  std::vector<std::string> record_problems;
 };
 
 // Reads a frame file for random access. The scan reads only headers (seeking over pixels).

@@ -247,6 +247,22 @@ Status SessionWriter::EndTake(const std::string& name, const TakeResult& result)
 
 namespace {
 
+// Why `relative` (a path from capture.json) does not name a file inside the folder it is
+// relative to, or "". A take's files are always inside its folder; a manifest that points
+// elsewhere ("../../other/frames.fdr", "/etc/shadow") is corrupt or hostile, and following it
+// would make `session check` and reconstruct read, and report on, files of someone else's
+// choosing. The test is lexical (no ".." component, not absolute): symlinks inside a session
+// are the operator's own doing and are followed.
+std::string PathLeavesFolder(const std::string& relative) {
+  const fs::path path(relative);
+  if (path.empty()) return "is empty";
+  if (path.is_absolute()) return "is absolute";
+  for (const fs::path& part : path) {
+    if (part == "..") return "climbs out of the take folder with '..'";
+  }
+  return "";
+}
+
 SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& name,
                              int camera_count) {
   SessionTake take;
@@ -258,7 +274,7 @@ SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& 
     for (int k = 0; k < camera_count; ++k) {
       take.cameras.push_back(
           {k, "cam" + std::to_string(k),
-           JoinPath(JoinPath(take.dir, SessionWriter::CameraDirName(k)), kFrameFileName), -1});
+           JoinPath(JoinPath(take.dir, SessionWriter::CameraDirName(k)), kFrameFileName), -1, ""});
     }
   };
   StatusOr<ConfigNode> node = ConfigNode::ReadFile(manifest_path);
@@ -273,12 +289,22 @@ SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& 
   take.reason =
       node->GetOr<std::string>("reason", "").ok() ? *node->GetOr<std::string>("reason", "") : "";
   if (auto fps = node->Get<double>("fps"); fps.ok()) take.fps = *fps;
-  if (auto emitted = node->Get<int64_t>("triggers_emitted");
-      emitted.ok() && take.status != "recording") {
-    take.triggers_emitted = *emitted;  // a take that never stopped has no final count
-  }
-  if (auto requested = node->Get<int64_t>("triggers_requested"); requested.ok())
-    take.triggers_requested = *requested;
+  // Trigger counts size per-trigger arrays downstream (reconstruct/session_input.cc), so a
+  // count no take can reach is refused here rather than allocated there.
+  auto trigger_count = [&](const char* field, int64_t* out) {
+    auto value = node->Get<int64_t>(field);
+    if (!value.ok()) return;
+    if (*value < 0 || *value > kMaxTriggersPerTake) {
+      take.problems.push_back(manifest_path + ": " + field + " " + std::to_string(*value) +
+                              " is outside 0.." + std::to_string(kMaxTriggersPerTake) +
+                              " (no take is longer); ignored");
+      return;
+    }
+    *out = *value;
+  };
+  // A take that never stopped has no final count.
+  if (take.status != "recording") trigger_count("triggers_emitted", &take.triggers_emitted);
+  trigger_count("triggers_requested", &take.triggers_requested);
   take.manifest = node->ToJson();
   auto cameras = node->Child("cameras");
   if (!cameras.ok() || !cameras->IsSequence()) {
@@ -296,7 +322,12 @@ SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& 
         SessionWriter::CameraDirName(static_cast<int>(k)) + "/" + kFrameFileName;
     if (camera.ok() && camera->Get<std::string>("frame_file").ok())
       frame_file = *camera->Get<std::string>("frame_file");
-    entry.frame_file = JoinPath(take.dir, frame_file);
+    if (const std::string why = PathLeavesFolder(frame_file); !why.empty()) {
+      entry.problem = manifest_path + ": cameras[" + std::to_string(k) + "].frame_file '" +
+                      frame_file + "' " + why + "; refused (frame files stay in " + take.dir + ")";
+    } else {
+      entry.frame_file = JoinPath(take.dir, frame_file);
+    }
     if (take.status != "recording" && camera.ok() && camera->Get<int64_t>("frames_written").ok()) {
       entry.frames_in_manifest = *camera->Get<int64_t>("frames_written");
     }
@@ -456,10 +487,16 @@ StatusOr<SessionCheck> CheckSession(const std::string& dir) {
               ? std::string("the take never stopped (interrupted while recording)")
               : "status " + take.status + (take.reason.empty() ? "" : ": " + take.reason));
     }
+    result.problems.insert(result.problems.end(), take.problems.begin(), take.problems.end());
     int64_t expected = take.triggers_emitted;
     for (const SessionTakeCamera& camera : take.cameras) {
       CameraCheck camera_check;
       camera_check.name = camera.name;
+      if (!camera.problem.empty()) {
+        result.problems.push_back(camera.name + ": " + camera.problem);
+        result.cameras.push_back(camera_check);
+        continue;
+      }
       auto reader = FrameFileReader::Open(camera.frame_file);
       if (!reader.ok()) {
         result.problems.push_back(camera.name + ": " + reader.status().message());
@@ -479,6 +516,8 @@ StatusOr<SessionCheck> CheckSession(const std::string& dir) {
       }
       if (!scan.tail_problem.empty())
         result.problems.push_back(camera.name + ": " + scan.tail_problem);
+      for (const std::string& problem : scan.record_problems)
+        result.problems.push_back(camera.name + ": " + problem);
       if (camera.frames_in_manifest >= 0 && camera.frames_in_manifest != camera_check.frames) {
         result.problems.push_back(fmt::format("{}: manifest says {} frames, the file holds {}",
                                               camera.name, camera.frames_in_manifest,

@@ -132,8 +132,11 @@ Json TakeResultToJson(const std::string& name, const TakeResult& result);
 struct SessionTakeCamera {
   int index = 0;
   std::string name;
-  std::string frame_file;           // absolute path of frames.fdr
+  std::string frame_file;           // absolute path of frames.fdr; "" when `problem` is set
   int64_t frames_in_manifest = -1;  // -1 when the manifest does not say (take not stopped)
+  // Why the manifest's entry for this camera was refused (a frame_file outside the take
+  // folder), naming capture.json and the entry; "" when it was not.
+  std::string problem;
 };
 
 struct SessionTake {
@@ -146,6 +149,9 @@ struct SessionTake {
   int64_t triggers_requested = -1;
   std::vector<SessionTakeCamera> cameras;
   Json manifest;  // capture.json as read (null when missing or unreadable)
+  // Values in capture.json that were refused (each names the file, field and value); the
+  // field is then treated as absent.
+  std::vector<std::string> problems;
 };
 
 struct SessionInfo {

@@ -4,12 +4,14 @@
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
 #include <sstream>
+#include <string_view>
 #include <utility>
 
 #include <fmt/format.h>
@@ -70,6 +72,91 @@ int DeclaredElementCount(const std::string& path, const std::string& ext,
     if (a == "end_header") break;
   }
   return -1;
+}
+
+// Checks every index of every OBJ face line before OpenMesh sees the file: OpenMesh
+// dereferences them unchecked, so a relative vertex index past the start ("f -4 -3 -9" with 4
+// vertices) segfaulted, and a uv or normal index past the end ("f 2/1 4/9 3/3" with 3 uvs) was
+// read from outside its array and became a garbage texture coordinate. Each corner is
+// "v", "v/vt", "v//vn" or "v/vt/vn" with nonzero integers; negative indices are relative
+// (-1 is the last one defined so far). An index must name an element defined before its line,
+// which is also all OpenMesh, reading in one pass, can resolve. The OBJ spec requires every
+// corner of a face to have a uv when one does (and likewise normals).
+Status CheckObjFaceIndices(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return UnavailableError(path + ": cannot read");
+  static constexpr const char* kKind[3] = {"vertex", "uv", "normal"};
+  int64_t defined[3] = {0, 0, 0};  // v, vt, vn lines so far
+  std::string line;
+  int64_t line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    std::istringstream words(line);
+    std::string tag;
+    words >> tag;
+    if (tag == "v") {
+      ++defined[0];
+    } else if (tag == "vt") {
+      ++defined[1];
+    } else if (tag == "vn") {
+      ++defined[2];
+    } else if (tag == "f") {
+      std::string corner;
+      int corner_number = 0;
+      bool first_has[3] = {true, false, false};
+      while (words >> corner) {
+        ++corner_number;
+        auto fail = [&](const std::string& why) {
+          return DataLossError(fmt::format("{}:{}: face corner {} '{}' {}", path, line_number,
+                                           corner_number, corner, why));
+        };
+        // Split on '/' into at most three fields; an empty field means "not given".
+        std::string_view fields[3];
+        int field_count = 0;
+        size_t start = 0;
+        while (true) {
+          const size_t slash = corner.find('/', start);
+          if (field_count == 3) return fail("has more than three '/'-separated indices");
+          fields[field_count++] = std::string_view(corner).substr(
+              start, slash == std::string::npos ? slash : slash - start);
+          if (slash == std::string::npos) break;
+          start = slash + 1;
+        }
+        bool has[3] = {false, false, false};
+        for (int k = 0; k < field_count; ++k) {
+          const std::string_view text = fields[k];
+          if (text.empty()) {
+            if (k == 0) return fail("has no vertex index");
+            continue;
+          }
+          int64_t value = 0;
+          const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+          if (error == std::errc::result_out_of_range) {
+            return fail(fmt::format("has {} index {}, far past the {} defined before this line",
+                                    kKind[k], text, defined[k]));
+          }
+          if (error != std::errc() || end != text.data() + text.size())
+            return fail(fmt::format("has {} index '{}', which is not an integer", kKind[k], text));
+          if (value == 0) return fail(fmt::format("has {} index 0 (OBJ counts from 1)", kKind[k]));
+          // Relative index -n names the n-th most recent element.
+          const int64_t absolute = value > 0 ? value : defined[k] + value + 1;
+          if (absolute < 1 || absolute > defined[k]) {
+            return fail(fmt::format("refers to {} {} but {} {} defined before this line", kKind[k],
+                                    value, defined[k], defined[k] == 1 ? "is" : "are"));
+          }
+          has[k] = true;
+        }
+        if (corner_number == 1) {
+          std::copy(has, has + 3, first_has);
+        } else if (has[1] != first_has[1] || has[2] != first_has[2]) {
+          return fail(
+              "gives uv/normal indices unlike the face's first corner (a face gives them "
+              "for every corner or for none)");
+        }
+      }
+    }
+  }
+  return Status::Ok();
 }
 
 }  // namespace
@@ -167,6 +254,7 @@ StatusOr<Mesh> ReadMesh(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) return NotFoundError(path + ": no such file");
 
+  if (ext == ".obj") FACEDYN_RETURN_IF_ERROR(CheckObjFaceIndices(path));
   OmMesh om;
   om.request_vertex_texcoords2D();
   om.request_halfedge_texcoords2D();

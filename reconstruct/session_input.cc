@@ -84,6 +84,7 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
       }
     }
   }
+  out.take_problems.insert(out.take_problems.end(), take->problems.begin(), take->problems.end());
   std::vector<std::unique_ptr<capture::FrameFileReader>> readers;
   int64_t last_trigger = -1;
   for (const capture::SessionTakeCamera& camera : take->cameras) {
@@ -92,6 +93,10 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
     if (calibrated == calibration.cameras.end()) {
       out.take_problems.push_back("camera " + camera.name + " is not in " + calibration_path +
                                   "; left out");
+      continue;
+    }
+    if (!camera.problem.empty()) {
+      out.take_problems.push_back("camera " + camera.name + ": " + camera.problem + "; left out");
       continue;
     }
     auto reader = capture::FrameFileReader::Open(camera.frame_file);
@@ -103,6 +108,8 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
     if (!(*reader)->scan().tail_problem.empty()) {
       out.take_problems.push_back("camera " + camera.name + ": " + (*reader)->scan().tail_problem);
     }
+    for (const std::string& problem : (*reader)->scan().record_problems)
+      out.take_problems.push_back("camera " + camera.name + ": " + problem);
     for (const auto& record : (*reader)->scan().records) {
       last_trigger = std::max(last_trigger, record.trigger_index);
     }

@@ -18,7 +18,13 @@ namespace {
 
 constexpr const char* kLogName = "rig_log.jsonl";
 constexpr const char* kSummaryName = "sweep_summary.json";
-constexpr int kMaxInstances = 100000;
+// A sweep of 100,000 step instances at the shortest hold is already days of vibration; the cap
+// exists so that a script cannot make facedyn expand (allocate) an absurd plan. It is applied
+// to counts computed in int64 before the grid is expanded: a 10^4 x 10^4 grid was once built
+// (10^8 steps, gigabytes) before being counted, and 3000 x 1000 cells x 1000 repeats summed in
+// int came out negative and passed.
+constexpr int64_t kMaxInstances = 100000;
+constexpr int kMaxRepeats = 1000;
 
 uint64_t Fnv1a64(const std::string& bytes) {
   uint64_t hash = 1469598103934665603ull;
@@ -61,10 +67,12 @@ Status ReadStepFields(const ConfigNode& node, bool hz_required, SweepStep* step)
     FACEDYN_ASSIGN_OR_RETURN(step->prompt, node.Get<std::string>("prompt"));
   }
   if (node.Has("repeats")) {
-    FACEDYN_ASSIGN_OR_RETURN(step->repeats, node.Get<int>("repeats"));
-    if (step->repeats < 1 || step->repeats > 1000) {
-      return node.Error("repeats", fmt::format("{} is outside 1..1000", step->repeats));
+    // Read wide so that 3000000000 is "outside 1..1000", not "not an integer".
+    FACEDYN_ASSIGN_OR_RETURN(const int64_t repeats, node.Get<int64_t>("repeats"));
+    if (repeats < 1 || repeats > kMaxRepeats) {
+      return node.Error("repeats", fmt::format("{} is outside 1..{}", repeats, kMaxRepeats));
     }
+    step->repeats = static_cast<int>(repeats);
   }
   step->line = node.line();
   return Status::Ok();
@@ -75,8 +83,8 @@ const std::vector<std::string> kStepFields = {"hz",     "settle_timeout_s", "set
 
 }  // namespace
 
-int SweepScript::InstanceCount() const {
-  int count = 0;
+int64_t SweepScript::InstanceCount() const {
+  int64_t count = 0;
   for (const SweepStep& step : steps) count += step.repeats;
   return count;
 }
@@ -88,6 +96,12 @@ double SweepScript::MinimumDurationS() const {
 }
 
 Status SweepScript::CheckAgainst(const RigConfig& rig) const {
+  // ParseSweepScript enforces this; a script built in code must too (Expand indexes by int).
+  if (InstanceCount() > kMaxInstances) {
+    return InvalidArgumentError(
+        fmt::format("{}: {} step instances is more than the {} a sweep may have", source_path,
+                    InstanceCount(), kMaxInstances));
+  }
   for (size_t i = 0; i < steps.size(); ++i) {
     const SweepStep& step = steps[i];
     const RigLimits& l = rig.limits;
@@ -133,6 +147,9 @@ StatusOr<SweepScript> ParseSweepScript(const ConfigNode& root, const std::string
   if (!root.Has("steps") && !root.Has("grid")) {
     return root.Error("a sweep needs 'steps' (a list) or 'grid' (frequencies x prompts)");
   }
+  // Step instances so far; every addition is checked against the cap before anything is
+  // appended, and each term is at most kMaxInstances * kMaxRepeats, so int64 cannot wrap.
+  int64_t instances = 0;
   if (root.Has("steps")) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode steps, root.Child("steps"));
     if (!steps.IsSequence() || steps.size() == 0)
@@ -142,6 +159,13 @@ StatusOr<SweepScript> ParseSweepScript(const ConfigNode& root, const std::string
       FACEDYN_RETURN_IF_ERROR(CheckKnownFields(node, kStepFields));
       SweepStep step = defaults;
       FACEDYN_RETURN_IF_ERROR(ReadStepFields(node, /*hz_required=*/true, &step));
+      instances += step.repeats;
+      if (instances > kMaxInstances) {
+        return node.Error("repeats",
+                          fmt::format("{} repeats bring the sweep to {} step instances, more than "
+                                      "the {} a sweep may have",
+                                      step.repeats, instances, kMaxInstances));
+      }
       script.steps.push_back(step);
     }
   }
@@ -168,6 +192,22 @@ StatusOr<SweepScript> ParseSweepScript(const ConfigNode& root, const std::string
     if (order != "prompt_major" && order != "frequency_major") {
       return grid.Error("order", fmt::format("'{}' is not prompt_major or frequency_major", order));
     }
+    // Count before expanding: cells by division (no product of list sizes can wrap), then
+    // instances, each bounded before the next multiplication.
+    const int64_t room = kMaxInstances - instances;
+    const bool too_many_cells = frequencies.size() > static_cast<size_t>(room) / prompts.size();
+    const int64_t cells =
+        too_many_cells ? 0 : static_cast<int64_t>(frequencies.size() * prompts.size());
+    if (too_many_cells || cells * cell.repeats > room) {
+      const std::string total = too_many_cells ? "more than " + std::to_string(room)
+                                               : std::to_string(cells * cell.repeats);
+      return grid.Error(fmt::format(
+          "{} frequencies_hz x {} prompts x {} repeats is {} step instances{}; a sweep may have "
+          "at most {}",
+          frequencies.size(), prompts.size(), cell.repeats, total,
+          instances > 0 ? fmt::format(" after the {} of 'steps'", instances) : "", kMaxInstances));
+    }
+    instances += cells * cell.repeats;
     const bool prompt_major = order == "prompt_major";
     const size_t outer = prompt_major ? prompts.size() : frequencies.size();
     const size_t inner = prompt_major ? frequencies.size() : prompts.size();
@@ -180,10 +220,7 @@ StatusOr<SweepScript> ParseSweepScript(const ConfigNode& root, const std::string
       }
     }
   }
-  if (script.InstanceCount() > kMaxInstances) {
-    return root.Error(fmt::format("{} step instances is more than the {} a sweep may have",
-                                  script.InstanceCount(), kMaxInstances));
-  }
+  FACEDYN_CHECK(script.InstanceCount() == instances, "sweep instance count drifted");
   // Frequencies must at least be numbers in a plausible range without the rig; CheckAgainst
   // applies the rig's limits.
   for (size_t i = 0; i < script.steps.size(); ++i) {
@@ -224,7 +261,8 @@ namespace {
 
 std::vector<SweepStepInfo> Expand(const SweepScript& script) {
   std::vector<SweepStepInfo> instances;
-  const int count = script.InstanceCount();
+  // CheckAgainst (run before this) caps the count far below INT_MAX.
+  const int count = static_cast<int>(script.InstanceCount());
   for (size_t i = 0; i < script.steps.size(); ++i) {
     for (int r = 0; r < script.steps[i].repeats; ++r) {
       SweepStepInfo info;

@@ -26,6 +26,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
@@ -56,9 +57,10 @@ struct SweepScript {
   std::vector<SweepStep> steps;  // grid already expanded, in run order
   uint64_t text_hash = 0;        // FNV-1a of the file's bytes
 
-  // Number of step instances (steps times their repeats).
-  int InstanceCount() const;
-  // Checks every step against the rig's limits; names the step and field.
+  // Number of step instances (steps times their repeats), counted in int64.
+  int64_t InstanceCount() const;
+  // Checks the instance cap (100,000) and every step against the rig's limits; names the step
+  // and field.
   Status CheckAgainst(const RigConfig& rig) const;
   // Sum of settle dwells and holds, a lower bound on the running time.
   double MinimumDurationS() const;

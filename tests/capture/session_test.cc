@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <thread>
 
@@ -130,6 +131,95 @@ TEST(Session, MissingFrameAndTornEventLineAreReported) {
   EXPECT_EQ(check->takes[0].cameras[1].missing, 0);
   const std::string text = check->ToText();
   EXPECT_NE(text.find("1 of 10 triggers have no frame"), std::string::npos) << text;
+}
+
+// A capture.json whose frame_file points outside the take folder once had `session check` (and
+// reconstruct) open whatever it named: "../../elsewhere/frames.fdr" or an absolute path. Each
+// such entry is refused, named with its file and index, and the other cameras are still read.
+TEST(Session, FramePathsOutsideTheTakeAreRefused) {
+  for (const std::string hostile :
+       {"../../outside/frames.fdr", "cam0/../../../outside/frames.fdr", "/OUTSIDE/frames.fdr"}) {
+    testing::TempDir dir;
+    auto session = SessionWriter::Open(dir.path(), "virtual", Cameras(2), Json::object());
+    ASSERT_TRUE(session.ok());
+    RecordTake(session->get(), "t", 2, 6);
+    // A complete frame file outside the session that the manifest points at: before the fix
+    // the check read it and called the take complete.
+    const std::string outside = dir.Join("outside");
+    std::filesystem::create_directories(outside);
+    std::filesystem::copy_file(dir.path() + "/takes/t/cam1/frames.fdr", outside + "/frames.fdr");
+    std::string target = hostile;
+    if (target[0] == '/') target = outside + "/frames.fdr";
+    const std::string manifest_path = dir.path() + "/takes/t/capture.json";
+    Json manifest = Json::parse(testing::ReadBytes(manifest_path));
+    manifest["cameras"][1]["frame_file"] = target;
+    testing::WriteBytes(manifest_path, manifest.dump(2));
+
+    auto info = ReadSession(dir.path());
+    ASSERT_TRUE(info.ok()) << info.status().message();
+    const SessionTakeCamera& camera = info->takes[0].cameras[1];
+    EXPECT_EQ(camera.frame_file, "") << target;
+    EXPECT_NE(camera.problem.find(manifest_path), std::string::npos) << camera.problem;
+    EXPECT_NE(camera.problem.find("cameras[1].frame_file '" + target + "'"), std::string::npos)
+        << camera.problem;
+    EXPECT_EQ(info->takes[0].cameras[0].problem, "");
+
+    auto check = CheckSession(dir.path());
+    ASSERT_TRUE(check.ok());
+    EXPECT_FALSE(check->Complete()) << target;
+    EXPECT_EQ(check->takes[0].cameras[0].frames, 6);  // the honest camera is still read
+    EXPECT_EQ(check->takes[0].cameras[1].frames, 0);
+    const std::string text = check->ToText();
+    EXPECT_NE(text.find("refused"), std::string::npos) << text;
+  }
+}
+
+// triggers_emitted sizes reconstruct's per-trigger arrays; 2^40 in a manifest is refused here.
+TEST(Session, ImpossibleTriggerCountInManifestIsRefused) {
+  testing::TempDir dir;
+  auto session = SessionWriter::Open(dir.path(), "virtual", Cameras(1), Json::object());
+  ASSERT_TRUE(session.ok());
+  RecordTake(session->get(), "t", 1, 4);
+  const std::string manifest_path = dir.path() + "/takes/t/capture.json";
+  Json manifest = Json::parse(testing::ReadBytes(manifest_path));
+  manifest["triggers_emitted"] = int64_t{1} << 40;
+  testing::WriteBytes(manifest_path, manifest.dump(2));
+  auto info = ReadSession(dir.path());
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info->takes[0].triggers_emitted, -1);
+  ASSERT_EQ(info->takes[0].problems.size(), 1u);
+  EXPECT_NE(info->takes[0].problems[0].find("triggers_emitted 1099511627776 is outside"),
+            std::string::npos)
+      << info->takes[0].problems[0];
+  auto check = CheckSession(dir.path());
+  ASSERT_TRUE(check.ok());
+  EXPECT_FALSE(check->Complete());
+}
+
+// A frame record with an impossible trigger index makes the take incomplete and is named.
+TEST(Session, ImpossibleTriggerIndexInFrameFileIsReported) {
+  testing::TempDir dir;
+  auto session = SessionWriter::Open(dir.path(), "virtual", Cameras(1), Json::object());
+  ASSERT_TRUE(session.ok());
+  RecordTake(session->get(), "t", 1, 4);
+  const std::string path = dir.path() + "/takes/t/cam0/frames.fdr";
+  std::string bytes = testing::ReadBytes(path);
+  const size_t record = bytes.size() / 4;
+  const int64_t hostile = int64_t{1} << 40;
+  std::memcpy(&bytes[3 * record + 8], &hostile, sizeof(hostile));
+  uint64_t hash = 1469598103934665603ull;  // FNV-1a-64 of header bytes 0..55 (frame_file.h)
+  for (int i = 0; i < 56; ++i) {
+    hash ^= static_cast<uint8_t>(bytes[3 * record + i]);
+    hash *= 1099511628211ull;
+  }
+  std::memcpy(&bytes[3 * record + 56], &hash, sizeof(hash));
+  testing::WriteBytes(path, bytes);
+  auto check = CheckSession(dir.path());
+  ASSERT_TRUE(check.ok());
+  EXPECT_FALSE(check->Complete());
+  EXPECT_EQ(check->takes[0].cameras[0].frames, 3);
+  const std::string text = check->ToText();
+  EXPECT_NE(text.find("trigger_index 1099511627776"), std::string::npos) << text;
 }
 
 TEST(Session, CorruptSessionJsonIsAnError) {

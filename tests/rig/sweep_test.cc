@@ -93,6 +93,76 @@ TEST(ParseSweepScript, MalformedScriptsAreRefusedNamingTheField) {
   }
 }
 
+// "frequencies_hz: [8, 8, ...]" with `count` entries and "prompts: [p0, p1, ...]" likewise.
+std::string GridScript(int frequencies, int prompts, int repeats) {
+  std::string text =
+      "name: big\ngrid:\n  repeats: " + std::to_string(repeats) + "\n  frequencies_hz: [";
+  for (int i = 0; i < frequencies; ++i) text += i ? ", 8" : "8";
+  text += "]\n  prompts: [";
+  for (int i = 0; i < prompts; ++i) text += (i ? ", p" : "p") + std::to_string(i);
+  return text + "]\n";
+}
+
+// A 10^4 x 10^4 grid is refused from its list sizes, before a single step is built. Before,
+// the 10^8 steps were expanded first (gigabytes: run under `ulimit -v 4000000` it dies of
+// bad_alloc) and only then counted.
+TEST(ParseSweepScript, HugeGridIsRefusedBeforeExpansion) {
+  auto script = ParseText(GridScript(10000, 10000, 1));
+  ASSERT_FALSE(script.ok());
+  EXPECT_THAT(script.status().message(),
+              HasSubstr("sweep.yaml:3: field 'grid': 10000 frequencies_hz x 10000 prompts x 1 "
+                        "repeats is more than 100000 step instances; a sweep may have at most "
+                        "100000"));
+}
+
+// 3000 x 1000 cells x 1000 repeats is 3e9 instances: summed in int it wrapped to -1294967296,
+// which is below the cap, so `sweep --check` printed a negative step count and passed.
+TEST(ParseSweepScript, InstanceCountBeyondIntIsRefusedNamingTheGrid) {
+  auto script = ParseText(GridScript(3000, 1000, 1000));
+  ASSERT_FALSE(script.ok()) << "parsed with " << script->InstanceCount() << " instances";
+  EXPECT_THAT(script.status().message(),
+              HasSubstr("field 'grid': 3000 frequencies_hz x 1000 prompts x 1000 repeats"));
+}
+
+// Repeats alone can exceed the cap: the message names the repeats that crossed it.
+TEST(ParseSweepScript, RepeatsBeyondTheCapAreRefusedNamingTheField) {
+  // 100 cells x 1000 repeats = 100000 (the cap, allowed) ...
+  auto at_cap = ParseText(GridScript(10, 10, 1000));
+  ASSERT_TRUE(at_cap.ok()) << at_cap.status().ToString();
+  EXPECT_EQ(at_cap->InstanceCount(), 100000);
+  // ... one more step of 1 repeat in front of it is not.
+  std::string one_more = GridScript(10, 10, 1000);
+  one_more.insert(one_more.find("grid:"), "steps:\n  - {hz: 8}\n");
+  auto over = ParseText(one_more);
+  ASSERT_FALSE(over.ok());
+  EXPECT_THAT(over.status().message(),
+              HasSubstr("field 'grid': 10 frequencies_hz x 10 prompts x 1000 repeats is 100000 "
+                        "step instances after the 1 of 'steps'"));
+  // Explicit steps: the step whose repeats cross the cap is named.
+  std::string steps = "name: t\nsteps:\n";
+  for (int i = 0; i < 101; ++i) steps += "  - {hz: 8, repeats: 1000}\n";
+  auto many = ParseText(steps);
+  ASSERT_FALSE(many.ok());
+  EXPECT_THAT(many.status().message(),
+              HasSubstr("sweep.yaml:103: field 'steps[100].repeats': 1000 repeats bring the sweep "
+                        "to 101000 step instances, more than the 100000"));
+  // A repeats value beyond int is out of range, not "not an integer".
+  auto wide = ParseText("name: t\nsteps:\n  - {hz: 8, repeats: 3000000000}\n");
+  ASSERT_FALSE(wide.ok());
+  EXPECT_THAT(wide.status().message(),
+              HasSubstr("field 'steps[0].repeats': 3000000000 is outside 1..1000"));
+}
+
+// CheckAgainst applies the cap too, so a script assembled in code cannot bypass it.
+TEST(SweepScript, CheckAgainstRefusesTooManyInstances) {
+  auto script = ParseText("name: t\nsteps:\n  - {hz: 8, repeats: 1000}\n");
+  ASSERT_TRUE(script.ok());
+  script->steps.resize(101, script->steps[0]);
+  const Status check = script->CheckAgainst(SimRig());
+  ASSERT_FALSE(check.ok());
+  EXPECT_THAT(check.message(), HasSubstr("101000 step instances is more than the 100000"));
+}
+
 TEST(SweepScript, OutOfRangeFrequencyIsRefusedBeforeAnythingMoves) {
   auto script = ParseText("name: t\nsteps:\n  - {hz: 8}\n  - {hz: 11.5}\n");
   ASSERT_TRUE(script.ok());

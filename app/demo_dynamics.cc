@@ -15,8 +15,9 @@
 #include "app/face_render.h"
 #include "core/file_util.h"
 #include "dynamics/baselines.h"
+#include "eval/dynamics_study.h"
 #include "eval/metrics.h"
-#include "eval/skull_frame.h"
+#include "eval/removal_comparison.h"
 #include "dynamics/features.h"
 #include "dynamics/mlp.h"
 #include "dynamics/synthesis_model.h"
@@ -36,14 +37,6 @@ double Round4(double x) { return std::round(x * 1e4) / 1e4; }
 
 std::string TakeName(const std::string& expression, double hz) {
   return fmt::format("{}@{:g}Hz", expression, hz);
-}
-
-// Mean |offset| (mm) over `vertices` and `frames`.
-double MeanNorm(const PointCache& offsets, const std::vector<int>& vertices,
-                dynamics::FrameRange frames) {
-  PointCache zero = offsets;
-  zero.positions.setZero();
-  return eval::MeanDistanceOverVertices(offsets, zero, vertices, frames);
 }
 
 // The held shape of a take in the skull frame (3 x V): mean over frames [skip, F - skip) of
@@ -307,105 +300,7 @@ Json NoDynamicsErrors(const Take& quasistatic, const Take& truth, const std::vec
   const PointCache& truth_offsets = truth.channels.at("dynamic_offset");
   return {{"position_mean_mm", Round4(eval::MeanDistanceOverVertices(
                                    quasistatic.positions, truth.positions, vertices, scored))},
-          {"offset_mean_mm", Round4(MeanNorm(truth_offsets, vertices, scored))}};
-}
-
-void PrintRow(const std::string& what, const std::string& method, double mm, double of) {
-  std::printf("  %-28s %-30s %8.3f mm %7.1f%%\n", what.c_str(), method.c_str(), mm, 100 * of);
-}
-
-// F against the baselines on one held-out reconstructed take: errors over its jiggling vertices
-// against the exact quasistatic of the simulation it was reconstructed from, printed and returned as the
-// metrics section. `reference` (may be null): F trained on simulated takes with exact targets.
-// *removed (may be null): F's removal. The simulated take must have the exact channels
-// (quasistatic, dynamic_offset; RunDemoDynamicsStage checks the held-out one up front).
-StatusOr<Json> CompareRemoval(const dynamics::RemovalModel& f_model,
-                              const dynamics::RemovalModel* reference, const std::string& take_name,
-                              const Take& simulated, const Take& reconstructed, const FaceRig& face,
-                              int skip, Take* removed_out) {
-  const dynamics::FrameRange scored = dynamics::ScoredFrames(simulated, skip);
-  const PointCache& truth = simulated.channels.at("quasistatic");
-  const std::vector<int> jiggle =
-      eval::JigglingVertices(simulated.channels.at("dynamic_offset"), scored);
-  const double offset_mm = MeanNorm(simulated.channels.at("dynamic_offset"), jiggle, scored);
-  FACEDYN_ASSIGN_OR_RETURN(Take removed, dynamics::RemoveDynamics(f_model, reconstructed, face));
-  eval::EvaluateOptions evaluate;  // scored frames: ScoredFrames(simulated, window), as above
-  FACEDYN_ASSIGN_OR_RETURN(const eval::Evaluation evaluation,
-                           eval::Evaluate(removed, simulated, &reconstructed, &face, evaluate));
-  Json methods = Json::object();
-  auto add_method = [&](const std::string& name, const PointCache& predicted,
-                        const eval::ErrorStats& face_stats) {
-    const double error_mm = eval::MeanDistanceOverVertices(predicted, truth, jiggle, scored);
-    // The stabilised expression in the skull frame (eval/skull_frame.h): the method's in the
-    // reconstruction's estimated skull frame against the exact one in the simulator's.
-    const double skull_mm = eval::SkullFrameMeanDistance(
-        predicted, reconstructed.world_from_skull, truth, simulated.world_from_skull, jiggle, scored);
-    methods[name] = {{"mean_mm", Round4(face_stats.mean_mm)},
-                     {"skull_frame_jiggle_mean_mm", Round4(skull_mm)},
-                     {"p95_mm", Round4(face_stats.p95_mm)},
-                     {"max_mm", Round4(face_stats.max_mm)},
-                     {"jiggle_mean_mm", Round4(error_mm)},
-                     {"relative_to_offset", Round4(offset_mm > 0 ? error_mm / offset_mm : 0.0)}};
-  };
-  add_method("F", removed.positions, evaluation.reports.front().face);
-  if (reference != nullptr) {
-    FACEDYN_ASSIGN_OR_RETURN(const Take by_reference,
-                             dynamics::RemoveDynamics(*reference, reconstructed, face));
-    FACEDYN_ASSIGN_OR_RETURN(const eval::Evaluation reference_evaluation,
-                             eval::Evaluate(by_reference, simulated, nullptr, &face, evaluate));
-    add_method("F_exact_targets_simulated", by_reference.positions,
-               reference_evaluation.reports.front().face);
-  }
-  for (size_t r = 1; r < evaluation.reports.size(); ++r) {
-    const std::string& name = evaluation.reports[r].name;
-    FACEDYN_ASSIGN_OR_RETURN(
-        const PointCache baseline,
-        eval::BaselinePositions(reconstructed, evaluation, name, evaluate.baselines));
-    add_method(name, baseline, evaluation.reports[r].face);
-    if (name == "lowpass") methods[name]["cutoff_hz"] = Round4(evaluation.rule_cutoff_hz);
-    if (name == "lowpass_oracle") {
-      methods[name]["cutoff_hz"] = evaluation.oracle_cutoff_hz;
-      methods[name]["oracle"] = true;
-    }
-  }
-  // What the reconstruction itself gets wrong (its positions vs the simulated ones, dynamics
-  // included): a floor for any removal that only subtracts dynamics, which a temporal filter
-  // like the low-pass can go below by smoothing the reconstruction's frame-to-frame noise.
-  const double reconstruction_error_mm = eval::MeanDistanceOverVertices(
-      reconstructed.positions, simulated.positions, jiggle, scored);
-  // The lower reference (eval/skull_frame.h): Eq. 7 with the exact offsets in the estimated
-  // skull frame, the error a perfect F would leave on this reconstruction.
-  const PointCache exact_offsets_removed =
-      eval::RemoveExactOffsets(reconstructed, simulated.channels.at("dynamic_offset"));
-  const double exact_offsets_removed_mm =
-      eval::MeanDistanceOverVertices(exact_offsets_removed, truth, jiggle, scored);
-  const double f_mm = methods["F"]["jiggle_mean_mm"].get<double>();
-  const double lowpass_mm = methods["lowpass"]["jiggle_mean_mm"].get<double>();
-  std::printf(
-      "\nRemoval on the reconstructed %s take (never trained on), error vs the exact "
-      "quasistatic over the jiggling vertices (mean true offset %.3f mm):\n",
-      take_name.c_str(), offset_mm);
-  for (const auto& [method, figures] : methods.items()) {
-    PrintRow(take_name + " reconstructed", method, figures["jiggle_mean_mm"].get<double>(),
-             figures["relative_to_offset"].get<double>());
-  }
-  std::printf(
-      "  (the reconstruction itself is %.3f mm from the simulated positions there; Eq. 7 with the "
-      "exact offsets in its estimated skull frame is %.3f mm from the exact quasistatic; "
-      "low-pass cutoff by rule %.2f Hz, the oracle's %.1f Hz)\n",
-      reconstruction_error_mm, exact_offsets_removed_mm, evaluation.rule_cutoff_hz,
-      evaluation.oracle_cutoff_hz);
-  if (removed_out != nullptr) *removed_out = std::move(removed);
-  return Json{{"take", take_name + " reconstructed"},
-              {"truth", "exact quasistatic of the simulation whose projected marker centres were "
-                        "reconstructed"},
-              {"scored_frames", {scored.begin, scored.end}},
-              {"jiggle_vertices", jiggle.size()},
-              {"mean_dynamic_offset_mm", Round4(offset_mm)},
-              {"reconstruction_error_mm", Round4(reconstruction_error_mm)},
-              {"exact_offsets_removed_mm", Round4(exact_offsets_removed_mm)},
-              {"methods", methods},
-              {"lowpass_over_F", Round4(f_mm > 0 ? lowpass_mm / f_mm : 0.0)}};
+          {"offset_mean_mm", Round4(eval::MeanOffsetNorm(truth_offsets, vertices, scored))}};
 }
 
 }  // namespace
@@ -565,14 +460,14 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   Take removed;
   const std::string test_name = TakeName(test_simulated.info.expression, test_hz);
   FACEDYN_ASSIGN_OR_RETURN(result["removal"],
-                           CompareRemoval(f_model, reference_removal, test_name, test_simulated,
+                           eval::CompareRemovalOnReconstruction(f_model, reference_removal, test_name, test_simulated,
                                           test_reconstructed, face, skip, &removed));
   result["removal"]["F_targets"] = dynamics::RemovalTargetsName(options.removal_targets);
   const dynamics::FrameRange test_scored = dynamics::ScoredFrames(test_simulated, skip);
   const std::vector<int> jiggle =
       eval::JigglingVertices(test_simulated.channels.at("dynamic_offset"), test_scored);
   const double test_offset_mm =
-      MeanNorm(test_simulated.channels.at("dynamic_offset"), jiggle, test_scored);
+      eval::MeanOffsetNorm(test_simulated.channels.at("dynamic_offset"), jiggle, test_scored);
   const PointCache& test_truth = test_simulated.channels.at("quasistatic");
   // A copy: Json is an ordered_json, whose objects are vectors that move on insertion.
   const Json methods = result["removal"]["methods"];
@@ -610,7 +505,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
     reconstruction.push_back(extra.reconstruction[i]);
     FACEDYN_ASSIGN_OR_RETURN(
         result[extra_sections[i]],
-        CompareRemoval(f_model, reference_removal, extra_specs[i].name, extra.simulated[i],
+        eval::CompareRemovalOnReconstruction(f_model, reference_removal, extra_specs[i].name, extra.simulated[i],
                        extra.reconstructed[i], face, skip, nullptr));
   }
   result["removal_walk"]["step_hz"] = options.test_walk_step_hz;
@@ -622,28 +517,36 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   if (options.subset_epochs > 0) {
     Json subsets = Json::array();
     const size_t per_frequency = options.expressions.size();
+    // Every bar, the full set included, trained here with the same options and the same number
+    // of Adam steps (eval::EqualBudgetEpochs): the bars differ only in their frequencies. Round 1
+    // took the last bar from F at removal_epochs and the others at subset_epochs.
+    auto frames_of = [](const std::vector<Take>& takes) {
+      long frames = 0;
+      for (const Take& take : takes) frames += take.frame_count();
+      return frames;
+    };
+    const long full_frames = frames_of(a.reconstructed);
     for (size_t k = 1; k <= options.train_hz.size(); ++k) {
-      double error_mm = f_mm;
-      if (k < options.train_hz.size()) {
-        std::vector<Take> subset(a.reconstructed.begin(),
-                                 a.reconstructed.begin() + k * per_frequency);
-        const size_t platform_takes = options.train_hz.size() * per_frequency;
-        subset.insert(subset.end(), a.reconstructed.begin() + platform_takes,
-                      a.reconstructed.end());
-        FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel model,
-                                 TrainF(subset, face, options.removal_targets,
-                                        options.subset_epochs, options.removal_batch, options.seed,
-                                        fmt::format("F on {} frequencies", k), nullptr));
-        FACEDYN_ASSIGN_OR_RETURN(const Take subset_removed,
-                                 dynamics::RemoveDynamics(model, test_reconstructed, face));
-        error_mm =
-            eval::MeanDistanceOverVertices(subset_removed.positions, test_truth, jiggle, test_scored);
-      }
+      std::vector<Take> subset(a.reconstructed.begin(),
+                               a.reconstructed.begin() + k * per_frequency);
+      const size_t platform_takes = options.train_hz.size() * per_frequency;
+      subset.insert(subset.end(), a.reconstructed.begin() + platform_takes,
+                    a.reconstructed.end());
+      const int epochs =
+          eval::EqualBudgetEpochs(options.subset_epochs, full_frames, frames_of(subset));
+      FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel model,
+                               TrainF(subset, face, options.removal_targets, epochs,
+                                      options.removal_batch, options.seed,
+                                      fmt::format("F on {} frequencies", k), nullptr));
+      FACEDYN_ASSIGN_OR_RETURN(const Take subset_removed,
+                               dynamics::RemoveDynamics(model, test_reconstructed, face));
+      const double error_mm = eval::MeanDistanceOverVertices(subset_removed.positions, test_truth,
+                                                             jiggle, test_scored);
       subsets.push_back(
           {{"train_hz",
             std::vector<double>(options.train_hz.begin(), options.train_hz.begin() + k)},
            {"training_walk_step_hz", options.training_walk_step_hz},
-           {"epochs", k < options.train_hz.size() ? options.subset_epochs : options.removal_epochs},
+           {"epochs", epochs},
            {"jiggle_mean_mm", Round4(error_mm)},
            {"relative_to_offset", Round4(test_offset_mm > 0 ? error_mm / test_offset_mm : 0)}});
     }
@@ -653,6 +556,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
         {"subsets", subsets},
         {"baselines",
          {{"lowpass", methods["lowpass"]["jiggle_mean_mm"]},
+          {"lowpass_oracle", methods["lowpass_oracle"]["jiggle_mean_mm"]},
           {"moving_average", methods["moving_average"]["jiggle_mean_mm"]},
           {"no_removal", methods["no_removal"]["jiggle_mean_mm"]}}}};
   }
@@ -691,9 +595,9 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
       {"removed_without_synthesis_mm", Round4(removed_only_mm)},
       {"resynthesised_vs_simulated_dynamic_mm", Round4(vs_simulated_mm)}};
   std::printf("\nSynthesis (H trained on %zu takes decomposed by F):\n", a.reconstructed.size());
-  PrintRow(test_name + " reconstructed", "remove+resynthesise residual", residual_mm,
+  eval::PrintMethodRow(test_name + " reconstructed", "remove+resynthesise residual", residual_mm,
            test_offset_mm > 0 ? residual_mm / test_offset_mm : 0.0);
-  PrintRow(test_name + " reconstructed", "removed, not resynthesised", removed_only_mm,
+  eval::PrintMethodRow(test_name + " reconstructed", "removed, not resynthesised", removed_only_mm,
            test_offset_mm > 0 ? removed_only_mm / test_offset_mm : 0.0);
 
   // The new head motion (the walk simulated in section 2) synthesised by H. The quasistatic is
@@ -708,7 +612,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   const std::vector<int> walk_jiggle =
       eval::JigglingVertices(walk_truth.channels.at("dynamic_offset"), walk_scored);
   const double walk_offset_mm =
-      MeanNorm(walk_truth.channels.at("dynamic_offset"), walk_jiggle, walk_scored);
+      eval::MeanOffsetNorm(walk_truth.channels.at("dynamic_offset"), walk_jiggle, walk_scored);
   Json walk_methods = {
       {"H", SynthesisErrors(walk_synthesised, walk_truth, walk_jiggle, skip)},
       {"no_dynamics", NoDynamicsErrors(walk_quasistatic, walk_truth, walk_jiggle, skip)}};
@@ -719,7 +623,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
                        {"mean_dynamic_offset_mm", Round4(walk_offset_mm)},
                        {"methods", walk_methods}};
   for (const auto& [name, figures] : walk_methods.items()) {
-    PrintRow("walk (new head motion)", name + ": offset error",
+    eval::PrintMethodRow("walk (new head motion)", name + ": offset error",
              figures["offset_mean_mm"].get<double>(),
              walk_offset_mm > 0 ? figures["offset_mean_mm"].get<double>() / walk_offset_mm : 0);
   }
@@ -770,7 +674,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   const dynamics::FrameRange b_scored = dynamics::ScoredFrames(retarget_truth, skip);
   const std::vector<int> b_jiggle =
       eval::JigglingVertices(retarget_truth.channels.at("dynamic_offset"), b_scored);
-  const double b_offset_mm = MeanNorm(retarget_truth.channels.at("dynamic_offset"), b_jiggle, b_scored);
+  const double b_offset_mm = eval::MeanOffsetNorm(retarget_truth.channels.at("dynamic_offset"), b_jiggle, b_scored);
   Json retarget_methods = {
       {"H_B_retarget", SynthesisErrors(retargeted, retarget_truth, b_jiggle, skip)},
       {"naive_delta_transfer", SynthesisErrors(naive, retarget_truth, b_jiggle, skip)},
@@ -790,13 +694,15 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
       {"methods", retarget_methods}};
   std::printf("\nRetargeting A's walk to subject B (mean true offset %.3f mm):\n", b_offset_mm);
   for (const auto& [name, figures] : retarget_methods.items()) {
-    PrintRow("B walking", name + ": offset error", figures["offset_mean_mm"].get<double>(),
+    eval::PrintMethodRow("B walking", name + ": offset error", figures["offset_mean_mm"].get<double>(),
              b_offset_mm > 0 ? figures["offset_mean_mm"].get<double>() / b_offset_mm : 0);
   }
 
   Json train_hz_json = options.train_hz;
   result["setup"] = {
-      {"data", "simulated takes reconstructed from projected marker centres (8 simulated cameras, 0.2 px noise; no rendered images)"},
+      {"data",
+       "simulated takes reconstructed from projected marker centres (8 simulated cameras, 0.2 px "
+       "noise; no rendered images)"},
       {"targets", dynamics::RemovalTargetsName(options.removal_targets)},
       {"targets_note",
        "reconstructed takes have no exact channel; platform-synchronous: the fit at the take's "
@@ -808,6 +714,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
       {"test_take", test_name},
       {"test_hz", test_hz},
       {"seconds_per_take", options.seconds},
+      {"subset_epochs", options.subset_epochs},
       {"training_takes", a.reconstructed.size()},
       {"second_subject_hz", options.second_subject_hz},
       {"second_subject_expressions", options.second_subject_expressions},

@@ -320,10 +320,12 @@ std::string DynamicsSection(const Json& dynamics) {
   const Json& removal = Field(dynamics, "removal");
   if (removal.is_object()) {
     html += std::string("<h3>Removal at a platform frequency never trained on</h3>") +
-            "<p>Error against the simulator's exact quasistatic over the jiggling vertices. The "
-            "skull-pose floor is what a perfect removal would give: every method removes in the "
-            "skull frame the reconstruction estimated and maps its result back with that pose, "
-            "so the pose's own error stays.</p>" +
+            "<p>Error against the simulator's exact quasistatic over the jiggling vertices, "
+            "on the scored frames (after the take's hold start and the window). The lower "
+            "reference is Eq. 7 with the exact offsets applied in the skull frame the "
+            "reconstruction estimated: what a perfect F would leave. The low-pass cutoff is set "
+            "by a rule that needs no truth; lowpass_oracle is the best cutoff against the truth, "
+            "which no user could set. One seed: a difference here is not a comparison.</p>" +
             SvgBarChart(Text(removal, "take") + RemovalChartNote(removal),
                         MethodBars(Field(removal, "methods"), "jiggle_mean_mm"), "mm");
   }

@@ -18,7 +18,10 @@
 //                  [--input-noise S] [--no-linear-skip] [--seed N]
 //
 // --seed: draws every take (expression drift, motion phases) and the networks' initialisation
-// from another seed, for a replicate of the whole study (default 1).
+// from another seed, for a replicate of the whole study (default 1). --seeds 1,2,3 runs one
+// study per seed and adds "replicates": each method's mean and spread per test take, and each
+// F against each baseline as lower / higher / tie (a difference within the larger standard
+// deviation is a tie; eval/replicates.h). "fidelity" is the first seed's study.
 // --no-linear-skip: F without the linear map of its inputs (the paper's network alone).
 // --amplitudes: platform amplitudes (mm) of the training takes, one take per frequency,
 // expression and amplitude. --test-hz with --hz lets a setting be chosen on a frequency held
@@ -42,6 +45,7 @@
 #include <vector>
 
 #include "eval/dynamics_study.h"
+#include "eval/replicates.h"
 #include "bench/bench_flags.h"
 #include "core/log.h"
 #include "core/progress.h"
@@ -142,6 +146,7 @@ int main(int argc, char** argv) {
   options.train_amplitudes_mm = {1.5, 2.0, 2.5};
   options.removal_epochs = 13;
   bool amplitudes_given = false;
+  std::vector<uint64_t> seeds;  // --seeds: one whole study per seed, summarised
   bool quick = false;
   int threads = 0;
   for (int k = 1; k < argc; ++k) {
@@ -208,6 +213,9 @@ int main(int argc, char** argv) {
       options.removal_input_noise_std = Number(next(), arg);
     } else if (arg == "--seed") {
       options.seed = static_cast<uint64_t>(Integer(next(), arg));
+    } else if (arg == "--seeds") {
+      for (const std::string& item : Split(next()))
+        seeds.push_back(static_cast<uint64_t>(Integer(item.c_str(), arg)));
     } else if (arg == "--no-linear-skip") {
       options.removal_linear_skip = false;
     } else if (arg == "--seconds") {
@@ -221,7 +229,7 @@ int main(int argc, char** argv) {
           "[--no-platform-targets] [--laplacian-removal] [--laplacian-synthesis] [--batch N] "
           "[--lr LR] [--no-synthesis] [--propagation-prior W] [--amplitudes A1,A2,...] "
           "[--test-hz F] [--test-amplitude A] [--hidden-units N] [--weight-decay W] "
-          "[--input-noise S] [--no-linear-skip] [--seed N]\n");
+          "[--input-noise S] [--no-linear-skip] [--seed N] [--seeds 1,2,3]\n");
       return 2;
     }
   }
@@ -235,13 +243,28 @@ int main(int argc, char** argv) {
     options.synthesis_epochs = 10;
   }
   options.threads = threads;
-  const auto study = facedyn::eval::RunDynamicsStudy(options);
-  if (!study.ok()) {
-    std::fprintf(stderr, "dynamics_bench: %s\n", study.status().message().c_str());
-    return 1;
+  if (seeds.empty()) seeds.push_back(options.seed);
+  std::vector<Json> studies;
+  for (uint64_t seed : seeds) {
+    options.seed = seed;
+    if (seeds.size() > 1) {
+      std::fprintf(stderr, "dynamics_bench: replicate %zu of %zu (seed %llu)\n",
+                   studies.size() + 1, seeds.size(), static_cast<unsigned long long>(seed));
+    }
+    auto result = facedyn::eval::RunDynamicsStudy(options);
+    if (!result.ok()) {
+      std::fprintf(stderr, "dynamics_bench: %s\n", result.status().message().c_str());
+      return 1;
+    }
+    studies.push_back(std::move(result).value());
   }
+  const Json* study = &studies.front();
   Json out;
   out["fidelity"] = *study;
+  if (studies.size() > 1) {
+    out["replicates"] = facedyn::eval::SummariseRemovalReplicates(studies);
+    out["replicates"]["seeds"] = seeds;
+  }
 
   // Speed: F's training throughput against the GEMM rate, measured now, side by side.
   const Json& training = (*study)["training"]["F_exact_targets"];

@@ -62,9 +62,17 @@ set(FACEDYN_TEST_SKIP_CODE 77)
 function(facedyn_add_test module name)
   cmake_parse_arguments(ARG "ONE_PROCESS" "TIMEOUT" "DEPS;LABELS;SOURCES" ${ARGN})
   set(target ${module}_${name})
-  add_executable(${target} ${name}.cc ${ARG_SOURCES} ${PROJECT_SOURCE_DIR}/tests/support/test_main.cc)
-  target_link_libraries(${target} PRIVATE facedyn_test_support ${ARG_DEPS} GTest::gtest
-                                          GTest::gmock)
+  # The shared main(), compiled once (a static library: the linker takes main from it).
+  if(NOT TARGET facedyn_test_main)
+    add_library(facedyn_test_main STATIC ${PROJECT_SOURCE_DIR}/tests/support/test_main.cc)
+    target_link_libraries(facedyn_test_main PUBLIC GTest::gtest)
+    target_compile_definitions(facedyn_test_main
+                               PRIVATE FACEDYN_TEST_SKIP_CODE=${FACEDYN_TEST_SKIP_CODE})
+    _facedyn_common_options(facedyn_test_main)
+  endif()
+  add_executable(${target} ${name}.cc ${ARG_SOURCES})
+  target_link_libraries(${target} PRIVATE facedyn_test_main facedyn_test_support ${ARG_DEPS}
+                                          GTest::gtest GTest::gmock)
   target_compile_definitions(${target} PRIVATE FACEDYN_TEST_SKIP_CODE=${FACEDYN_TEST_SKIP_CODE})
   _facedyn_common_options(${target})
   if(NOT ARG_TIMEOUT)

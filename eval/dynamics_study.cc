@@ -92,6 +92,13 @@ Status DynamicsStudyOptions::Check() const {
   return Status::Ok();
 }
 
+int EqualBudgetEpochs(int full_epochs, long full_frames, long subset_frames) {
+  if (subset_frames <= 0 || subset_frames >= full_frames) return full_epochs;
+  return static_cast<int>(std::ceil(static_cast<double>(full_epochs) *
+                                    static_cast<double>(full_frames) /
+                                    static_cast<double>(subset_frames) - 1e-9));
+}
+
 StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                                 DynamicsStudyArtifacts* artifacts) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
@@ -389,8 +396,9 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
         dynamics::RemovalTrainOptions subset_options;
         const int full_epochs =
             options.subset_epochs > 0 ? options.subset_epochs : options.removal_epochs;
-        subset_options.train.epochs = static_cast<int>(std::ceil(
-            full_epochs * static_cast<double>(options.train_hz.size()) / static_cast<double>(k)));
+        subset_options.train.epochs =
+            EqualBudgetEpochs(full_epochs, static_cast<long>(options.train_hz.size()),
+                              static_cast<long>(k));
         subset_options.train.batch_size = options.removal_batch;
         subset_options.train.learning_rate = options.learning_rate;
         subset_options.train.weight_decay = options.removal_weight_decay;
@@ -414,9 +422,9 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
           options.subset_epochs > 0 ? options.subset_epochs : options.removal_epochs;
       subsets.push_back({{"train_hz", std::vector<double>(options.train_hz.begin(),
                                                           options.train_hz.begin() + k)},
-                         {"epochs", static_cast<int>(std::ceil(
-                                        full_epochs * static_cast<double>(options.train_hz.size()) /
-                                        static_cast<double>(k)))},
+                         {"epochs", EqualBudgetEpochs(full_epochs,
+                                                      static_cast<long>(options.train_hz.size()),
+                                                      static_cast<long>(k))},
                          {"jiggle_mean_mm", Round4(error_mm)},
                          {"relative_to_offset", Round4(offset_mm > 0 ? error_mm / offset_mm : 0)}});
     }

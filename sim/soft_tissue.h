@@ -129,6 +129,9 @@ class SoftTissueModel {
   double Energy() const;
   // For tests: sets a velocity field (per free DOF) on the current state.
   void SetVelocity(const Eigen::VectorXd& velocity);
+  // The neutral face's calibrated mode shape on the free DOFs (M-normalised), e.g. to excite
+  // the face along it with SetVelocity.
+  const Eigen::VectorXd& calibrated_mode() const { return calibrated_mode_; }
 
  private:
   SoftTissueModel() = default;
@@ -140,6 +143,7 @@ class SoftTissueModel {
   double rayleigh_mass_ = 0.0;
   double rayleigh_stiffness_ = 0.0;
   std::vector<int> free_dofs_;
+  Eigen::VectorXd calibrated_mode_;
 };
 
 }  // namespace facedyn::sim

@@ -104,7 +104,8 @@ DampedMode NewmarkApparentMode(const DampedMode& continuous, double dt_s) {
 DampedMode NewmarkCompensatedMode(const DampedMode& apparent, double dt_s) {
   FACEDYN_CHECK(dt_s > 0 && apparent.omega_rad_s > 0, "dt and omega must be positive");
   const auto [s1, s2] = Poles(apparent);
-  FACEDYN_CHECK(std::abs(s1.imag()) * dt_s < M_PI, "the damped period must span more than two steps");
+  FACEDYN_CHECK(std::abs(s1.imag()) * dt_s < M_PI,
+                "the damped period must span more than two steps");
   // z = exp(s_apparent dt) and s = (2 / dt) (z - 1) / (z + 1) = (2 / dt) tanh(s_apparent dt / 2).
   auto continuous = [&](Complex s) { return (2.0 / dt_s) * std::tanh(s * (dt_s / 2)); };
   return FromPoles(continuous(s1), continuous(s2));
@@ -133,9 +134,10 @@ Status TissueOptions::Check() const {
   // The step's compensation (NewmarkCompensatedMode) needs the period to span more than two
   // steps; four keep the simulated motion a fair sampling of it.
   if (fundamental_hz * max_step_s > 0.25) {
-    return InvalidArgumentError(fmt::format(
-        "tissue.max_step_s ({} s) must give at least 4 steps per period of tissue.fundamental_hz ({} Hz)",
-        max_step_s, fundamental_hz));
+    return InvalidArgumentError(
+        fmt::format("tissue.max_step_s ({} s) must give at least 4 steps per period of "
+                    "tissue.fundamental_hz ({} Hz)",
+                    max_step_s, fundamental_hz));
   }
   return Status::Ok();
 }
@@ -160,7 +162,7 @@ struct SoftTissueModel::Impl {
   SparseMatrix kff;                 // stiffness on free DOFs
   std::vector<int> entry_map;       // 144 per tet: index into kff values, or -1
   double youngs = 1.0;
-  double unit_eigenvalue = 0.0;     // w^2 of the calibrated mode for E = 1 (w^2 scales with E)
+  double unit_eigenvalue = 0.0;  // w^2 of the calibrated mode for E = 1 (w^2 scales with E)
 
   // Reference expression (linearisation point) and prefactored systems.
   bool has_reference = false;
@@ -464,8 +466,9 @@ StatusOr<ReferenceSummary> SoftTissueModel::SetReference(const Eigen::VectorXd& 
   FACEDYN_CHECK(weights.size() == m.k_shapes, "one weight per blendshape");
   FACEDYN_CHECK(dt_s > 0, "dt must be positive");
   if (options_.fundamental_hz * dt_s > 0.25) {
-    return InvalidArgumentError(fmt::format("a tissue step of {} s gives fewer than 4 steps per period of {} Hz",
-                                            dt_s, options_.fundamental_hz));
+    return InvalidArgumentError(
+        fmt::format("a tissue step of {} s gives fewer than 4 steps per period of {} Hz", dt_s,
+                    options_.fundamental_hz));
   }
   m.has_reference = false;
   // The material is calibrated for the step actually taken (see "Material" in the header).

@@ -9,7 +9,6 @@
 #include <random>
 
 #include <Eigen/Dense>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -97,8 +96,8 @@ MeasuredMode DominantMode(const std::vector<double>& y, int order, double dt) {
     std::complex<double> power = 1.0;
     for (int i = 0; i < n; ++i, power *= z[j]) vandermonde(i, j) = power;
   }
-  const Eigen::VectorXcd weights =
-      vandermonde.colPivHouseholderQr().solve(Eigen::Map<const Eigen::VectorXd>(y.data(), n).cast<std::complex<double>>());
+  const Eigen::VectorXcd weights = vandermonde.colPivHouseholderQr().solve(
+      Eigen::Map<const Eigen::VectorXd>(y.data(), n).cast<std::complex<double>>());
   MeasuredMode best;
   for (int j = 0; j < order; ++j) {
     if (z[j].imag() <= 1e-9) continue;  // one of each conjugate pair; real poles do not ring
@@ -116,7 +115,8 @@ MeasuredMode DominantMode(const std::vector<double>& y, int order, double dt) {
 // observable(DynamicSkin()) minus its value at rest, at every step for `seconds`: the time
 // response, which knows nothing of how the material was calibrated.
 template <typename Observable>
-std::vector<double> FreeVibrationAlongCalibratedMode(const FaceRig& rig, const TissueOptions& options, double dt_s,
+std::vector<double> FreeVibrationAlongCalibratedMode(const FaceRig& rig,
+                                                     const TissueOptions& options, double dt_s,
                                                      double seconds, Observable observable) {
   auto created = SoftTissueModel::Create(rig, options);
   EXPECT_TRUE(created.ok()) << created.status().message();
@@ -163,8 +163,8 @@ TEST(SoftTissueModel, ShippedStepShowsConfiguredFrequencyAndDamping) {
   const double dt = 1.0 / 128;
   ASSERT_EQ(options.max_step_s, dt);
   const auto& cheeks = ProceduralFace().regions.at("cheeks");
-  const std::vector<double> y =
-      FreeVibrationAlongCalibratedMode(ProceduralFace(), options, dt, 0.75, [&](const Eigen::Matrix3Xd& skin) {
+  const std::vector<double> y = FreeVibrationAlongCalibratedMode(
+      ProceduralFace(), options, dt, 0.75, [&](const Eigen::Matrix3Xd& skin) {
         double sum = 0;
         for (int v : cheeks) sum += skin(1, v);
         return sum / cheeks.size();
@@ -172,8 +172,8 @@ TEST(SoftTissueModel, ShippedStepShowsConfiguredFrequencyAndDamping) {
   ASSERT_EQ(y.size(), 97u);
   for (int order : {4, 8}) {
     const MeasuredMode mode = DominantMode(y, order, dt);
-    SCOPED_TRACE(::testing::Message() << "Prony order " << order << ": measured " << mode.hz << " Hz, zeta "
-                                      << mode.damping_ratio);
+    SCOPED_TRACE(::testing::Message() << "Prony order " << order << ": measured " << mode.hz
+                                      << " Hz, zeta " << mode.damping_ratio);
     EXPECT_NEAR(mode.hz, 11.0, 0.03 * 11.0);
     EXPECT_NEAR(mode.damping_ratio, 0.22, 0.03 * 0.22);
   }
@@ -186,16 +186,19 @@ TEST(SoftTissueModel, OtherSettingsAndStepsShowConfiguredFrequencyAndDamping) {
   struct Case {
     double hz, zeta, dt;
   };
-  for (const Case& c : {Case{7.0, 0.15, 1.0 / 128}, Case{16.0, 0.3, 1.0 / 128}, Case{11.0, 0.22, 1.0 / 256}}) {
+  for (const Case& c :
+       {Case{7.0, 0.15, 1.0 / 128}, Case{16.0, 0.3, 1.0 / 128}, Case{11.0, 0.22, 1.0 / 256}}) {
     TissueOptions options;
     options.fundamental_hz = c.hz;
     options.damping_ratio = c.zeta;
     options.max_step_s = c.dt;
     const std::vector<double> y = FreeVibrationAlongCalibratedMode(
-        MakeShellRig(), options, c.dt, 8 / c.hz, [](const Eigen::Matrix3Xd& skin) { return Centre(skin, 0); });
+        MakeShellRig(), options, c.dt, 8 / c.hz,
+        [](const Eigen::Matrix3Xd& skin) { return Centre(skin, 0); });
     const MeasuredMode mode = DominantMode(y, 6, c.dt);
-    SCOPED_TRACE(::testing::Message() << "configured " << c.hz << " Hz, zeta " << c.zeta << ", dt " << c.dt
-                                      << ": measured " << mode.hz << " Hz, zeta " << mode.damping_ratio);
+    SCOPED_TRACE(::testing::Message()
+                 << "configured " << c.hz << " Hz, zeta " << c.zeta << ", dt " << c.dt
+                 << ": measured " << mode.hz << " Hz, zeta " << mode.damping_ratio);
     EXPECT_NEAR(mode.hz, c.hz, 0.03 * c.hz);
     EXPECT_NEAR(mode.damping_ratio, c.zeta, 0.03 * c.zeta);
   }
@@ -227,7 +230,8 @@ TEST(NewmarkApparentMode, MatchesTheAmplificationMatrixEigenvalues) {
   for (double hz : {2.0, 11.0, 32.0}) {
     for (double zeta : {0.0, 0.05, 0.22, 0.6, 1.5}) {
       const double dt = 1.0 / 128, omega = 2 * M_PI * hz;
-      Eigen::Vector3cd z = Eigen::EigenSolver<Eigen::Matrix3d>(NewmarkAmplification(omega, zeta, dt)).eigenvalues();
+      Eigen::Vector3cd z =
+          Eigen::EigenSolver<Eigen::Matrix3d>(NewmarkAmplification(omega, zeta, dt)).eigenvalues();
       std::sort(z.data(), z.data() + 3, [](auto p, auto q) { return std::abs(p) > std::abs(q); });
       EXPECT_LT(std::abs(z[2]), 1e-9);
       const std::complex<double> s1 = std::log(z[0]) / dt, s2 = std::log(z[1]) / dt;
@@ -249,7 +253,8 @@ TEST(NewmarkApparentMode, PredictsTheSteppedResponse) {
   const Eigen::Matrix3d amplification = NewmarkAmplification(omega, zeta, dt);
   const DampedMode apparent = NewmarkApparentMode({omega, zeta}, dt);
   const double sigma = apparent.damping_ratio * apparent.omega_rad_s;
-  const double omega_d = apparent.omega_rad_s * std::sqrt(1 - apparent.damping_ratio * apparent.damping_ratio);
+  const double omega_d =
+      apparent.omega_rad_s * std::sqrt(1 - apparent.damping_ratio * apparent.damping_ratio);
   Eigen::Vector3d x(1.0, 0.0, -omega * omega);  // a consistent with the equation of motion
   std::vector<double> u = {x[0]};
   for (int n = 0; n < 64; ++n) u.push_back((x = amplification * x)[0]);
@@ -258,7 +263,9 @@ TEST(NewmarkApparentMode, PredictsTheSteppedResponse) {
   const double phi = std::atan2(c0 * std::cos(omega_d * dt) - c1, c0 * std::sin(omega_d * dt));
   const double amplitude = c0 / std::cos(phi);
   for (int n = 0; n <= 64; ++n) {
-    EXPECT_NEAR(u[n], amplitude * std::exp(-sigma * n * dt) * std::cos(omega_d * n * dt + phi), 1e-12) << n;
+    EXPECT_NEAR(u[n], amplitude * std::exp(-sigma * n * dt) * std::cos(omega_d * n * dt + phi),
+                1e-12)
+        << n;
   }
 }
 
@@ -323,7 +330,8 @@ TEST(SoftTissueModel, CalibratesFundamentalFrequency) {
     ASSERT_TRUE((*model)->SetReference(Eigen::VectorXd::Zero(1), 0.0, dt).ok());
     auto hz = (*model)->NaturalFrequenciesHz(3);
     ASSERT_TRUE(hz.ok());
-    const double expected_hz = NewmarkCompensatedMode({2 * M_PI * 9.0, 0.22}, dt).omega_rad_s / (2 * M_PI);
+    const double expected_hz =
+        NewmarkCompensatedMode({2 * M_PI * 9.0, 0.22}, dt).omega_rad_s / (2 * M_PI);
     // The neutral reference is the rest shape, so only the eigen solver's tolerance is left.
     EXPECT_NEAR((*hz)[0], expected_hz, 1e-4 * expected_hz) << dt;
     EXPECT_GT((*hz)[1], (*hz)[0]);

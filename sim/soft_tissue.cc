@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <random>
 
 #include <Eigen/CholmodSupport>
@@ -73,6 +74,43 @@ void LowestModes(const Solver& solver, const SparseMatrix& k, const Eigen::Vecto
 }
 }  // namespace
 
+namespace {
+using Complex = std::complex<double>;
+
+// The two poles s = -zeta omega +- omega sqrt(zeta^2 - 1) of a mode (a conjugate pair when
+// underdamped, two negative reals when overdamped).
+std::pair<Complex, Complex> Poles(const DampedMode& mode) {
+  const double omega = mode.omega_rad_s, zeta = mode.damping_ratio;
+  const Complex root = omega * std::sqrt(Complex(zeta * zeta - 1.0, 0.0));
+  return {-zeta * omega + root, -zeta * omega - root};
+}
+
+// The mode with poles s1, s2: omega^2 = s1 s2 and 2 zeta omega = -(s1 + s2), which holds for
+// both a conjugate pair and two real poles.
+DampedMode FromPoles(Complex s1, Complex s2) {
+  const double omega = std::sqrt((s1 * s2).real());
+  return {omega, -(s1 + s2).real() / (2 * omega)};
+}
+}  // namespace
+
+DampedMode NewmarkApparentMode(const DampedMode& continuous, double dt_s) {
+  FACEDYN_CHECK(dt_s > 0 && continuous.omega_rad_s > 0, "dt and omega must be positive");
+  const auto [s1, s2] = Poles(continuous);
+  const double h = dt_s / 2;
+  auto apparent = [&](Complex s) { return std::log((1.0 + s * h) / (1.0 - s * h)) / dt_s; };
+  return FromPoles(apparent(s1), apparent(s2));
+}
+
+DampedMode NewmarkCompensatedMode(const DampedMode& apparent, double dt_s) {
+  FACEDYN_CHECK(dt_s > 0 && apparent.omega_rad_s > 0, "dt and omega must be positive");
+  const auto [s1, s2] = Poles(apparent);
+  FACEDYN_CHECK(std::abs(s1.imag()) * dt_s < M_PI,
+                "the damped period must span more than two steps");
+  // z = exp(s_apparent dt) and s = (2 / dt) (z - 1) / (z + 1) = (2 / dt) tanh(s_apparent dt / 2).
+  auto continuous = [&](Complex s) { return (2.0 / dt_s) * std::tanh(s * (dt_s / 2)); };
+  return FromPoles(continuous(s1), continuous(s2));
+}
+
 Status TissueOptions::Check() const {
   if (layers < 1 || layers > 8) return InvalidArgumentError(fmt::format("tissue.layers must be 1..8, got {}", layers));
   if (!(poisson_ratio > 0 && poisson_ratio < 0.49)) {
@@ -93,6 +131,14 @@ Status TissueOptions::Check() const {
   }
   if (!(activation_full_mm > 0)) return InvalidArgumentError("tissue.activation_full_mm must be positive");
   if (!(max_step_s > 0 && max_step_s <= 0.05)) return InvalidArgumentError("tissue.max_step_s must be in (0, 0.05]");
+  // The step's compensation (NewmarkCompensatedMode) needs the period to span more than two
+  // steps; four keep the simulated motion a fair sampling of it.
+  if (fundamental_hz * max_step_s > 0.25) {
+    return InvalidArgumentError(
+        fmt::format("tissue.max_step_s ({} s) must give at least 4 steps per period of "
+                    "tissue.fundamental_hz ({} Hz)",
+                    max_step_s, fundamental_hz));
+  }
   return Status::Ok();
 }
 
@@ -116,6 +162,7 @@ struct SoftTissueModel::Impl {
   SparseMatrix kff;                 // stiffness on free DOFs
   std::vector<int> entry_map;       // 144 per tet: index into kff values, or -1
   double youngs = 1.0;
+  double unit_eigenvalue = 0.0;  // w^2 of the calibrated mode for E = 1 (w^2 scales with E)
 
   // Reference expression (linearisation point) and prefactored systems.
   bool has_reference = false;
@@ -147,6 +194,18 @@ struct SoftTissueModel::Impl {
   Eigen::Matrix3Xd skin_targets;     // skin targets at the last Reset/Step
 
   int nf() const { return static_cast<int>(free_nodes.size()); }
+
+  // E and the Rayleigh coefficients for steps of step_s: the calibrated mode's continuous
+  // frequency and damping are those that Newmark's rule at step_s turns into the configured ones,
+  // and alpha + beta w^2 = 2 zeta w splits its damping between mass and stiffness at that w.
+  void Calibrate(const TissueOptions& options, double step_s) {
+    const DampedMode continuous =
+        NewmarkCompensatedMode({2 * M_PI * options.fundamental_hz, options.damping_ratio}, step_s);
+    const double omega = continuous.omega_rad_s, zeta = continuous.damping_ratio;
+    youngs = omega * omega / unit_eigenvalue;
+    alpha = 2 * options.mass_damping_share * zeta * omega;
+    beta = 2 * (1 - options.mass_damping_share) * zeta / omega;
+  }
 
   // Targets of every node for an expression: depth s = l / layers blends the skin's delta
   // (s = 1) with the mandible's motion at the bone (s = 0).
@@ -376,11 +435,11 @@ StatusOr<std::unique_ptr<SoftTissueModel>> SoftTissueModel::Create(const FaceRig
       }
     }
   }
-  m.youngs = std::pow(2 * M_PI * options.fundamental_hz, 2) / eigenvalues[calibrated_mode];
+  // Until SetReference names the step, calibrate for the largest one the options allow.
+  m.unit_eigenvalue = eigenvalues[calibrated_mode];
+  m.Calibrate(options, options.max_step_s);
+  model->calibrated_mode_ = modes.col(calibrated_mode);
   model->youngs_modulus_kpa_ = m.youngs;
-  const double omega = 2 * M_PI * options.fundamental_hz;
-  m.alpha = 2 * options.mass_damping_share * options.damping_ratio * omega;
-  m.beta = 2 * (1 - options.mass_damping_share) * options.damping_ratio / omega;
   model->rayleigh_mass_ = m.alpha;
   model->rayleigh_stiffness_ = m.beta;
   m.Assemble(m.rest, options.poisson_ratio);
@@ -406,7 +465,17 @@ StatusOr<ReferenceSummary> SoftTissueModel::SetReference(const Eigen::VectorXd& 
   Impl& m = *impl_;
   FACEDYN_CHECK(weights.size() == m.k_shapes, "one weight per blendshape");
   FACEDYN_CHECK(dt_s > 0, "dt must be positive");
+  if (options_.fundamental_hz * dt_s > 0.25) {
+    return InvalidArgumentError(
+        fmt::format("a tissue step of {} s gives fewer than 4 steps per period of {} Hz", dt_s,
+                    options_.fundamental_hz));
+  }
   m.has_reference = false;
+  // The material is calibrated for the step actually taken (see "Material" in the header).
+  m.Calibrate(options_, dt_s);
+  youngs_modulus_kpa_ = m.youngs;
+  rayleigh_mass_ = m.alpha;
+  rayleigh_stiffness_ = m.beta;
   m.w_ref = weights;
   m.jaw_ref = jaw_angle_rad;
   m.dt = dt_s;

@@ -471,7 +471,6 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   const PointCache& test_truth = test_simulated.channels.at("quasistatic");
   // A copy: Json is an ordered_json, whose objects are vectors that move on insertion.
   const Json methods = result["removal"]["methods"];
-  const double f_mm = methods["F"]["jiggle_mean_mm"].get<double>();
 
   // Two more takes of subject A, never trained on, simulated and reconstructed from projected
   // marker centres together

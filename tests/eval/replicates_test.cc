@@ -25,7 +25,8 @@ TEST(CompareLowerIsBetter, InsideTheSpreadIsATie) {
   EXPECT_EQ(CompareLowerIsBetter(low, high), "lower");
   EXPECT_EQ(CompareLowerIsBetter(high, low), "higher");
   // A wide spread swallows a difference that narrow ones would show.
-  EXPECT_EQ(CompareLowerIsBetter(SpreadOf({0.5, 1.0, 1.5}), SpreadOf({1.6, 1.7, 1.8})), "tie");
+  EXPECT_EQ(CompareLowerIsBetter(SpreadOf({0.5, 1.5, 2.5}), SpreadOf({1.6, 1.7, 1.8})), "tie");
+  EXPECT_EQ(CompareLowerIsBetter(SpreadOf({1.49, 1.5, 1.51}), SpreadOf({1.6, 1.7, 1.8})), "lower");
   EXPECT_EQ(CompareLowerIsBetter(SpreadOf({1.0, 1.0}), high), "too few replicates");
 }
 

@@ -30,6 +30,14 @@ namespace facedyn {
 
 inline constexpr int kTakeFormatVersion = 1;
 
+// The margin (s) a held-expression take allows the skin's transient after the expression and
+// the head motion reach their held values, before a held-expression target is trusted. It is
+// one fixed figure, not derived from the tissue: a capture session does not know the actor's
+// tissue, so neither may the simulator's take metadata (the true fundamental and damping are
+// scoring-only). 0.25 s is three decay times 1/(zeta 2 pi f0) of any tissue with
+// f0 * zeta >= 1.91 Hz; the shipped simulated tissue (11 Hz, zeta 0.22) needs 0.197 s.
+inline constexpr double kHeldExpressionSettleS = 0.25;
+
 struct TakeInfo {
   double fps = 0.0;
   std::string subject;
@@ -39,9 +47,10 @@ struct TakeInfo {
   std::optional<double> platform_hz;  // platform oscillation frequency, when there was one
   // Time (s, from the first frame) from which the expression is held and the head motion is
   // steady, so a held-expression target (the moving average, the platform-synchronous fit)
-  // holds: the simulator writes its expression and motion fade-ins plus the tissue's settling.
-  // Absent: no such time is known (a performance, or a capture that records after its sweep
-  // step settled and the actor was prompted: every frame counts as held).
+  // holds: the simulator writes its expression and motion fade-ins plus
+  // kHeldExpressionSettleS. Absent: no such time is known (a performance, or a capture that
+  // records after its sweep step settled and the actor was prompted: every frame counts as
+  // held).
   std::optional<double> hold_start_s;
   Json metadata = Json::object();
 };

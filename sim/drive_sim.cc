@@ -336,7 +336,7 @@ DriveModelState DriveSim::state() const {
 void DriveSim::RefreshRegisters() {
   const DriveModelState& s = model_.state();
   uint16_t status = 0;
-  if (model_.running()) status |= profile_.running_value & profile_.running_mask;
+  if (model_.output_active()) status |= profile_.running_value & profile_.running_mask;
   if (s.fault_code != 0) status |= profile_.fault_mask;
   uint16_t* registers = mapping_->tab_registers;
   registers[profile_.status_register] = status;

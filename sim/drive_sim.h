@@ -116,6 +116,13 @@ class DriveModel {
   const DriveModelState& state() const { return state_; }
   const DriveModelOptions& options() const { return options_; }
   bool running() const { return state_.run_commanded && state_.fault_code == 0; }
+  // What the status word's "running" bit reports: the output is live, which on a real drive
+  // includes the deceleration ramp after a stop command until the output reaches 0 Hz. (A stop
+  // that cleared the bit at once would let the output register, which rounds to its 0.01 Hz
+  // count, read 0 while the motor still turns at a few mHz.)
+  bool output_active() const {
+    return state_.fault_code == 0 && (state_.run_commanded || state_.output_hz > 0.0);
+  }
 
  private:
   DriveModelOptions options_;

@@ -173,17 +173,15 @@ StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions&
   take.channels["dynamic_offset"] = std::move(offset);
   if (options.expression != "speech") {
     // The expression forms over kExpressionRamp_s and the motion fades in over its ramp_in_s;
-    // the tissue's transient from both then decays as exp(-zeta omega t): three time constants
-    // leave 5% of it. Before that a held-expression target (moving average, platform fit) is
-    // wrong by up to 0.5 mm at the mouth corners (smile, 8 Hz), so training and evaluation
-    // start there (dynamics/valid_frames.h).
+    // the skin's transient from both then decays. Before that a held-expression target (moving
+    // average, platform fit) is wrong by up to 0.5 mm at the mouth corners (smile, 8 Hz), so
+    // training and evaluation start after a fixed margin (core/take.h kHeldExpressionSettleS):
+    // the take's metadata is what a capture would know, never the tissue's true parameters.
     const double motion_ramp_s =
         (options.motion.kind == MotionKind::kNone || options.motion.kind == MotionKind::kFile)
             ? 0.0
             : options.motion.ramp_in_s;
-    const double settle_s =
-        3.0 / (2 * M_PI * options.tissue.fundamental_hz * options.tissue.damping_ratio);
-    take.info.hold_start_s = std::max(kExpressionRamp_s, motion_ramp_s) + settle_s;
+    take.info.hold_start_s = std::max(kExpressionRamp_s, motion_ramp_s) + kHeldExpressionSettleS;
   }
 
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -164,7 +164,7 @@ TEST(Cli, DemoMetricsAndReport) {
   ASSERT_TRUE(methods.contains("lowpass_oracle"));
   EXPECT_TRUE(methods["lowpass_oracle"]["oracle"].get<bool>());
   EXPECT_GE(dynamics["removal"]["scored_frames"][0].get<int>(),
-            static_cast<int>(0.49 * 128));  // hold_start_s 0.497 s at 128 fps
+            static_cast<int>(0.55 * 128));  // hold_start_s 0.3 s + 0.25 s at 128 fps
   for (const char* method : {"F", "lowpass", "no_removal"}) {
     EXPECT_GT(methods[method]["skull_frame_jiggle_mean_mm"].get<double>(), 0.0) << method;
   }

@@ -15,60 +15,30 @@
 #include "app/face_render.h"
 #include "core/file_util.h"
 #include "dynamics/baselines.h"
-#include "eval/dynamics_study.h"
-#include "eval/metrics.h"
-#include "eval/removal_comparison.h"
 #include "dynamics/features.h"
 #include "dynamics/mlp.h"
 #include "dynamics/synthesis_model.h"
+#include "eval/dynamics_study.h"
+#include "eval/metrics.h"
+#include "eval/removal_comparison.h"
+#include "eval/synthesis_scoring.h"
 #include "sim/performance.h"
+#include "sim/procedural_face.h"
 #include "sim/skull_motion.h"
 
 namespace facedyn::app {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+using eval::Round4;
 
 double SecondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-double Round4(double x) { return std::round(x * 1e4) / 1e4; }
 
 std::string TakeName(const std::string& expression, double hz) {
   return fmt::format("{}@{:g}Hz", expression, hz);
-}
-
-// The held shape of a take in the skull frame (3 x V): mean over frames [skip, F - skip) of
-// T(t)^-1 x(t). For a quasistatic estimate of a held expression this is the expression's shape;
-// the demo carries it along a new head motion.
-Eigen::Matrix3Xd MeanShapeInSkull(const Take& take, int skip) {
-  Eigen::Matrix3Xd sum = Eigen::Matrix3Xd::Zero(3, take.vertex_count());
-  int count = 0;
-  for (int t = skip; t < take.frame_count() - skip; ++t, ++count) {
-    sum += take.world_from_skull[t].Inverse().Apply(take.FramePositions(t));
-  }
-  return sum / std::max(count, 1);
-}
-
-// A FaceRig of another shape: every position the rig stores in the skull frame (skin, skull,
-// expression deltas, landmarks, jaw pivot) scaled per axis. Samples, markers and regions are
-// defined on vertices, so they follow. Tissue thickness scales with the face, as it would
-// between a smaller and a larger head.
-StatusOr<FaceRig> ScaledFaceRig(const FaceRig& rig, const Eigen::Vector3d& scale,
-                                const std::string& name) {
-  FaceRig scaled = rig;
-  scaled.name = name;
-  const Eigen::DiagonalMatrix<double, 3> s(scale);
-  scaled.neutral.positions_mm = s * rig.neutral.positions_mm;
-  scaled.skull.positions_mm = s * rig.skull.positions_mm;
-  for (Eigen::Matrix3Xd& delta : scaled.blendshape_deltas_mm) delta = s * delta;
-  for (SkullLandmark& landmark : scaled.skull_landmarks) {
-    landmark.position_in_skull = s * landmark.position_in_skull;
-  }
-  scaled.jaw.pivot_in_skull = s * rig.jaw.pivot_in_skull;
-  FACEDYN_RETURN_IF_ERROR(scaled.Validate());
-  return scaled;
 }
 
 // One subject's takes: simulated (with the exact channels) and reconstructed.
@@ -279,30 +249,6 @@ StatusOr<dynamics::SynthesisModel> TrainH(const std::vector<Take>& decomposed, c
   return dynamics::TrainSynthesis(training, options, summary);
 }
 
-// Errors of a synthesised take against a simulated truth of the same motion over `vertices`:
-// positions (world) and dynamic offsets (skull frame) — the second isolates the dynamics from
-// the quasistatic estimate's own error.
-Json SynthesisErrors(const Take& synthesised, const Take& truth, const std::vector<int>& vertices,
-                     int skip) {
-  const dynamics::FrameRange scored = dynamics::ScoredFrames(truth, skip);
-  const PointCache& truth_offsets = truth.channels.at("dynamic_offset");
-  return {{"position_mean_mm", Round4(eval::MeanDistanceOverVertices(
-                                   synthesised.positions, truth.positions, vertices, scored))},
-          {"offset_mean_mm",
-           Round4(eval::MeanDistanceOverVertices(synthesised.channels.at("dynamic_offset"),
-                                                     truth_offsets, vertices, scored))}};
-}
-
-// The same figures for a take without dynamics: its positions are the quasistatic itself.
-Json NoDynamicsErrors(const Take& quasistatic, const Take& truth, const std::vector<int>& vertices,
-                      int skip) {
-  const dynamics::FrameRange scored = dynamics::ScoredFrames(truth, skip);
-  const PointCache& truth_offsets = truth.channels.at("dynamic_offset");
-  return {{"position_mean_mm", Round4(eval::MeanDistanceOverVertices(
-                                   quasistatic.positions, truth.positions, vertices, scored))},
-          {"offset_mean_mm", Round4(eval::MeanOffsetNorm(truth_offsets, vertices, scored))}};
-}
-
 }  // namespace
 
 DemoDynamicsOptions DemoDynamicsOptions::ForDemo(bool quick) {
@@ -419,7 +365,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   // Subject B: another shape and another tissue.
   FACEDYN_ASSIGN_OR_RETURN(
       const FaceRig face_b,
-      ScaledFaceRig(face,
+      sim::ScaledFaceRig(face,
                     Eigen::Vector3d(options.second_subject_scale_x, options.second_subject_scale_y,
                                     options.second_subject_scale_z),
                     face.name + "-b"));
@@ -579,20 +525,14 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
       Take resynthesised,
       dynamics::SynthesizeDynamics(h_model, removed, test_reconstructed.world_from_skull,
                                    test_reconstructed.info.motion, face));
-  const double residual_mm = eval::MeanDistanceOverVertices(
-      resynthesised.positions, test_reconstructed.positions, jiggle, test_scored);
-  const double removed_only_mm = eval::MeanDistanceOverVertices(
-      removed.positions, test_reconstructed.positions, jiggle, test_scored);
-  const double vs_simulated_mm = eval::MeanDistanceOverVertices(
-      resynthesised.positions, test_simulated.positions, jiggle, test_scored);
   Json synthesis;
-  synthesis["resynthesis"] = {
-      {"take", test_name + " reconstructed"},
-      {"mean_dynamic_offset_mm", Round4(test_offset_mm)},
-      {"resynthesis_residual_mm", Round4(residual_mm)},
-      {"relative_to_offset", Round4(test_offset_mm > 0 ? residual_mm / test_offset_mm : 0.0)},
-      {"removed_without_synthesis_mm", Round4(removed_only_mm)},
-      {"resynthesised_vs_simulated_dynamic_mm", Round4(vs_simulated_mm)}};
+  FACEDYN_ASSIGN_OR_RETURN(synthesis["resynthesis"],
+                           eval::ResynthesisFigures(test_name + " reconstructed", test_simulated,
+                                                    test_reconstructed, removed, resynthesised,
+                                                    skip));
+  const double residual_mm = synthesis["resynthesis"]["resynthesis_residual_mm"].get<double>();
+  const double removed_only_mm =
+      synthesis["resynthesis"]["removed_without_synthesis_mm"].get<double>();
   std::printf("\nSynthesis (H trained on %zu takes decomposed by F):\n", a.reconstructed.size());
   eval::PrintMethodRow(test_name + " reconstructed", "remove+resynthesise residual", residual_mm,
            test_offset_mm > 0 ? residual_mm / test_offset_mm : 0.0);
@@ -601,7 +541,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
 
   // The new head motion (the walk simulated in section 2) synthesised by H. The quasistatic is
   // F's estimate of the held-out take's shape.
-  const Eigen::Matrix3Xd shape_a = MeanShapeInSkull(removed, skip);
+  const Eigen::Matrix3Xd shape_a = dynamics::MeanShapeInSkull(removed, skip);
   const Take walk_quasistatic =
       dynamics::HeldShapeTake(face, shape_a, walk_truth.world_from_skull, fps);
   FACEDYN_ASSIGN_OR_RETURN(Take walk_synthesised,
@@ -612,9 +552,12 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
       eval::JigglingVertices(walk_truth.channels.at("dynamic_offset"), walk_scored);
   const double walk_offset_mm =
       eval::MeanOffsetNorm(walk_truth.channels.at("dynamic_offset"), walk_jiggle, walk_scored);
-  Json walk_methods = {
-      {"H", SynthesisErrors(walk_synthesised, walk_truth, walk_jiggle, skip)},
-      {"no_dynamics", NoDynamicsErrors(walk_quasistatic, walk_truth, walk_jiggle, skip)}};
+  Json walk_methods;
+  FACEDYN_ASSIGN_OR_RETURN(walk_methods["H"],
+                           eval::SynthesisErrors(walk_synthesised, walk_truth, walk_jiggle, skip));
+  FACEDYN_ASSIGN_OR_RETURN(
+      walk_methods["no_dynamics"],
+      eval::NoDynamicsErrors(walk_quasistatic, walk_truth, walk_jiggle, skip));
   synthesis["walk"] = {{"take", test_simulated.info.expression + " walking, subject A"},
                        {"truth", "subject A simulated walking"},
                        {"quasistatic", "mean shape of F's removal of the held-out take"},
@@ -646,7 +589,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   FACEDYN_RETURN_IF_ERROR(hb_model.Save(JoinPath(models_dir, "H_B.pt")));
   training["H_B"] = TrainingJson(hb_summary, options.synthesis_epochs);
   // B's quasistatic: the shape of F_B's removal of B's first (neutral) take.
-  const Eigen::Matrix3Xd shape_b = MeanShapeInSkull(decomposed_b.front(), skip);
+  const Eigen::Matrix3Xd shape_b = dynamics::MeanShapeInSkull(decomposed_b.front(), skip);
   decomposed_b.clear();
   std::printf("  simulating subject B walking subject A's walk (%.1f s) for the truth\n",
               options.walk_seconds);
@@ -654,30 +597,15 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   FACEDYN_ASSIGN_OR_RETURN(
       Take retarget_truth,
       Simulate(face_b, "neutral", walk, options.walk_seconds, tissue_b, options.seed + 50));
-  for (int t = 0; t < retarget_truth.frame_count(); ++t) {
-    const Rigid3 d = walk_truth.world_from_skull[t].Inverse() * retarget_truth.world_from_skull[t];
-    if (d.translation().norm() > 1e-6 || d.AngleRad() > 1e-9) {
-      return InternalError(
-          fmt::format("retargeting: subject B's walk differs from subject A's at frame {}", t));
-    }
-  }
   const Take b_quasistatic =
       dynamics::HeldShapeTake(face_b, shape_b, walk_truth.world_from_skull, fps);
-  FACEDYN_ASSIGN_OR_RETURN(
-      Take retargeted, dynamics::SynthesizeDynamics(hb_model, b_quasistatic,
-                                                    walk_truth.world_from_skull, "walk", face_b));
-  // Naive (Fig. 10b): A's true walking offsets copied sample by sample onto B. It is given the
-  // exact source dynamics, the most it could have.
-  FACEDYN_ASSIGN_OR_RETURN(Take naive,
-                           dynamics::NaiveDeltaTransfer(walk_truth, face, b_quasistatic, face_b));
-  const dynamics::FrameRange b_scored = dynamics::ScoredFrames(retarget_truth, skip);
-  const std::vector<int> b_jiggle =
-      eval::JigglingVertices(retarget_truth.channels.at("dynamic_offset"), b_scored);
-  const double b_offset_mm = eval::MeanOffsetNorm(retarget_truth.channels.at("dynamic_offset"), b_jiggle, b_scored);
-  Json retarget_methods = {
-      {"H_B_retarget", SynthesisErrors(retargeted, retarget_truth, b_jiggle, skip)},
-      {"naive_delta_transfer", SynthesisErrors(naive, retarget_truth, b_jiggle, skip)},
-      {"no_dynamics", NoDynamicsErrors(b_quasistatic, retarget_truth, b_jiggle, skip)}};
+  FACEDYN_ASSIGN_OR_RETURN(eval::RetargetingResult retargeting,
+                           eval::ScoreRetargeting(hb_model, walk_truth, face, retarget_truth,
+                                                  face_b, b_quasistatic, skip));
+  const Json retarget_methods = retargeting.figures["methods"];
+  const double b_offset_mm = retargeting.figures["mean_dynamic_offset_mm"].get<double>();
+  Take retargeted = std::move(retargeting.retargeted);
+  Take naive = std::move(retargeting.naive);
   result["retarget"] = {
       {"source", "subject A walking (head motion)"},
       {"target",
@@ -688,8 +616,8 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
                    tissue_a.fundamental_hz, tissue_a.damping_ratio)},
       {"truth", "subject B simulated walking the same walk"},
       {"training_takes", b.reconstructed.size()},
-      {"jiggle_vertices", b_jiggle.size()},
-      {"mean_dynamic_offset_mm", Round4(b_offset_mm)},
+      {"jiggle_vertices", retargeting.figures["jiggle_vertices"]},
+      {"mean_dynamic_offset_mm", retargeting.figures["mean_dynamic_offset_mm"]},
       {"methods", retarget_methods}};
   std::printf("\nRetargeting A's walk to subject B (mean true offset %.3f mm):\n", b_offset_mm);
   for (const auto& [name, figures] : retarget_methods.items()) {

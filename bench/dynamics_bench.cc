@@ -15,7 +15,15 @@
 //                  [--laplacian-removal] [--laplacian-synthesis] [--batch N] [--lr LR]
 //                  [--no-synthesis] [--propagation-prior W] [--amplitudes A1,A2,...]
 //                  [--test-hz F] [--test-amplitude A] [--hidden-units N] [--weight-decay W]
-//                  [--input-noise S] [--no-linear-skip] [--seed N]
+//                  [--input-noise S] [--no-linear-skip] [--seed N] [--seeds 1,2,3]
+//                  [--held-out-expressions a,b|none] [--held-out-expression-hz F]
+//                  [--held-out-motions walk,run,jump|none]
+//
+// Test takes, one protocol each ("protocol" in every removal entry): every training expression
+// at --test-hz (held-out frequency, paper Fig. 5), speech at --speech-hz (held-out performance),
+// --held-out-expressions at --held-out-expression-hz (default pucker at 8 Hz, a training
+// frequency, so only the expression is new) and --held-out-motions (neutral walk and run in
+// place; F trained on the platform only).
 //
 // --seed: draws every take (expression drift, motion phases) and the networks' initialisation
 // from another seed, for a replicate of the whole study (default 1). --seeds 1,2,3 runs one
@@ -172,6 +180,14 @@ int main(int argc, char** argv) {
       options.expressions = Split(next());
     } else if (arg == "--speech-hz") {
       options.speech_hz = Number(next(), arg);
+    } else if (arg == "--held-out-expressions") {
+      const std::string list = next();
+      options.held_out_expressions = list == "none" ? std::vector<std::string>() : Split(list);
+    } else if (arg == "--held-out-expression-hz") {
+      options.held_out_expression_hz = Number(next(), arg);
+    } else if (arg == "--held-out-motions") {
+      const std::string list = next();
+      options.held_out_motions = list == "none" ? std::vector<std::string>() : Split(list);
     } else if (arg == "--no-train-speech") {
       options.train_speech = false;
     } else if (arg == "--window-ms") {
@@ -229,7 +245,9 @@ int main(int argc, char** argv) {
           "[--no-platform-targets] [--laplacian-removal] [--laplacian-synthesis] [--batch N] "
           "[--lr LR] [--no-synthesis] [--propagation-prior W] [--amplitudes A1,A2,...] "
           "[--test-hz F] [--test-amplitude A] [--hidden-units N] [--weight-decay W] "
-          "[--input-noise S] [--no-linear-skip] [--seed N] [--seeds 1,2,3]\n");
+          "[--input-noise S] [--no-linear-skip] [--seed N] [--seeds 1,2,3] "
+          "[--held-out-expressions a,b|none] [--held-out-expression-hz F] "
+          "[--held-out-motions walk,run,jump|none]\n");
       return 2;
     }
   }

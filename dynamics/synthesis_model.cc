@@ -309,6 +309,20 @@ StatusOr<Take> SynthesizeDynamics(const SynthesisModel& model, const Take& quasi
   return result;
 }
 
+Eigen::Matrix3Xd MeanShapeInSkull(const Take& take, int skip) {
+  int begin = std::max(0, skip);
+  int end = take.frame_count() - begin;
+  if (end <= begin) {
+    begin = 0;
+    end = take.frame_count();
+  }
+  Eigen::Matrix3Xd sum = Eigen::Matrix3Xd::Zero(3, take.vertex_count());
+  for (int t = begin; t < end; ++t) {
+    sum += take.world_from_skull[t].Inverse().Apply(take.FramePositions(t));
+  }
+  return sum / std::max(end - begin, 1);
+}
+
 Take HeldShapeTake(const FaceRig& rig, const Eigen::Matrix3Xd& shape_in_skull,
                    const std::vector<Rigid3>& world_from_skull, double fps) {
   FACEDYN_CHECK(shape_in_skull.cols() == rig.vertex_count(), "HeldShapeTake: wrong vertex count");

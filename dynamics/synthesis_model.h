@@ -127,6 +127,12 @@ StatusOr<Take> SynthesizeDynamics(const SynthesisModel& model, const Take& quasi
                                   SynthesisSummary* summary = nullptr);
 // (`propagation` is used only for a model without its own, as RemoveDynamics.)
 
+// The held shape of a take in the skull frame (3 x V, mm): the mean over frames
+// [skip, F - skip) of T(t)^-1 x(t). Of a quasistatic estimate of a held expression (F's
+// removal) it is the expression's shape, which HeldShapeTake carries along a new head motion.
+// The whole take when it has fewer than 2 skip + 1 frames.
+Eigen::Matrix3Xd MeanShapeInSkull(const Take& take, int skip);
+
 // A held shape (3 x V, skull frame, mm) posed by `world_from_skull` at `fps`: the quasistatic
 // take of a subject holding one expression under a given head motion.
 Take HeldShapeTake(const FaceRig& rig, const Eigen::Matrix3Xd& shape_in_skull,

@@ -15,7 +15,9 @@ FrameRange UsableFrames(const Take& take, int margin_frames, bool held_only) {
   FrameRange range;
   range.begin = first_window_start + margin_frames;
   range.end = frames - margin_frames;
-  if (range.end < range.begin) range.end = range.begin;
+  // Nothing usable: an empty range whose bounds are still frames of the take, so a caller that
+  // loops or indexes over it stays in range.
+  if (range.end < range.begin) range.begin = range.end = std::clamp(range.end, 0, frames);
   return range;
 }
 

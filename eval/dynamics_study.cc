@@ -1,5 +1,6 @@
 #include "eval/dynamics_study.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -10,12 +11,13 @@
 #include <utility>
 
 #include "dynamics/baselines.h"
-#include "eval/metrics.h"
 #include "dynamics/mlp.h"
 #include "dynamics/propagation.h"
 #include "dynamics/quasistatic.h"
 #include "dynamics/removal_model.h"
 #include "dynamics/synthesis_model.h"
+#include "eval/metrics.h"
+#include "eval/synthesis_scoring.h"
 #include "sim/performance.h"
 #include "sim/procedural_face.h"
 #include "sim/skull_motion.h"
@@ -28,7 +30,6 @@ double SecondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-double Round4(double x) { return std::round(x * 1e4) / 1e4; }
 
 Json StatsJson(const eval::ErrorStats& stats) {
   return {{"mean_mm", Round4(stats.mean_mm)},
@@ -39,6 +40,7 @@ Json StatsJson(const eval::ErrorStats& stats) {
 struct SimTake {
   std::string name;
   Take take;
+  std::string protocol;  // test takes: which held-out condition they test; else "training"
 };
 
 StatusOr<Take> Simulate(const FaceRig& rig, const std::string& expression, double hz,
@@ -48,6 +50,30 @@ StatusOr<Take> Simulate(const FaceRig& rig, const std::string& expression, doubl
   perform.motion.kind = sim::MotionKind::kPlatform;
   perform.motion.platform_hz = hz;
   perform.motion.amplitude_mm = amplitude_mm;
+  perform.motion.seed = seed;
+  perform.seed = seed;
+  perform.seconds = options.seconds;
+  perform.fps = options.fps;
+  return sim::SimulatePerformance(rig, perform);
+}
+
+// A neutral take under a head motion no training take has, in place (see held_out_motions).
+StatusOr<Take> SimulateMotion(const FaceRig& rig, const std::string& motion,
+                              const DynamicsStudyOptions& options, uint64_t seed) {
+  sim::PerformanceOptions perform;
+  perform.expression = "neutral";
+  if (motion == "walk") {
+    perform.motion.kind = sim::MotionKind::kWalk;
+    perform.motion.walk_speed_mm_per_s = 0;
+  } else if (motion == "run") {
+    perform.motion.kind = sim::MotionKind::kRun;
+    perform.motion.run_speed_mm_per_s = 0;
+  } else if (motion == "jump") {
+    perform.motion.kind = sim::MotionKind::kJump;
+  } else {
+    return InvalidArgumentError(
+        fmt::format("held_out_motions: \"{}\" is not walk, run or jump", motion));
+  }
   perform.motion.seed = seed;
   perform.seed = seed;
   perform.seconds = options.seconds;
@@ -89,6 +115,21 @@ Status DynamicsStudyOptions::Check() const {
     return InvalidArgumentError("removal_weight_decay must be >= 0");
   if (!(removal_input_noise_std >= 0))
     return InvalidArgumentError("removal_input_noise_std must be >= 0");
+  for (const std::string& expression : held_out_expressions) {
+    if (std::find(expressions.begin(), expressions.end(), expression) != expressions.end() ||
+        expression == "speech") {
+      return InvalidArgumentError(fmt::format(
+          "held_out_expressions: \"{}\" is trained on (expressions or speech)", expression));
+    }
+  }
+  if (!held_out_expressions.empty() && !hz_ok(held_out_expression_hz))
+    return InvalidArgumentError("held_out_expression_hz must be in 0.5..30");
+  for (const std::string& motion : held_out_motions) {
+    if (motion != "walk" && motion != "run" && motion != "jump") {
+      return InvalidArgumentError(
+          fmt::format("held_out_motions: \"{}\" is not walk, run or jump", motion));
+    }
+  }
   return Status::Ok();
 }
 
@@ -98,6 +139,33 @@ int EqualBudgetEpochs(int full_epochs, long full_frames, long subset_frames) {
                                     static_cast<double>(full_frames) /
                                     static_cast<double>(subset_frames) - 1e-9));
 }
+
+namespace {
+
+// F's training options from the study's: one place, so the main models and Fig. 5's subset
+// models cannot drift apart in anything but what the caller changes.
+dynamics::RemovalTrainOptions RemovalOptionsFor(const DynamicsStudyOptions& options,
+                                                dynamics::RemovalTargets targets, int epochs) {
+  dynamics::RemovalTrainOptions train_options;
+  train_options.train.epochs = epochs;
+  train_options.train.batch_size = options.removal_batch;
+  train_options.train.learning_rate = options.learning_rate;
+  train_options.train.weight_decay = options.removal_weight_decay;
+  train_options.train.input_noise_std = options.removal_input_noise_std;
+  train_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
+  train_options.train.seed = options.seed;
+  train_options.train.num_threads = options.threads;
+  train_options.train.show_progress = options.show_progress;
+  train_options.hidden_units = options.removal_hidden_units;
+  train_options.linear_skip = options.removal_linear_skip;
+  train_options.targets = targets;
+  train_options.window_s = options.window_s;
+  train_options.learn_propagation = options.removal_learned_propagation;
+  train_options.propagation.prior_weight = options.propagation_prior_weight;
+  return train_options;
+}
+
+}  // namespace
 
 StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                                 DynamicsStudyArtifacts* artifacts) {
@@ -145,7 +213,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
         FACEDYN_ASSIGN_OR_RETURN(
             Take take, Simulate(rig, expression, hz, amplitude_mm, options, train_seed(h, a, e)));
         train.push_back(
-            {name_of(expression, hz, amplitude_mm, several_amplitudes), std::move(take)});
+            {name_of(expression, hz, amplitude_mm, several_amplitudes), std::move(take), "training"});
       }
     }
   }
@@ -159,7 +227,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
         FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, "speech", hz, amplitude_mm, options,
                                                      train_seed(h, a, options.expressions.size())));
         train_speech.push_back(
-            {name_of("speech", hz, amplitude_mm, several_amplitudes), std::move(take)});
+            {name_of("speech", hz, amplitude_mm, several_amplitudes), std::move(take), "training"});
       }
     }
   }
@@ -168,13 +236,31 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     spdlog::info("simulating test take {} at {} Hz", expression, options.test_hz);
     FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, expression, options.test_hz,
                                                  options.test_amplitude_mm, options, ++seed));
-    test.push_back({expression + "@" + fmt::format("{:g}Hz", options.test_hz), std::move(take)});
+    test.push_back({expression + "@" + fmt::format("{:g}Hz", options.test_hz), std::move(take),
+                    "held-out frequency"});
   }
   if (options.speech_hz > 0) {
     spdlog::info("simulating test take speech at {} Hz", options.speech_hz);
     FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, "speech", options.speech_hz,
                                                  options.test_amplitude_mm, options, ++seed));
-    test.push_back({"speech@" + fmt::format("{:g}Hz", options.speech_hz), std::move(take)});
+    test.push_back({"speech@" + fmt::format("{:g}Hz", options.speech_hz), std::move(take),
+                    "held-out performance (speech)"});
+  }
+  // Seeds of the held-out expression and motion takes count on from here, so adding them does
+  // not move the seeds (and figures) of the takes above.
+  for (const std::string& expression : options.held_out_expressions) {
+    spdlog::info("simulating held-out expression {} at {} Hz", expression,
+                 options.held_out_expression_hz);
+    FACEDYN_ASSIGN_OR_RETURN(Take take,
+                             Simulate(rig, expression, options.held_out_expression_hz,
+                                      options.test_amplitude_mm, options, ++seed));
+    test.push_back({fmt::format("{}@{:g}Hz", expression, options.held_out_expression_hz),
+                    std::move(take), "held-out expression"});
+  }
+  for (const std::string& motion : options.held_out_motions) {
+    spdlog::info("simulating held-out motion {} (neutral, in place)", motion);
+    FACEDYN_ASSIGN_OR_RETURN(Take take, SimulateMotion(rig, motion, options, ++seed));
+    test.push_back({"neutral " + motion + " in place", std::move(take), "held-out motion kind"});
   }
   const double simulate_s = SecondsSince(simulate_start);
 
@@ -192,22 +278,8 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
   std::vector<Trained> models;
   auto train_removal = [&](const std::string& name, dynamics::RemovalTargets targets,
                            const std::vector<dynamics::TrainingTake>& training) -> Status {
-    dynamics::RemovalTrainOptions train_options;
-    train_options.train.epochs = options.removal_epochs;
-    train_options.train.batch_size = options.removal_batch;
-    train_options.train.learning_rate = options.learning_rate;
-    train_options.train.weight_decay = options.removal_weight_decay;
-    train_options.train.input_noise_std = options.removal_input_noise_std;
-    train_options.hidden_units = options.removal_hidden_units;
-    train_options.linear_skip = options.removal_linear_skip;
-    train_options.targets = targets;
-    train_options.window_s = options.window_s;
-    train_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
-    train_options.learn_propagation = options.removal_learned_propagation;
-    train_options.propagation.prior_weight = options.propagation_prior_weight;
-    train_options.train.seed = options.seed;
-    train_options.train.num_threads = options.threads;
-    train_options.train.show_progress = options.show_progress;
+    const dynamics::RemovalTrainOptions train_options =
+        RemovalOptionsFor(options, targets, options.removal_epochs);
     spdlog::info("training removal network {} ({} takes, {} epochs)", name, training.size(),
                  train_options.train.epochs);
     dynamics::MlpTrainSummary summary;
@@ -241,6 +313,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
         eval::MeanDistanceOverVertices(t.take.positions, truth, mask, scored);
     Json entry;
     entry["take"] = t.name;
+    entry["protocol"] = t.protocol;
     entry["jiggle_vertices"] = mask.size();
     entry["mean_dynamic_offset_mm"] = Round4(offset_mm);
     Json methods = Json::object();
@@ -350,6 +423,9 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                      {"test_hz", options.test_hz},
                      {"speech_hz", options.speech_hz},
                      {"expressions", options.expressions},
+                     {"held_out_expressions", options.held_out_expressions},
+                     {"held_out_expression_hz", options.held_out_expression_hz},
+                     {"held_out_motions", options.held_out_motions},
                      {"train_amplitudes_mm", options.train_amplitudes_mm},
                      {"test_amplitude_mm", options.test_amplitude_mm},
                      {"training_takes", train.size()},
@@ -393,24 +469,15 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
       {
         const std::vector<dynamics::TrainingTake> subset(held_training.begin(),
                                                          held_training.begin() + k * per_frequency);
-        dynamics::RemovalTrainOptions subset_options;
         const int full_epochs =
             options.subset_epochs > 0 ? options.subset_epochs : options.removal_epochs;
-        subset_options.train.epochs =
+        // The subset models propagate with the main model's learned propagation (below), so
+        // they do not learn one of their own; everything else is the main model's options.
+        dynamics::RemovalTrainOptions subset_options = RemovalOptionsFor(
+            options, dynamics::RemovalTargets::kExact,
             EqualBudgetEpochs(full_epochs, static_cast<long>(options.train_hz.size()),
-                              static_cast<long>(k));
-        subset_options.train.batch_size = options.removal_batch;
-        subset_options.train.learning_rate = options.learning_rate;
-        subset_options.train.weight_decay = options.removal_weight_decay;
-        subset_options.train.input_noise_std = options.removal_input_noise_std;
-        subset_options.hidden_units = options.removal_hidden_units;
-        subset_options.linear_skip = options.removal_linear_skip;
-        subset_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
-        subset_options.train.seed = options.seed;
-        subset_options.train.num_threads = options.threads;
-        subset_options.train.show_progress = options.show_progress;
-        subset_options.targets = dynamics::RemovalTargets::kExact;
-        subset_options.window_s = options.window_s;
+                              static_cast<long>(k)));
+        subset_options.learn_propagation = false;
         spdlog::info("training removal network on {} frequencies (paper Fig. 5)", k);
         FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel model,
                                  dynamics::TrainRemoval(subset, subset_options));
@@ -484,27 +551,17 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     Json synthesis_json = Json::array();
     for (size_t k = 0; k < test.size(); ++k) {
       const Take& original = test[k].take;
-      const dynamics::FrameRange scored = dynamics::ScoredFrames(original, skip);
       FACEDYN_ASSIGN_OR_RETURN(
           const Take resynthesised,
           dynamics::SynthesizeDynamics(synthesis, removed_by_best[k], original.world_from_skull,
                                        original.info.motion, rig, &propagation));
-      const std::vector<int> mask =
-          eval::JigglingVertices(original.channels.at("dynamic_offset"), scored);
-      const double offset_mm = eval::MeanDistanceOverVertices(
-          original.positions, original.channels.at("quasistatic"), mask, scored);
-      const double residual_mm = eval::MeanDistanceOverVertices(resynthesised.positions,
-                                                                    original.positions, mask, scored);
-      // Without synthesis, the residual of the removed take is the dynamics themselves.
-      const double removed_only_mm = eval::MeanDistanceOverVertices(
-          removed_by_best[k].positions, original.positions, mask, scored);
       if (artifacts != nullptr && k == 0) artifacts->resynthesised = resynthesised;
-      synthesis_json.push_back(
-          {{"take", test[k].name},
-           {"mean_dynamic_offset_mm", Round4(offset_mm)},
-           {"resynthesis_residual_mm", Round4(residual_mm)},
-           {"relative_to_offset", Round4(offset_mm > 0 ? residual_mm / offset_mm : 0)},
-           {"removed_without_synthesis_mm", Round4(removed_only_mm)}});
+      FACEDYN_ASSIGN_OR_RETURN(Json figures,
+                               ResynthesisFigures(test[k].name, original, original,
+                                                  removed_by_best[k], resynthesised, skip));
+      const double residual_mm = figures["resynthesis_residual_mm"].get<double>();
+      const double offset_mm = figures["mean_dynamic_offset_mm"].get<double>();
+      synthesis_json.push_back(std::move(figures));
       spdlog::info("{}: resynthesis residual {:.3f} mm of {:.3f} mm offset", test[k].name,
                    residual_mm, offset_mm);
     }

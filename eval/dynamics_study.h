@@ -8,9 +8,10 @@
 //   - speed: training rows/s next to the machine's LibTorch GEMM rate, removal + propagation
 //     frames/s.
 //
-// Shared by bench/dynamics_bench (the figures of issue 4) and `facedyn demo` (a small version).
-// It lives in app/ because it wires sim/ (the data) to dynamics/ (the method); neither module may
-// depend on the other.
+// Run by bench/dynamics_bench on simulated takes with the exact skull; `facedyn demo` runs the
+// same protocols on reconstructed takes (app/demo_dynamics.cc, scoring from eval/). It lives in
+// eval/ because it wires sim/ (the data) to dynamics/ (the method); neither module may depend
+// on the other.
 #pragma once
 
 #include <string>
@@ -42,6 +43,15 @@ struct DynamicsStudyOptions {
   double window_s = 0.08;  // feature half-window of both networks (the paper's 10 frames)
   int vertices = 4000;     // procedural face size
   double speech_hz = 8.0;  // platform frequency of the speech test take; <= 0: no speech test
+  // Held-out expression: test takes of expressions no training take holds (none may be in
+  // `expressions`), on the platform at held_out_expression_hz — a training frequency by
+  // default, so that only the expression is new.
+  std::vector<std::string> held_out_expressions = {"pucker"};
+  double held_out_expression_hz = 8.0;
+  // Held-out motion kind: neutral test takes under head motions no training take has ("walk",
+  // "run", "jump"; walk and run in place: forward speed changes nothing for the tissue, but the
+  // skull descriptor holds velocities and would put the take far outside the platform takes).
+  std::vector<std::string> held_out_motions = {"walk", "run"};
   // Also train F (exact targets) and H on speech takes at every training frequency (other seeds
   // than the test take's). Only the simulator can give exact targets for a changing expression;
   // the paper's moving-average targets exist for held expressions only, so F_moving_average
@@ -80,9 +90,10 @@ struct DynamicsStudyOptions {
   Status Check() const;
 };
 
-// Runs the study; the JSON has "setup", "removal" (per test take: each method's mean, p95, max
-// error over the face and the mean error over the jiggling vertices relative to the mean true
-// dynamic offset there), "synthesis" and "training" sections. Progress on the terminal.
+// Runs the study; the JSON has "setup", "removal" (per test take: its "protocol" — held-out
+// frequency, held-out performance, held-out expression, held-out motion kind — each method's
+// mean, p95, max error over the face and the mean error over the jiggling vertices relative to
+// the mean true dynamic offset there), "synthesis" and "training" sections. Progress on the terminal.
 // What the study made, for renders: the rig, the first test take (dynamic, with the exact
 // quasistatic and dynamic_offset channels), its removal by F (exact targets) and, when synthesis
 // ran, its resynthesis by H under its own head motion.

@@ -13,6 +13,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -88,6 +89,9 @@ std::vector<int> JigglingVertices(const PointCache& true_offsets, dynamics::Fram
 // (CHECKed, naming both counts): equal vertex and frame counts, vertices and frames in range.
 double MeanDistanceOverVertices(const PointCache& a, const PointCache& b,
                                 const std::vector<int>& vertices, dynamics::FrameRange frames);
+
+// A figure rounded to 1e-4 (0.1 um for mm) for reports: more digits than that are noise.
+inline double Round4(double x) { return std::round(x * 1e4) / 1e4; }
 
 // The symmetric range [skip, F - skip) of a take of `frame_count` frames (empty if too short).
 inline dynamics::FrameRange EdgeSkipped(int frame_count, int skip) {

@@ -14,7 +14,6 @@
 namespace facedyn::eval {
 namespace {
 
-double Round4(double x) { return std::round(x * 1e4) / 1e4; }
 
 
 }  // namespace

@@ -43,12 +43,15 @@ Json SummariseRemovalReplicates(const std::vector<Json>& studies) {
   // take -> method -> values, in first-seen order of takes.
   std::vector<std::string> take_order;
   std::map<std::string, std::map<std::string, std::vector<double>>> values;
+  std::map<std::string, std::string> protocol;
   for (const Json& study : studies) {
     if (!study.contains("removal") || !study["removal"].is_array()) continue;
     for (const Json& take : study["removal"]) {
       if (!take.contains("take") || !take.contains("methods")) continue;
       const std::string name = take["take"].get<std::string>();
       if (values.count(name) == 0) take_order.push_back(name);
+      if (take.contains("protocol") && take["protocol"].is_string())
+        protocol[name] = take["protocol"].get<std::string>();
       for (const auto& [method, figures] : take["methods"].items()) {
         if (figures.contains("jiggle_mean_mm")) {
           values[name][method].push_back(figures["jiggle_mean_mm"].get<double>());
@@ -74,7 +77,9 @@ Json SummariseRemovalReplicates(const std::vector<Json>& studies) {
                             {"error_is", CompareLowerIsBetter(spread, other)}});
       }
     }
-    takes.push_back({{"take", name}, {"methods", methods}, {"verdicts", verdicts}});
+    Json entry = {{"take", name}, {"methods", methods}, {"verdicts", verdicts}};
+    if (protocol.count(name)) entry["protocol"] = protocol[name];
+    takes.push_back(std::move(entry));
   }
   return {{"replicates", studies.size()},
           {"rule", "a difference within the larger standard deviation is a tie"},

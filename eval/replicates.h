@@ -23,8 +23,9 @@ Spread SpreadOf(const std::vector<double>& values);
 std::string CompareLowerIsBetter(const Spread& a, const Spread& b);
 
 // Per removal take of dynamics studies run with different seeds (RunDynamicsStudy's JSON,
-// "removal" array, matched by take name): each method's jiggle_mean_mm as a Spread, and each
-// learned method (names starting "F") against every baseline as a verdict. Takes or methods
+// "removal" array, matched by take name, keeping its "protocol"): each method's jiggle_mean_mm
+// as a Spread, and each learned method (names starting "F") against every baseline as a
+// verdict. Takes or methods
 // missing from some replicate are summarised over the replicates that have them.
 Json SummariseRemovalReplicates(const std::vector<Json>& studies);
 

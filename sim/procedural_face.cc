@@ -403,4 +403,24 @@ StatusOr<FaceRig> MakeProceduralFace(const ProceduralFaceOptions& options) {
   return rig;
 }
 
+StatusOr<FaceRig> ScaledFaceRig(const FaceRig& rig, const Eigen::Vector3d& scale,
+                                const std::string& name) {
+  if (!(scale.array() > 0).all() || !scale.allFinite()) {
+    return InvalidArgumentError(fmt::format("ScaledFaceRig: scale ({}, {}, {}) must be > 0",
+                                            scale.x(), scale.y(), scale.z()));
+  }
+  FaceRig scaled = rig;
+  scaled.name = name;
+  const Eigen::DiagonalMatrix<double, 3> s(scale);
+  scaled.neutral.positions_mm = s * rig.neutral.positions_mm;
+  scaled.skull.positions_mm = s * rig.skull.positions_mm;
+  for (Eigen::Matrix3Xd& delta : scaled.blendshape_deltas_mm) delta = s * delta;
+  for (SkullLandmark& landmark : scaled.skull_landmarks) {
+    landmark.position_in_skull = s * landmark.position_in_skull;
+  }
+  scaled.jaw.pivot_in_skull = s * rig.jaw.pivot_in_skull;
+  FACEDYN_RETURN_IF_ERROR(scaled.Validate());
+  return scaled;
+}
+
 }  // namespace facedyn::sim

@@ -48,4 +48,12 @@ struct ProceduralFaceOptions {
 // kProceduralJawPivotMm, axis +X, region "jaw"), then CompleteFaceAnatomy. Deterministic.
 StatusOr<FaceRig> MakeProceduralFace(const ProceduralFaceOptions& options);
 
+// Another subject from a rig: every position the rig stores in the skull frame (skin, skull,
+// expression deltas, landmarks, jaw pivot) scaled per axis by `scale` (each > 0). Samples,
+// markers and regions are defined on vertices, so they follow. Tissue thickness scales with the
+// face, as it would between a smaller and a larger head. Errors name a bad scale or what the
+// scaled rig fails to validate.
+StatusOr<FaceRig> ScaledFaceRig(const FaceRig& rig, const Eigen::Vector3d& scale,
+                                const std::string& name);
+
 }  // namespace facedyn::sim

@@ -41,6 +41,15 @@ TEST(UsableFrames, MarginsFirstVelocityAndHoldStart) {
   EXPECT_EQ(FirstHeldFrame(take), 100);
   EXPECT_TRUE(UsableFrames(take, 10, true).empty());
   EXPECT_EQ(UsableFrames(EmptyTake(15, 128.0), 10, false).size(), 0);
+  // ... and its bounds are frames of the take, so a metric over it stays in range (the range
+  // was [110, 110) of a 100-frame take).
+  for (const FrameRange empty : {UsableFrames(take, 10, true),
+                                 UsableFrames(EmptyTake(15, 128.0), 10, false)}) {
+    EXPECT_GE(empty.begin, 0);
+    EXPECT_LE(empty.end, 100);
+    EXPECT_EQ(empty.begin, empty.end);
+  }
+  EXPECT_LE(UsableFrames(EmptyTake(15, 128.0), 10, false).end, 15);
 }
 
 // The property the split exists for: no validation frame within 2w frames of a training frame

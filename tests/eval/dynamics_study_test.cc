@@ -43,6 +43,15 @@ TEST(DynamicsStudyOptions, CheckNamesTheField) {
               HasSubstr("removal_weight_decay"));
   EXPECT_THAT(message([](DynamicsStudyOptions* o) { o->removal_input_noise_std = -0.1; }),
               HasSubstr("removal_input_noise_std"));
+  // A held-out expression or motion must really be held out, and be one the simulator has.
+  EXPECT_THAT(message([](DynamicsStudyOptions* o) { o->held_out_expressions = {"smile"}; }),
+              HasSubstr("held_out_expressions: \"smile\" is trained on"));
+  EXPECT_THAT(message([](DynamicsStudyOptions* o) { o->held_out_expressions = {"speech"}; }),
+              HasSubstr("held_out_expressions"));
+  EXPECT_THAT(message([](DynamicsStudyOptions* o) { o->held_out_expression_hz = 40; }),
+              HasSubstr("held_out_expression_hz"));
+  EXPECT_THAT(message([](DynamicsStudyOptions* o) { o->held_out_motions = {"platform"}; }),
+              HasSubstr("held_out_motions: \"platform\" is not walk, run or jump"));
   DynamicsStudyOptions several;
   several.train_amplitudes_mm = {1.5, 2.0, 2.5};
   EXPECT_TRUE(several.Check().ok());

@@ -36,12 +36,15 @@ TEST(SummariseRemovalReplicates, MatchesTakesByNameAndJudgesFAgainstBaselines) {
     Json methods = {{"F_exact_targets", {{"jiggle_mean_mm", f}}},
                     {"lowpass", {{"jiggle_mean_mm", 0.20}}},
                     {"moving_average", {{"jiggle_mean_mm", f + 0.005}}}};
-    studies.push_back({{"removal", Json::array({{{"take", "neutral 11 Hz"}, {"methods", methods}}})}});
+    studies.push_back({{"removal", Json::array({{{"take", "neutral 11 Hz"},
+                                                 {"protocol", "held-out frequency"},
+                                                 {"methods", methods}}})}});
   }
   const Json summary = SummariseRemovalReplicates(studies);
   ASSERT_EQ(summary["removal"].size(), 1u);
   const Json& take = summary["removal"][0];
   EXPECT_EQ(take["take"], "neutral 11 Hz");
+  EXPECT_EQ(take["protocol"], "held-out frequency");
   EXPECT_NEAR(take["methods"]["F_exact_targets"]["mean_mm"].get<double>(), 0.11, 1e-9);
   EXPECT_NEAR(take["methods"]["F_exact_targets"]["sd_mm"].get<double>(), 0.01, 1e-9);
   std::map<std::string, std::string> verdict;

@@ -38,6 +38,23 @@ Status WriteReserve(const std::string& path) {
   return Status::Ok();
 }
 
+// Why `relative` (a path from capture.json or session.json) does not name a file inside the
+// folder it is relative to (`folder_kind`: "take", "session"), or "". A take's files are always
+// inside its folder and a session's calibration inside the session; a file that points
+// elsewhere ("../../other/frames.fdr", "/etc/shadow") is corrupt or hostile, and following it
+// would make `session check` and reconstruct read, and report on, files of someone else's
+// choosing. The test is lexical (no ".." component, not absolute): symlinks inside a session
+// are the operator's own doing and are followed.
+std::string PathLeavesFolder(const std::string& relative, const char* folder_kind) {
+  const fs::path path(relative);
+  if (path.empty()) return "is empty";
+  if (path.is_absolute()) return "is absolute";
+  for (const fs::path& part : path) {
+    if (part == "..") return fmt::format("climbs out of the {} folder with '..'", folder_kind);
+  }
+  return "";
+}
+
 Json CamerasToJson(const std::vector<SessionCameraInfo>& cameras) {
   Json list = Json::array();
   for (const auto& camera : cameras) {
@@ -149,6 +166,8 @@ Status SessionWriter::WriteSessionJson() {
 }
 
 Status SessionWriter::SetCalibration(const std::string& relative_path) {
+  if (const std::string why = PathLeavesFolder(relative_path, "session"); !why.empty())
+    return InvalidArgumentError("session calibration '" + relative_path + "' " + why);
   session_["calibration"] = relative_path;
   return WriteSessionJson();
 }
@@ -247,22 +266,6 @@ Status SessionWriter::EndTake(const std::string& name, const TakeResult& result)
 
 namespace {
 
-// Why `relative` (a path from capture.json) does not name a file inside the folder it is
-// relative to, or "". A take's files are always inside its folder; a manifest that points
-// elsewhere ("../../other/frames.fdr", "/etc/shadow") is corrupt or hostile, and following it
-// would make `session check` and reconstruct read, and report on, files of someone else's
-// choosing. The test is lexical (no ".." component, not absolute): symlinks inside a session
-// are the operator's own doing and are followed.
-std::string PathLeavesFolder(const std::string& relative) {
-  const fs::path path(relative);
-  if (path.empty()) return "is empty";
-  if (path.is_absolute()) return "is absolute";
-  for (const fs::path& part : path) {
-    if (part == "..") return "climbs out of the take folder with '..'";
-  }
-  return "";
-}
-
 SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& name,
                              int camera_count) {
   SessionTake take;
@@ -322,7 +325,7 @@ SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& 
         SessionWriter::CameraDirName(static_cast<int>(k)) + "/" + kFrameFileName;
     if (camera.ok() && camera->Get<std::string>("frame_file").ok())
       frame_file = *camera->Get<std::string>("frame_file");
-    if (const std::string why = PathLeavesFolder(frame_file); !why.empty()) {
+    if (const std::string why = PathLeavesFolder(frame_file, "take"); !why.empty()) {
       entry.problem = manifest_path + ": cameras[" + std::to_string(k) + "].frame_file '" +
                       frame_file + "' " + why + "; refused (frame files stay in " + take.dir + ")";
     } else {
@@ -367,7 +370,15 @@ StatusOr<SessionInfo> ReadSession(const std::string& dir) {
   }
   FACEDYN_ASSIGN_OR_RETURN(const std::string calibration,
                            root.GetOr<std::string>("calibration", ""));
-  if (!calibration.empty()) info.calibration_path = JoinPath(info.dir, calibration);
+  if (!calibration.empty()) {
+    // Confined like capture.json's frame paths: calibration feeds reconstruct, and a session
+    // must not make it read camera models from elsewhere.
+    if (const std::string why = PathLeavesFolder(calibration, "session"); !why.empty()) {
+      return root.Error("calibration", fmt::format("'{}' {}; refused (the calibration stays in {})",
+                                                   calibration, why, info.dir));
+    }
+    info.calibration_path = JoinPath(info.dir, calibration);
+  }
   std::set<std::string> listed;
   FACEDYN_ASSIGN_OR_RETURN(const ConfigNode takes, root.Child("takes"));
   for (size_t i = 0; i < takes.size(); ++i) {

@@ -174,6 +174,44 @@ TEST(Session, FramePathsOutsideTheTakeAreRefused) {
   }
 }
 
+// session.json's calibration reference is confined to the session like capture.json's frame
+// paths: before, "../" or an absolute path made reconstruct load camera models from anywhere.
+TEST(Session, CalibrationPathOutsideTheSessionIsRefusedNamingTheField) {
+  for (const std::string hostile :
+       {"../outside/calibration.yaml", "sub/../../outside/calibration.yaml", "/OUTSIDE"}) {
+    testing::TempDir dir;
+    {
+      auto session = SessionWriter::Open(dir.Join("s"), "virtual", Cameras(1), Json::object());
+      ASSERT_TRUE(session.ok());
+      ASSERT_TRUE((*session)->SetCalibration("calibration.yaml").ok());
+      EXPECT_FALSE((*session)->SetCalibration(hostile).ok()) << hostile;
+    }
+    std::filesystem::create_directories(dir.Join("outside"));
+    testing::WriteBytes(dir.Join("outside/calibration.yaml"), "cameras: []\n");
+    std::string target = hostile == "/OUTSIDE" ? dir.Join("outside/calibration.yaml") : hostile;
+    const std::string path = dir.Join("s/session.json");
+    Json json = Json::parse(testing::ReadBytes(path));
+    EXPECT_EQ(json["calibration"], "calibration.yaml");
+    json["calibration"] = target;
+    testing::WriteBytes(path, json.dump(2));
+    auto info = ReadSession(dir.Join("s"));
+    ASSERT_FALSE(info.ok()) << target;
+    EXPECT_NE(info.status().message().find("field 'calibration'"), std::string::npos)
+        << info.status().message();
+    EXPECT_NE(info.status().message().find(target), std::string::npos) << info.status().message();
+    EXPECT_FALSE(CheckSession(dir.Join("s")).ok());
+  }
+  // A path inside the session is still read.
+  testing::TempDir dir;
+  ASSERT_TRUE(SessionWriter::Open(dir.path(), "virtual", Cameras(1), Json::object()).ok());
+  Json json = Json::parse(testing::ReadBytes(dir.Join("session.json")));
+  json["calibration"] = "calib/cameras.yaml";
+  testing::WriteBytes(dir.Join("session.json"), json.dump(2));
+  auto info = ReadSession(dir.path());
+  ASSERT_TRUE(info.ok()) << info.status().message();
+  EXPECT_EQ(info->calibration_path, info->dir + "/calib/cameras.yaml");
+}
+
 // triggers_emitted sizes reconstruct's per-trigger arrays; 2^40 in a manifest is refused here.
 TEST(Session, ImpossibleTriggerCountInManifestIsRefused) {
   testing::TempDir dir;

@@ -78,7 +78,9 @@ struct TakeCameraResult {
 };
 
 struct TakeResult {
-  std::string status = "recording";  // recording | complete | aborted
+  // recording | complete | aborted (an error) | interrupted (a stop request ended it; every
+  // frame recorded so far is kept)
+  std::string status = "recording";
   std::string reason;                // why it is not complete, "" when complete
   double fps = 0.0;
   int64_t triggers_requested = 0;

@@ -442,8 +442,33 @@ StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig,
         status = options.hooks.on_hold_start(info).WithContext(
             fmt::format("step {} hook", info.instance));
       }
-      StatusOr<HoldSummary> hold =
-          status.ok() ? supervisor->Hold(spec.hold_s) : StatusOr<HoldSummary>(status);
+      StatusOr<HoldSummary> hold = InternalError("step not held");
+      if (!status.ok()) {
+        hold = status;
+      } else if (options.hooks.during_hold) {
+        const SupervisedWork supervised = HoldDuring(
+            supervisor.get(), spec.hold_s, options.hooks.max_hold_s,
+            [&](const std::atomic<bool>& abort) {
+              HoldWork work;
+              work.abort = &abort;
+              work.platform = [&supervisor] { return supervisor->Snapshot(); };
+              return options.hooks.during_hold(info, work);
+            });
+        const Status work =
+            supervised.work_status.WithContext(fmt::format("step {} hook", info.instance));
+        if (!supervised.hold_status.ok()) {
+          // The platform's verdict first; what it did to the work is logged beside it.
+          hold = supervised.hold_status;
+          if (!supervised.work_status.ok())
+            log->Write("step_work", {{"instance", info.instance}, {"result", work.message()}});
+        } else if (!supervised.work_status.ok()) {
+          hold = work;
+        } else {
+          hold = supervised.hold;
+        }
+      } else {
+        hold = supervisor->Hold(spec.hold_s);
+      }
       if (hold.ok() && options.hooks.on_hold_end) {
         status = options.hooks.on_hold_end(info, *hold)
                      .WithContext(fmt::format("step {} hook", info.instance));

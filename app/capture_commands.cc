@@ -35,6 +35,7 @@
 #include "capture/session.h"
 #include "capture/session_runner.h"
 #include "capture/trigger.h"
+#include "core/config_node.h"
 #include "core/file_util.h"
 #include "rig/drive_client.h"
 #include "rig/modbus_transport.h"
@@ -330,12 +331,12 @@ Status RunCaptureCommand(const CaptureCommandOptions& options) {
     if (platform.supervisor) {
       // The take records on a thread of its own while this thread keeps supervising the
       // platform; a trip, overspeed or stop signal stops the platform and interrupts the take.
-      const rig::SupervisedWork supervised = rig::HoldDuring(
-          platform.supervisor.get(), 0.0, MaxTakeHoldS(config),
-          [&](const std::atomic<bool>& abort) {
-            output = CaptureTake(config, session.get(), inputs, &abort);
-            return output.status();
-          });
+      const rig::SupervisedWork supervised =
+          rig::HoldDuring(platform.supervisor.get(), 0.0, MaxTakeHoldS(config),
+                          [&](const std::atomic<bool>& abort) {
+                            output = CaptureTake(config, session.get(), inputs, &abort);
+                            return output.status();
+                          });
       platform_status = supervised.hold_status;
       Status stopped = platform_status.ok()
                            ? platform.supervisor->RampToStop("take " + options.take + " done")
@@ -383,20 +384,49 @@ Status RunCaptureCommand(const CaptureCommandOptions& options) {
   sweep_options.stop_requested = stop;
   sweep_options.print_prompts = !options.json;
   bool all_complete = true;
+  // The takes earlier runs made for a step (a kill or a stop interrupts one, and the step is
+  // recorded again as <base>_retryN), oldest first, and the name for a new one.
+  struct StepTakes {
+    std::vector<std::string> earlier;
+    std::string next;
+  };
+  auto step_takes = [&](const rig::SweepStepInfo& info) {
+    std::string prompt;
+    for (char c : info.spec.prompt) prompt += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+    const std::string base = fmt::format("step{:02d}_{:.2f}hz{}{}", info.instance + 1, info.spec.hz,
+                                         prompt.empty() ? "" : "_", prompt);
+    StepTakes found;
+    found.next = base;
+    for (int retry = 2; std::filesystem::exists(session->TakeDir(found.next)); ++retry) {
+      found.earlier.push_back(found.next);
+      found.next = fmt::format("{}_retry{}", base, retry);
+    }
+    return found;
+  };
+  // A kill between a take's end and the rig log's step_done leaves the step's take complete on
+  // disk: --resume counts it instead of recording (and vibrating) the step again.
+  sweep_options.hooks.already_done = [&](const rig::SweepStepInfo& info) {
+    for (const std::string& name : step_takes(info).earlier) {
+      auto manifest = ConfigNode::ReadFile(JoinPath(session->TakeDir(name), "capture.json"));
+      if (manifest.ok() && manifest->GetOr<std::string>("status", "").ok() &&
+          *manifest->GetOr<std::string>("status", "") == "complete") {
+        spdlog::info("capture: take {} of step {} is complete from an earlier run", name,
+                     info.instance + 1);
+        return true;
+      }
+    }
+    return false;
+  };
   sweep_options.hooks.max_hold_s = MaxTakeHoldS(config);
   // Runs on a thread of its own while the sweep's thread supervises the platform (HoldDuring).
   sweep_options.hooks.during_hold = [&](const rig::SweepStepInfo& info,
                                         const rig::HoldWork& work) -> Status {
-    std::string prompt;
-    for (char c : info.spec.prompt) prompt += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
-    std::string name = fmt::format("step{:02d}_{:.2f}hz{}{}", info.instance + 1, info.spec.hz,
-                                   prompt.empty() ? "" : "_", prompt);
-    for (int retry = 2; std::filesystem::exists(session->TakeDir(name)); ++retry) {
-      name = fmt::format("step{:02d}_{:.2f}hz{}{}_retry{}", info.instance + 1, info.spec.hz,
-                         prompt.empty() ? "" : "_", prompt, retry);
-    }
+    const StepTakes earlier = step_takes(info);
+    const std::string name = earlier.next;
     TakeInputs inputs;
     inputs.name = name;
+    // `session check` then counts the earlier, interrupted attempts as redone by this take.
+    if (!earlier.earlier.empty()) inputs.extra["supersedes"] = earlier.earlier;
     inputs.platform_hz =
         platform.drive_sim ? platform.drive_sim->state().platform_hz : info.spec.hz;
     const std::vector<std::string> expressions = sim::ExpressionNames();

@@ -155,8 +155,8 @@ Sample RunOnce(const facedyn::rig::RigConfig& base, const facedyn::rig::DrivePro
     }
   });
   if (fault == Fault::kCtrlCDuringTake) {
-    const facedyn::rig::SupervisedWork supervised = facedyn::rig::HoldDuring(
-        supervisor->get(), 30.0, 60.0, [](const std::atomic<bool>& abort) {
+    const facedyn::rig::SupervisedWork supervised =
+        facedyn::rig::HoldDuring(supervisor->get(), 30.0, 60.0, [](const std::atomic<bool>& abort) {
           while (!abort) std::this_thread::sleep_for(std::chrono::milliseconds(8));
           return facedyn::AbortedError("take interrupted");
         });
@@ -231,8 +231,8 @@ int main(int argc, char** argv) {
   const std::atomic<bool>* signal_flag = facedyn::rig::InstallStopSignalHandlers();
 
   Json out;
-  out["command"] = "standstill_bench --runs " + std::to_string(runs) + " --hz " +
-                   facedyn::Json(hz).dump();
+  out["command"] =
+      "standstill_bench --runs " + std::to_string(runs) + " --hz " + facedyn::Json(hz).dump();
   out["rig"] = rig_path;
   out["from_hz"] = hz;
   out["runs"] = runs;

@@ -209,7 +209,7 @@ class RigSupervisor {
 struct SupervisedWork {
   Status hold_status;  // the supervisor's verdict
   HoldSummary hold;
-  Status work_status;  // what `work` returned
+  Status work_status;    // what `work` returned
   bool aborted = false;  // `work` was told to stop
 };
 SupervisedWork HoldDuring(RigSupervisor* supervisor, double min_hold_s, double max_hold_s,

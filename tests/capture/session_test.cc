@@ -37,7 +37,7 @@ Frame MakeFrame(int camera, int64_t trigger) {
 
 // Records `frames` triggers on every camera into a new take and ends it.
 void RecordTake(SessionWriter* session, const std::string& name, int cameras, int frames,
-                int skip_trigger = -1) {
+                int skip_trigger = -1, const Json& extra = Json::object()) {
   auto take_dir = session->BeginTake(name, 128.0, frames);
   ASSERT_TRUE(take_dir.ok()) << take_dir.status().message();
   std::vector<std::string> paths;
@@ -50,6 +50,7 @@ void RecordTake(SessionWriter* session, const std::string& name, int cameras, in
   result.fps = 128.0;
   result.triggers_requested = frames;
   result.triggers_emitted = frames;
+  result.extra = extra;
   for (int k = 0; k < cameras; ++k) {
     FrameSyncChecker checker(0);
     for (int t = 0; t < frames; ++t) {
@@ -109,7 +110,14 @@ TEST(Session, ReopenAppendsAndRefusesExistingTake) {
   ASSERT_TRUE(check.ok());
   EXPECT_EQ(check->takes.size(), 2u);
   EXPECT_TRUE(check->Complete()) << check->ToText();
-  EXPECT_FALSE(SessionWriter::Open(dir.path(), "virtual", Cameras(3), Json::object()).ok());
+  // Two writers on one session: refused.
+  auto second = SessionWriter::Open(dir.path(), "virtual", Cameras(1), Json::object());
+  ASSERT_FALSE(second.ok());
+  EXPECT_NE(second.status().message().find("another facedyn process"), std::string::npos);
+  session->reset();
+  auto other = SessionWriter::Open(dir.path(), "virtual", Cameras(3), Json::object());
+  ASSERT_FALSE(other.ok());
+  EXPECT_NE(other.status().message().find("cameras"), std::string::npos);
 }
 
 TEST(Session, MissingFrameAndTornEventLineAreReported) {
@@ -310,6 +318,32 @@ TEST(Session, KillNineMidTakeLeavesReadableSession) {
   EXPECT_EQ(check->takes[1].status, "recording");
   EXPECT_GT(check->takes[1].cameras[1].frames, 100);
   EXPECT_NE(check->ToText().find("never stopped"), std::string::npos);
+
+  // Reopening the session (`--resume`) marks the dead take interrupted, frames kept; a complete
+  // take that says it supersedes it makes the session complete again.
+  const int64_t kept = check->takes[1].cameras[1].frames;
+  auto reopened = SessionWriter::Open(dir.path(), "virtual", Cameras(2), Json::object());
+  ASSERT_TRUE(reopened.ok()) << reopened.status().message();
+  check = CheckSession(dir.path());
+  ASSERT_TRUE(check.ok());
+  EXPECT_EQ(check->takes[1].status, "interrupted");
+  EXPECT_EQ(check->takes[1].cameras[1].frames, kept);
+  EXPECT_FALSE(check->Complete()) << check->ToText();  // interrupted and not redone
+  EXPECT_NE(testing::ReadBytes(dir.path() + "/events.jsonl").find("take_interrupted"),
+            std::string::npos);
+  RecordTake(reopened->get(), "killed_retry2", 2, 8, -1, Json{{"supersedes", {"killed"}}});
+  check = CheckSession(dir.path());
+  ASSERT_TRUE(check.ok());
+  EXPECT_EQ(check->takes[1].superseded_by, "killed_retry2");
+  EXPECT_TRUE(check->Complete()) << check->ToText();
+  // Only a complete take supersedes: an aborted one that claims to does not.
+  RecordTake(reopened->get(), "victim", 2, 8, /*skip_trigger=*/3);
+  RecordTake(reopened->get(), "bogus", 2, 8, /*skip_trigger=*/3, Json{{"supersedes", {"victim"}}});
+  check = CheckSession(dir.path());
+  ASSERT_TRUE(check.ok());
+  ASSERT_EQ(check->takes.size(), 5u);
+  EXPECT_EQ(check->takes[3].name, "victim");
+  EXPECT_EQ(check->takes[3].superseded_by, "");
 }
 
 }  // namespace

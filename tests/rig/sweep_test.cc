@@ -279,7 +279,6 @@ TEST(RunSweep, RunsEveryStepCallsHooksAndResumesAfterAFailure) {
   EXPECT_THAT(mismatch.status().message(), HasSubstr("different sweep script"));
 }
 
-
 // Issue 18, item 4: a take recorded during a sweep step (during_hold) stands in for capture's:
 // it "records" for take_s unless told to abort, calling `inject` once, `inject_after_s` in.
 struct FakeTake {

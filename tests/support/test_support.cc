@@ -102,8 +102,7 @@ void ChildProcess::Signal(int signal_number) {
 
 int ChildProcess::Wait(double timeout_s) {
   if (pid_ <= 0) return -1;
-  const auto deadline =
-      std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   for (;;) {
     int status = 0;
     if (::waitpid(pid_, &status, WNOHANG) == pid_) {

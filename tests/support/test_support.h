@@ -1,10 +1,10 @@
 // Helpers shared by facedyn's tests: temporary folders, the shared assets, Eigen matchers.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace facedyn::testing {
 

@@ -35,6 +35,7 @@
 #include "capture/session.h"
 #include "capture/session_runner.h"
 #include "capture/trigger.h"
+#include "core/config_node.h"
 #include "core/file_util.h"
 #include "rig/drive_client.h"
 #include "rig/modbus_transport.h"
@@ -112,53 +113,31 @@ Status ConnectSupervisor(const std::string& session_dir, Platform* platform,
   return platform->supervisor->Arm();
 }
 
-// Keeps the drive link alive while the simulation prepares, ground truth is written and the
-// take renders (a virtual-clock take runs slower than real time): the drive-side comm
-// watchdog would otherwise stop the platform. Reads go through `read` under `mutex`, which the
-// take's telemetry sampler shares.
-class Heartbeat {
- public:
-  Heartbeat(std::function<Status()> read, std::mutex* mutex, double period_s)
-      : read_(std::move(read)), mutex_(mutex), period_s_(period_s) {
-    thread_ = std::thread([this] {
-      std::unique_lock<std::mutex> lock(wait_mutex_);
-      while (!stop_) {
-        wake_.wait_for(lock, std::chrono::duration<double>(period_s_), [this] { return stop_; });
-        if (stop_) break;
-        std::lock_guard<std::mutex> link(*mutex_);
-        Status status = read_();
-        if (!status.ok() && error_.ok()) error_ = status;
-      }
-    });
-  }
-  ~Heartbeat() {
-    {
-      std::lock_guard<std::mutex> lock(wait_mutex_);
-      stop_ = true;
-    }
-    wake_.notify_all();
-    thread_.join();
-  }
-  Heartbeat(const Heartbeat&) = delete;
-  Heartbeat& operator=(const Heartbeat&) = delete;
+// A take's telemetry row from the supervisor's last control period. The supervisor's thread
+// is the only one on the drive link (rig/supervisor.h); the take reads its snapshot.
+capture::TelemetrySample SampleFromSnapshot(const rig::PlatformSnapshot& snapshot) {
+  capture::TelemetrySample sample;
+  sample.running = snapshot.reading.running;
+  sample.faulted = snapshot.reading.faulted;
+  sample.output_hz = snapshot.reading.output_hz;
+  sample.measured_hz = snapshot.reading.measured_hz;
+  sample.target_hz = snapshot.reading.target_hz;
+  sample.state = rig::RigStateName(snapshot.state);
+  return sample;
+}
 
- private:
-  std::function<Status()> read_;
-  std::mutex* mutex_;
-  double period_s_;
-  std::mutex wait_mutex_;
-  std::condition_variable wake_;
-  bool stop_ = false;
-  Status error_;
-  std::thread thread_;
-};
+// How long the platform may be held for one take before it is stopped whatever the take is
+// doing: the take's own length, plus preparation (a simulated take renders slower than real
+// time), with a wide margin. A camera that hangs must not keep a person vibrating.
+double MaxTakeHoldS(const capture::CaptureConfig& config) {
+  return 120.0 + 20.0 * static_cast<double>(config.TriggerCount()) / config.fps;
+}
 
 struct TakeInputs {
   std::string name;
   double platform_hz = 0.0;  // true platform frequency for the simulated face (0: config's)
   std::string expression;    // "" = the config's
-  std::function<StatusOr<capture::TelemetrySample>()> telemetry;  // called under link_mutex
-  std::mutex* link_mutex = nullptr;
+  std::function<StatusOr<capture::TelemetrySample>()> telemetry;  // from the trigger thread
   Json extra = Json::object();
 };
 
@@ -172,11 +151,6 @@ StatusOr<TakeOutput> CaptureTake(const capture::CaptureConfig& config,
                                  capture::SessionWriter* session, const TakeInputs& inputs,
                                  const std::atomic<bool>* stop) {
   TakeOutput output;
-  std::unique_ptr<Heartbeat> heartbeat;
-  if (inputs.telemetry) {
-    heartbeat = std::make_unique<Heartbeat>([&inputs] { return inputs.telemetry().status(); },
-                                            inputs.link_mutex, config.platform.telemetry_period_s);
-  }
   std::vector<std::unique_ptr<capture::Camera>> owned;
   std::unique_ptr<sim::SimulatedStage> stage;
   sim::SimCaptureOptions sim_options;
@@ -225,12 +199,7 @@ StatusOr<TakeOutput> CaptureTake(const capture::CaptureConfig& config,
   options.triggers = triggers;
   options.recorder = config.recorder;
   options.timestamp_tolerance_ns = config.timestamp_tolerance_ns;
-  if (inputs.telemetry) {
-    options.telemetry = [&inputs]() {
-      std::lock_guard<std::mutex> lock(*inputs.link_mutex);
-      return inputs.telemetry();
-    };
-  }
+  if (inputs.telemetry) options.telemetry = inputs.telemetry;
   options.telemetry_period_s = config.platform.telemetry_period_s;
   options.stop_requested = stop;
   options.extra = inputs.extra;
@@ -332,7 +301,6 @@ Status RunCaptureCommand(const CaptureCommandOptions& options) {
   const std::atomic<bool>* stop = rig::InstallStopSignalHandlers();
   FACEDYN_ASSIGN_OR_RETURN(auto session, OpenSession(config, options.session));
 
-  std::mutex link_mutex;  // serialises the drive link between the heartbeat and telemetry
   if (!options.take.empty()) {
     TakeInputs inputs;
     inputs.name = options.take;
@@ -353,31 +321,41 @@ Status RunCaptureCommand(const CaptureCommandOptions& options) {
       inputs.extra["platform"] = {{"target_hz", config.platform.hz},
                                   {"measured_hz_at_start", settled.measured_hz},
                                   {"rig", config.platform.rig_path}};
-      inputs.link_mutex = &link_mutex;
       rig::RigSupervisor* supervisor = platform.supervisor.get();
       inputs.telemetry = [supervisor]() -> StatusOr<capture::TelemetrySample> {
-        FACEDYN_ASSIGN_OR_RETURN(const rig::PlatformReading reading, supervisor->ReadOnce());
-        capture::TelemetrySample sample;
-        sample.running = reading.running;
-        sample.faulted = reading.faulted;
-        sample.output_hz = reading.output_hz;
-        sample.measured_hz = reading.measured_hz;
-        sample.target_hz = reading.target_hz;
-        sample.state = rig::RigStateName(supervisor->state());
-        return sample;
+        return SampleFromSnapshot(supervisor->Snapshot());
       };
     }
-    auto output = CaptureTake(config, session.get(), inputs, stop);
+    StatusOr<TakeOutput> output = InternalError("the take was not recorded");
+    Status platform_status;  // what the supervisor saw during the take, then the stop
     if (platform.supervisor) {
-      Status stopped = platform.supervisor->RampToStop("take " + options.take + " done");
-      (void)session->events().Append({{"event", "rig_stop"}, {"ok", stopped.ok()}});
+      // The take records on a thread of its own while this thread keeps supervising the
+      // platform; a trip, overspeed or stop signal stops the platform and interrupts the take.
+      const rig::SupervisedWork supervised =
+          rig::HoldDuring(platform.supervisor.get(), 0.0, MaxTakeHoldS(config),
+                          [&](const std::atomic<bool>& abort) {
+                            output = CaptureTake(config, session.get(), inputs, &abort);
+                            return output.status();
+                          });
+      platform_status = supervised.hold_status;
+      Status stopped = platform_status.ok()
+                           ? platform.supervisor->RampToStop("take " + options.take + " done")
+                           : Status::Ok();  // a failed hold has stopped already (or lost the link)
+      (void)session->events().Append(
+          {{"event", "rig_stop"}, {"ok", stopped.ok() && platform_status.ok()}});
       // Close() disarms the drive's watchdog only after a confirmed standstill; its error says
       // when it had to leave it armed, and that must reach the user.
       const Status closed = platform.supervisor->Close();
-      if (!stopped.ok() && output.ok()) return stopped;
-      if (!closed.ok() && output.ok()) return closed;
+      if (platform_status.ok()) platform_status = stopped;
+      if (platform_status.ok()) platform_status = closed;
+    } else {
+      output = CaptureTake(config, session.get(), inputs, stop);
     }
-    if (!output.ok()) return output.status();
+    if (!output.ok()) return platform_status.ok() ? output.status() : platform_status;
+    if (!platform_status.ok()) {
+      if (!options.json) PrintTake(options.take, *output);
+      return platform_status;
+    }
     if (options.json) {
       std::printf("%s\n", TakeJson(*output).dump(2).c_str());
     } else {
@@ -399,15 +377,6 @@ Status RunCaptureCommand(const CaptureCommandOptions& options) {
         "--sweep: neither the capture config's platform.rig nor the sweep names a rig");
   Platform platform;
   FACEDYN_RETURN_IF_ERROR(StartPlatform(config, rig_path, &platform));
-  if (platform.rig.transport.kind != rig::TransportOptions::Kind::kTcp) {
-    // The sweep runner owns the drive link; telemetry during a take needs a second client.
-    return InvalidArgumentError(
-        rig_path +
-        ": capture during a sweep needs a Modbus TCP rig (telemetry uses a second connection)");
-  }
-  FACEDYN_ASSIGN_OR_RETURN(auto transport, rig::ModbusTransport::Open(platform.rig.transport));
-  rig::DriveClient telemetry_client(transport.get(), platform.rig.profile,
-                                    platform.rig.MotorLimits());
   Json takes = Json::array();
   rig::SweepOptions sweep_options;
   sweep_options.session_dir = options.session;
@@ -415,17 +384,49 @@ Status RunCaptureCommand(const CaptureCommandOptions& options) {
   sweep_options.stop_requested = stop;
   sweep_options.print_prompts = !options.json;
   bool all_complete = true;
-  sweep_options.hooks.on_hold_start = [&](const rig::SweepStepInfo& info) -> Status {
+  // The takes earlier runs made for a step (a kill or a stop interrupts one, and the step is
+  // recorded again as <base>_retryN), oldest first, and the name for a new one.
+  struct StepTakes {
+    std::vector<std::string> earlier;
+    std::string next;
+  };
+  auto step_takes = [&](const rig::SweepStepInfo& info) {
     std::string prompt;
     for (char c : info.spec.prompt) prompt += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
-    std::string name = fmt::format("step{:02d}_{:.2f}hz{}{}", info.instance + 1, info.spec.hz,
-                                   prompt.empty() ? "" : "_", prompt);
-    for (int retry = 2; std::filesystem::exists(session->TakeDir(name)); ++retry) {
-      name = fmt::format("step{:02d}_{:.2f}hz{}{}_retry{}", info.instance + 1, info.spec.hz,
-                         prompt.empty() ? "" : "_", prompt, retry);
+    const std::string base = fmt::format("step{:02d}_{:.2f}hz{}{}", info.instance + 1, info.spec.hz,
+                                         prompt.empty() ? "" : "_", prompt);
+    StepTakes found;
+    found.next = base;
+    for (int retry = 2; std::filesystem::exists(session->TakeDir(found.next)); ++retry) {
+      found.earlier.push_back(found.next);
+      found.next = fmt::format("{}_retry{}", base, retry);
     }
+    return found;
+  };
+  // A kill between a take's end and the rig log's step_done leaves the step's take complete on
+  // disk: --resume counts it instead of recording (and vibrating) the step again.
+  sweep_options.hooks.already_done = [&](const rig::SweepStepInfo& info) {
+    for (const std::string& name : step_takes(info).earlier) {
+      auto manifest = ConfigNode::ReadFile(JoinPath(session->TakeDir(name), "capture.json"));
+      if (manifest.ok() && manifest->GetOr<std::string>("status", "").ok() &&
+          *manifest->GetOr<std::string>("status", "") == "complete") {
+        spdlog::info("capture: take {} of step {} is complete from an earlier run", name,
+                     info.instance + 1);
+        return true;
+      }
+    }
+    return false;
+  };
+  sweep_options.hooks.max_hold_s = MaxTakeHoldS(config);
+  // Runs on a thread of its own while the sweep's thread supervises the platform (HoldDuring).
+  sweep_options.hooks.during_hold = [&](const rig::SweepStepInfo& info,
+                                        const rig::HoldWork& work) -> Status {
+    const StepTakes earlier = step_takes(info);
+    const std::string name = earlier.next;
     TakeInputs inputs;
     inputs.name = name;
+    // `session check` then counts the earlier, interrupted attempts as redone by this take.
+    if (!earlier.earlier.empty()) inputs.extra["supersedes"] = earlier.earlier;
     inputs.platform_hz =
         platform.drive_sim ? platform.drive_sim->state().platform_hz : info.spec.hz;
     const std::vector<std::string> expressions = sim::ExpressionNames();
@@ -436,19 +437,11 @@ Status RunCaptureCommand(const CaptureCommandOptions& options) {
                              {"instance", info.instance},
                              {"target_hz", info.spec.hz},
                              {"prompt", info.spec.prompt}};
-    inputs.link_mutex = &link_mutex;
-    inputs.telemetry = [&telemetry_client]() -> StatusOr<capture::TelemetrySample> {
-      FACEDYN_ASSIGN_OR_RETURN(const rig::DriveStatus status, telemetry_client.ReadStatus());
-      capture::TelemetrySample sample;
-      sample.running = status.running;
-      sample.faulted = status.faulted;
-      sample.output_hz = status.output_hz;
-      sample.measured_hz = std::nan("");
-      sample.state = status.faulted ? "faulted" : status.running ? "running" : "stopped";
-      return sample;
+    inputs.telemetry = [&work]() -> StatusOr<capture::TelemetrySample> {
+      return SampleFromSnapshot(work.platform());
     };
     FACEDYN_ASSIGN_OR_RETURN(const TakeOutput output,
-                             CaptureTake(config, session.get(), inputs, stop));
+                             CaptureTake(config, session.get(), inputs, work.abort));
     if (!options.json) PrintTake(name, output);
     Json entry = TakeJson(output);
     entry["name"] = name;

@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -23,6 +24,7 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr char kReserveFileName[] = ".reserve";
+constexpr char kLockFileName[] = ".lock";
 constexpr size_t kReserveBytes = 1 << 20;  // room for the final manifest, session.json, events
 
 Status WriteReserve(const std::string& path) {
@@ -36,6 +38,23 @@ Status WriteReserve(const std::string& path) {
                             " bytes for the take's manifest: " + std::strerror(error));
   }
   return Status::Ok();
+}
+
+// Why `relative` (a path from capture.json or session.json) does not name a file inside the
+// folder it is relative to (`folder_kind`: "take", "session"), or "". A take's files are always
+// inside its folder and a session's calibration inside the session; a file that points
+// elsewhere ("../../other/frames.fdr", "/etc/shadow") is corrupt or hostile, and following it
+// would make `session check` and reconstruct read, and report on, files of someone else's
+// choosing. The test is lexical (no ".." component, not absolute): symlinks inside a session
+// are the operator's own doing and are followed.
+std::string PathLeavesFolder(const std::string& relative, const char* folder_kind) {
+  const fs::path path(relative);
+  if (path.empty()) return "is empty";
+  if (path.is_absolute()) return "is absolute";
+  for (const fs::path& part : path) {
+    if (part == "..") return fmt::format("climbs out of the {} folder with '..'", folder_kind);
+  }
+  return "";
 }
 
 Json CamerasToJson(const std::vector<SessionCameraInfo>& cameras) {
@@ -107,7 +126,18 @@ StatusOr<std::unique_ptr<SessionWriter>> SessionWriter::Open(
   std::unique_ptr<SessionWriter> writer(new SessionWriter());
   writer->dir_ = dir;
   FACEDYN_RETURN_IF_ERROR(MakeDirectories(JoinPath(dir, "takes")));
+  // One writer per session at a time: a take found "recording" below is then known to be one
+  // whose process died (the kernel drops a killed process's lock), never one being recorded.
+  const std::string lock_path = JoinPath(dir, kLockFileName);
+  writer->lock_fd_ = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (writer->lock_fd_ < 0)
+    return UnavailableError(lock_path + ": cannot open: " + std::strerror(errno));
+  if (::flock(writer->lock_fd_, LOCK_EX | LOCK_NB) != 0) {
+    return FailedPreconditionError(dir + ": the session is open in another facedyn process (" +
+                                   lock_path + " is locked)");
+  }
   const std::string session_path = JoinPath(dir, "session.json");
+  std::vector<SessionTake> dead_takes;  // "recording", but nobody is
   std::error_code ec;
   bool reopened = false;
   if (fs::exists(session_path, ec)) {
@@ -125,6 +155,9 @@ StatusOr<std::unique_ptr<SessionWriter>> SessionWriter::Open(
       return FailedPreconditionError(session_path + ": the session's clock is " + existing.clock +
                                      ", this capture's " + clock);
     }
+    for (const SessionTake& take : existing.takes) {
+      if (take.status == "recording") dead_takes.push_back(take);
+    }
     reopened = true;
   } else {
     writer->session_ = Json{{"format", kSessionFormat},
@@ -138,10 +171,56 @@ StatusOr<std::unique_ptr<SessionWriter>> SessionWriter::Open(
                             {"takes", Json::array()}};
   }
   FACEDYN_ASSIGN_OR_RETURN(writer->events_, EventLog::Open(JoinPath(dir, "events.jsonl")));
+  for (const SessionTake& take : dead_takes) {
+    // A manifest that cannot be rewritten must not lock the session for good: `session check`
+    // still reports that take as never stopped.
+    const Status marked = writer->MarkInterrupted(take.name);
+    if (!marked.ok()) spdlog::warn("{}: take {}: {}", dir, take.name, marked.message());
+  }
   FACEDYN_RETURN_IF_ERROR(writer->WriteSessionJson());
   FACEDYN_RETURN_IF_ERROR(
       writer->events_->Append({{"event", reopened ? "session_reopen" : "session_open"}}));
   return writer;
+}
+
+SessionWriter::~SessionWriter() {
+  if (lock_fd_ >= 0) ::close(lock_fd_);  // releases the lock
+}
+
+Status SessionWriter::MarkInterrupted(const std::string& name) {
+  const std::string take_dir = TakeDir(name);
+  const std::string manifest_path = JoinPath(take_dir, "capture.json");
+  FACEDYN_ASSIGN_OR_RETURN(const std::string text, ReadFileToString(manifest_path));
+  Json manifest = Json::parse(text, nullptr, false);
+  if (!manifest.is_object()) return DataLossError(manifest_path + ": not a JSON object");
+  const std::string reason =
+      "the process recording it ended before the take stopped (kill, crash or power loss); "
+      "the frames on disk are kept";
+  manifest["status"] = "interrupted";
+  manifest["reason"] = reason;
+  // The counts of a take that never stopped are unknown (the frame files say what is there).
+  manifest.erase("triggers_emitted");
+  if (manifest.contains("cameras") && manifest["cameras"].is_array()) {
+    for (Json& camera : manifest["cameras"]) {
+      if (camera.is_object()) camera.erase("frames_written");
+    }
+  }
+  manifest["interrupted_found_utc"] = UtcNowIso8601();
+  ::unlink(JoinPath(take_dir, kReserveFileName).c_str());
+  FACEDYN_RETURN_IF_ERROR(WriteFileAtomic(manifest_path, manifest.dump(2) + "\n"));
+  bool listed = false;
+  for (auto& take : session_["takes"]) {
+    if (take["name"] == name) {
+      take["status"] = "interrupted";
+      listed = true;
+    }
+  }
+  if (!listed) {  // killed between writing capture.json and listing the take
+    session_["takes"].push_back(
+        {{"name", name}, {"dir", "takes/" + name}, {"status", "interrupted"}});
+  }
+  spdlog::warn("{}: take {} never stopped: marked interrupted", dir_, name);
+  return events_->Append({{"event", "take_interrupted"}, {"take", name}, {"reason", reason}});
 }
 
 Status SessionWriter::WriteSessionJson() {
@@ -149,6 +228,8 @@ Status SessionWriter::WriteSessionJson() {
 }
 
 Status SessionWriter::SetCalibration(const std::string& relative_path) {
+  if (const std::string why = PathLeavesFolder(relative_path, "session"); !why.empty())
+    return InvalidArgumentError("session calibration '" + relative_path + "' " + why);
   session_["calibration"] = relative_path;
   return WriteSessionJson();
 }
@@ -247,22 +328,6 @@ Status SessionWriter::EndTake(const std::string& name, const TakeResult& result)
 
 namespace {
 
-// Why `relative` (a path from capture.json) does not name a file inside the folder it is
-// relative to, or "". A take's files are always inside its folder; a manifest that points
-// elsewhere ("../../other/frames.fdr", "/etc/shadow") is corrupt or hostile, and following it
-// would make `session check` and reconstruct read, and report on, files of someone else's
-// choosing. The test is lexical (no ".." component, not absolute): symlinks inside a session
-// are the operator's own doing and are followed.
-std::string PathLeavesFolder(const std::string& relative) {
-  const fs::path path(relative);
-  if (path.empty()) return "is empty";
-  if (path.is_absolute()) return "is absolute";
-  for (const fs::path& part : path) {
-    if (part == "..") return "climbs out of the take folder with '..'";
-  }
-  return "";
-}
-
 SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& name,
                              int camera_count) {
   SessionTake take;
@@ -322,7 +387,7 @@ SessionTake ReadTakeManifest(const std::string& session_dir, const std::string& 
         SessionWriter::CameraDirName(static_cast<int>(k)) + "/" + kFrameFileName;
     if (camera.ok() && camera->Get<std::string>("frame_file").ok())
       frame_file = *camera->Get<std::string>("frame_file");
-    if (const std::string why = PathLeavesFolder(frame_file); !why.empty()) {
+    if (const std::string why = PathLeavesFolder(frame_file, "take"); !why.empty()) {
       entry.problem = manifest_path + ": cameras[" + std::to_string(k) + "].frame_file '" +
                       frame_file + "' " + why + "; refused (frame files stay in " + take.dir + ")";
     } else {
@@ -367,7 +432,15 @@ StatusOr<SessionInfo> ReadSession(const std::string& dir) {
   }
   FACEDYN_ASSIGN_OR_RETURN(const std::string calibration,
                            root.GetOr<std::string>("calibration", ""));
-  if (!calibration.empty()) info.calibration_path = JoinPath(info.dir, calibration);
+  if (!calibration.empty()) {
+    // Confined like capture.json's frame paths: calibration feeds reconstruct, and a session
+    // must not make it read camera models from elsewhere.
+    if (const std::string why = PathLeavesFolder(calibration, "session"); !why.empty()) {
+      return root.Error("calibration", fmt::format("'{}' {}; refused (the calibration stays in {})",
+                                                   calibration, why, info.dir));
+    }
+    info.calibration_path = JoinPath(info.dir, calibration);
+  }
   std::set<std::string> listed;
   FACEDYN_ASSIGN_OR_RETURN(const ConfigNode takes, root.Child("takes"));
   for (size_t i = 0; i < takes.size(); ++i) {
@@ -396,7 +469,7 @@ StatusOr<SessionInfo> ReadSession(const std::string& dir) {
 bool SessionCheck::Complete() const {
   if (!events_problem.empty()) return false;
   for (const TakeCheck& take : takes) {
-    if (!take.complete) return false;
+    if (!take.complete && take.superseded_by.empty()) return false;
   }
   return true;
 }
@@ -418,11 +491,13 @@ Json SessionCheck::ToJson() const {
            {"tail_problem",
             camera.tail_problem.empty() ? Json(nullptr) : Json(camera.tail_problem)}});
     }
-    list.push_back({{"name", take.name},
-                    {"status", take.status},
-                    {"complete", take.complete},
-                    {"problems", take.problems},
-                    {"cameras", cameras}});
+    list.push_back(
+        {{"name", take.name},
+         {"status", take.status},
+         {"complete", take.complete},
+         {"superseded_by", take.superseded_by.empty() ? Json(nullptr) : Json(take.superseded_by)},
+         {"problems", take.problems},
+         {"cameras", cameras}});
   }
   json["takes"] = list;
   return json;
@@ -435,7 +510,9 @@ std::string SessionCheck::ToText() const {
   if (!events_problem.empty()) out << "  events.jsonl: " << events_problem << "\n";
   for (const TakeCheck& take : takes) {
     out << "  take " << take.name << ": " << (take.complete ? "complete" : "incomplete")
-        << " (status " << take.status << ")\n";
+        << " (status " << take.status << ")";
+    if (!take.superseded_by.empty()) out << ", superseded by " << take.superseded_by;
+    out << "\n";
     for (const CameraCheck& camera : take.cameras) {
       out << "    " << camera.name << ": " << camera.frames << " frames, " << camera.missing
           << " missing";
@@ -540,6 +617,20 @@ StatusOr<SessionCheck> CheckSession(const std::string& dir) {
     }
     result.complete = result.problems.empty();
     check.takes.push_back(result);
+  }
+  // Takes redone by a complete take that says so.
+  for (size_t i = 0; i < info.takes.size(); ++i) {
+    const Json& manifest = info.takes[i].manifest;
+    if (!check.takes[i].complete || !manifest.is_object() || !manifest.contains("supersedes") ||
+        !manifest["supersedes"].is_array())
+      continue;
+    for (const Json& earlier : manifest["supersedes"]) {
+      if (!earlier.is_string()) continue;
+      for (TakeCheck& take : check.takes) {
+        if (take.name == earlier.get<std::string>() && !take.complete && take.superseded_by.empty())
+          take.superseded_by = check.takes[i].name;
+      }
+    }
   }
   return check;
 }

@@ -78,7 +78,9 @@ struct TakeCameraResult {
 };
 
 struct TakeResult {
-  std::string status = "recording";  // recording | complete | aborted
+  // recording | complete | aborted (an error) | interrupted (a stop request, or the process
+  // that recorded it died: marked when the session is next opened)
+  std::string status = "recording";
   std::string reason;                // why it is not complete, "" when complete
   double fps = 0.0;
   int64_t triggers_requested = 0;
@@ -94,9 +96,15 @@ class SessionWriter {
  public:
   // Creates DIR (and events.jsonl, session.json) or reopens an existing session there.
   // `clock` is "virtual" or "steady". `rig` is free-form (the capture config's summary).
+  // The writer holds DIR/.lock (flock) while it lives: a second writer is refused, and a take
+  // found "recording" on reopening is one whose process died, marked "interrupted".
   static StatusOr<std::unique_ptr<SessionWriter>> Open(
       const std::string& dir, const std::string& clock,
       const std::vector<SessionCameraInfo>& cameras, const Json& rig);
+
+  ~SessionWriter();
+  SessionWriter(const SessionWriter&) = delete;
+  SessionWriter& operator=(const SessionWriter&) = delete;
 
   const std::string& dir() const { return dir_; }
   EventLog& events() { return *events_; }
@@ -118,10 +126,14 @@ class SessionWriter {
  private:
   SessionWriter() = default;
   Status WriteSessionJson();
+  // A take left "recording" by a process that died: capture.json says "interrupted" (its
+  // counts removed: unknown), session.json too, and events.jsonl says when it was found.
+  Status MarkInterrupted(const std::string& name);
 
   std::string dir_;
   Json session_;
   std::unique_ptr<EventLog> events_;
+  int lock_fd_ = -1;  // DIR/.lock, flock'ed for the writer's lifetime
 };
 
 bool IsValidTakeName(const std::string& name);
@@ -179,6 +191,10 @@ struct TakeCheck {
   std::string name;
   std::string status;
   bool complete = false;
+  // The complete take that redid this one (its capture.json lists this name in "supersedes",
+  // e.g. a sweep step recorded again after a kill); "" when none. A superseded take is kept
+  // and reported, but does not make the session incomplete.
+  std::string superseded_by;
   std::vector<std::string> problems;
   std::vector<CameraCheck> cameras;
 };
@@ -196,6 +212,8 @@ struct SessionCheck {
 
 // A take is complete when its manifest says "complete", every camera's file scans cleanly and
 // holds exactly one frame for every emitted trigger, and the counts agree with the manifest.
+// The session is complete when events.jsonl reads cleanly and every take is complete or
+// superseded by a complete one.
 StatusOr<SessionCheck> CheckSession(const std::string& dir);
 
 }  // namespace facedyn::capture

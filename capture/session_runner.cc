@@ -26,6 +26,7 @@ struct TakeState {
   std::vector<int64_t> trigger_time_ns;  // sized to the requested count up front
   std::atomic<int64_t> emitted{0};
   std::atomic<bool> stop{false};
+  std::atomic<bool> interrupted{false};  // a stop request ended it (not an error)
   std::mutex error_mutex;
   std::string first_error;
   void Fail(const std::string& error) {
@@ -223,6 +224,7 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
         if (options.stop_requested != nullptr && options.stop_requested->load()) {
           (void)events.Append(
               {{"event", "interrupted"}, {"take", options.name}, {"t_ns", event.time_ns}});
+          state.interrupted = true;
           state.Fail("interrupted (stop requested) at trigger " + std::to_string(event.index));
           return AbortedError("interrupted");
         }
@@ -313,7 +315,7 @@ StatusOr<TakeReport> RecordTake(SessionWriter* session, const std::vector<Camera
   } else if (!trigger_status.ok()) {
     reason = "trigger: " + trigger_status.message();
   }
-  result.status = clean ? "complete" : "aborted";
+  result.status = clean ? "complete" : state.interrupted ? "interrupted" : "aborted";
   result.reason = clean ? "" : reason;
   result.stop_utc = UtcNowIso8601();
   report.wall_s = SecondsSince(wall_start);

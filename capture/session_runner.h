@@ -55,8 +55,9 @@ struct TakeOptions {
   // truth beside the frames). An error aborts the take before recording.
   std::function<Status(const std::string& take_dir)> before_first_trigger;
   Json extra = Json::object();  // copied into capture.json
-  // Checked at every trigger (e.g. the SIGINT/SIGTERM flag); when set the take stops cleanly
-  // and ends "aborted". May be null.
+  // Checked at every trigger (e.g. the SIGINT/SIGTERM flag, or the supervisor's "platform
+  // stopping" flag); when set the take stops cleanly and ends "interrupted", every frame
+  // recorded so far kept. May be null.
   const std::atomic<bool>* stop_requested = nullptr;
 
   Status Check() const;

@@ -83,7 +83,8 @@ RigSupervisor::RigSupervisor(const RigConfig& config, SessionLog* log,
       settle_(config.settle),
       exposure_(config.amplitude_mm),
       start_(Clock::now()),
-      last_tick_(start_) {}
+      last_tick_(start_),
+      last_exposure_(start_) {}
 
 StatusOr<std::unique_ptr<RigSupervisor>> RigSupervisor::Connect(
     const RigConfig& config, SessionLog* log, const std::atomic<bool>* stop_requested) {
@@ -118,6 +119,9 @@ double RigSupervisor::ElapsedS() const {
 }
 
 void RigSupervisor::SetState(RigState state, const std::string& reason) {
+  const bool not_moving = state == RigState::kStopping || state == RigState::kStopped ||
+                          state == RigState::kFaulted || state == RigState::kLinkLost;
+  if (not_moving && notify_on_stop_ != nullptr) notify_on_stop_->store(true);
   if (state == state_) return;
   if (log_)
     log_->Write("state",
@@ -125,6 +129,24 @@ void RigSupervisor::SetState(RigState state, const std::string& reason) {
   spdlog::debug("rig {}: {} -> {} ({})", config_.name, RigStateName(state_), RigStateName(state),
                 reason);
   state_ = state;
+  Publish();
+}
+
+void RigSupervisor::Publish() {
+  std::lock_guard<std::mutex> lock(snapshot_mutex_);
+  snapshot_.reading = last_;
+  snapshot_.state = state_;
+}
+
+PlatformSnapshot RigSupervisor::Snapshot() const {
+  std::lock_guard<std::mutex> lock(snapshot_mutex_);
+  return snapshot_;
+}
+
+void RigSupervisor::AccountExposure(double platform_hz) {
+  const auto now = Clock::now();
+  exposure_.Add(platform_hz, std::chrono::duration<double>(now - last_exposure_).count());
+  last_exposure_ = now;
 }
 
 void RigSupervisor::LogCommand(const std::string& what, Json fields, const Status& result) {
@@ -158,6 +180,8 @@ Status RigSupervisor::Arm() {
   PlatformReading reading;
   FACEDYN_RETURN_IF_ERROR(ReadPlatform(&reading));
   last_ = reading;  // a platform still turning (e.g. after `rig set --detach`) ramps from here
+  last_exposure_ = Clock::now();  // exposure before this session is not ours to count
+  Publish();
   standstill_confirmed_ = reading.output_hz == 0.0 && !reading.running;
   if (log_) log_->Write("reply", reading.ToJson());
   if (reading.faulted) {
@@ -325,6 +349,8 @@ Status RigSupervisor::Tick() {
     std::this_thread::sleep_until(std::min(next, Clock::now() + std::chrono::milliseconds(10)));
   }
   const auto now = Clock::now();
+  // The ramp and the trim integrate at most 1 s per tick, so that a late tick cannot make the
+  // command leap; the exposure counts all of the time (AccountExposure).
   const double dt_s = std::clamp(std::chrono::duration<double>(now - last_tick_).count(), 0.0, 1.0);
   last_tick_ = now;
 
@@ -380,7 +406,7 @@ Status RigSupervisor::Tick() {
         "{} Hz: a local stop, its comm watchdog, or an interlock",
         config_.name, reading.output_hz, target_hz_)));
   }
-  exposure_.Add(reading.measured_hz, dt_s);
+  AccountExposure(reading.measured_hz);
 
   if (moving_state) {
     // Ramp-rate limit on the platform frequency.
@@ -459,8 +485,9 @@ Status RigSupervisor::Tick() {
     fields["vibrating_s"] = exposure_.vibrating_s();
     fields["dose_m2_s3"] = exposure_.dose_m2_s3();
     log_->Write("reply", std::move(fields));
-    FACEDYN_RETURN_IF_ERROR(FailAndStop(log_->status()));
   }
+  Publish();
+  if (log_) FACEDYN_RETURN_IF_ERROR(FailAndStop(log_->status()));
   return Status::Ok();
 }
 
@@ -485,12 +512,17 @@ Status RigSupervisor::WaitSettled(double timeout_s) {
 }
 
 StatusOr<HoldSummary> RigSupervisor::Hold(double seconds) {
+  return HoldWhile([seconds](double held_s) { return held_s < seconds; });
+}
+
+StatusOr<HoldSummary> RigSupervisor::HoldWhile(
+    const std::function<bool(double held_s)>& keep_holding) {
   HoldSummary summary;
   summary.target_hz = target_hz_;
   const double begin_s = ElapsedS();
   double sum_hz = 0.0;
   double sum_sq_error = 0.0;
-  while (ElapsedS() - begin_s < seconds) {
+  while (keep_holding(ElapsedS() - begin_s)) {
     const Status ticked = Tick();
     if (!ticked.ok()) return FailAndStop(ticked);
     const double error_hz = last_.measured_hz - target_hz_;
@@ -555,10 +587,10 @@ Status RigSupervisor::RampToStop(const std::string& reason) {
       PlatformReading reading;
       const Status read = ReadPlatform(&reading);
       if (!read.ok()) return LinkLost(read);
-      const auto now = Clock::now();
-      exposure_.Add(reading.measured_hz, std::chrono::duration<double>(now - last_tick_).count());
-      last_tick_ = now;
+      AccountExposure(reading.measured_hz);
+      last_tick_ = Clock::now();
       last_ = reading;
+      Publish();
       if (log_) {
         Json fields = reading.ToJson();
         fields["state"] = RigStateName(state_);
@@ -647,6 +679,60 @@ Status RigSupervisor::Detach() {
     log_->Write("detach", {{"target_hz", target_hz_}, {"motor_setpoint_hz", written_motor_hz_}});
   closed_ = true;
   return Status::Ok();
+}
+
+SupervisedWork HoldDuring(RigSupervisor* supervisor, double min_hold_s, double max_hold_s,
+                          const std::function<Status(const std::atomic<bool>& abort)>& work) {
+  FACEDYN_CHECK(max_hold_s > 0.0, "HoldDuring needs a bound on the hold");
+  SupervisedWork result;
+  std::atomic<bool> abort{false};
+  std::atomic<bool> done{false};
+  Status work_status;
+  supervisor->NotifyOnStop(&abort);
+  std::thread worker([&] {
+    work_status = work(abort);
+    done.store(true);
+  });
+  bool timed_out = false;
+  StatusOr<HoldSummary> hold = supervisor->HoldWhile([&](double held_s) {
+    if (done.load()) return work_status.ok() && held_s < min_hold_s;
+    if (held_s >= max_hold_s) {
+      timed_out = true;
+      return false;
+    }
+    return true;
+  });
+  result.hold_status = hold.status();
+  if (hold.ok()) result.hold = *hold;
+  if (hold.ok() && timed_out) {
+    // Stop the platform first: nothing ticks the supervisor while the work winds down.
+    result.hold_status = FailedPreconditionError(
+        fmt::format("rig {}: the work beside the hold did not end within {} s",
+                    supervisor->config().name, max_hold_s));
+    abort.store(true);
+    const Status stopped = supervisor->RampToStop(result.hold_status.message());
+    if (!stopped.ok()) result.hold_status = result.hold_status.WithContext(stopped.message());
+  }
+  if (!result.hold_status.ok()) {
+    abort.store(true);
+    // The platform is stopped (or its link lost) but the work may take a moment to wind down
+    // (a take drains its cameras): keep reading the drive meanwhile, so that its comm watchdog
+    // does not trip a drive that is standing still.
+    const auto period = std::chrono::duration<double>(supervisor->config().safety.control_period_s);
+    auto next = Clock::now();
+    while (!done.load()) {
+      if (Clock::now() >= next && supervisor->state() != RigState::kLinkLost) {
+        (void)supervisor->ReadOnce();
+        next = Clock::now() + std::chrono::duration_cast<Clock::duration>(period);
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  }
+  worker.join();
+  supervisor->NotifyOnStop(nullptr);
+  result.aborted = abort.load();
+  result.work_status = work_status;
+  return result;
 }
 
 }  // namespace facedyn::rig

@@ -1,10 +1,20 @@
 // RigSupervisor: the one object that moves the platform. It owns the drive link (transport +
 // DriveClient) of a RigConfig and runs the control loop — heartbeat, measurement, ramp, trim,
 // settle detection, exposure — one period at a time, inside the calls that need the platform
-// to move or hold (WaitSettled, Hold, RampToStop). There is no background thread: when the
-// caller stops calling, the heartbeat stops, and the drive-side comm watchdog (armed by Arm()
-// where the profile can set it over Modbus) stops the motor. That is the intended fail-safe
-// for a crashed or killed facedyn.
+// to move or hold (WaitSettled, Hold, HoldWhile, RampToStop). There is no background thread:
+// when the caller stops calling, the heartbeat stops, and the drive-side comm watchdog (armed
+// by Arm() where the profile can set it over Modbus) stops the motor. That is the intended
+// fail-safe for a crashed or killed facedyn.
+//
+// Threads: every method except Snapshot() is called from one thread, the supervisor's, and
+// only that thread talks to the drive. Work that takes time while the platform moves (a take
+// being recorded) runs on a thread of its own through HoldDuring(), while the supervisor's
+// thread keeps ticking at safety.control_period_s; that work sees the platform through
+// Snapshot() (a copy under a mutex) and is told to stop through an atomic flag. The
+// alternative — the capture loop ticking the supervisor at its rate — would leave every gap
+// in that loop unsupervised (ground truth being written, arming, draining, a camera that
+// blocks), and a second thread calling into the supervisor would need every member locked
+// and two threads on one Modbus link; one owner thread is simpler and easier to make right.
 //
 // Safety rules enforced here (software is an additional layer, never the only one):
 //  - requests outside limits.min_hz..max_hz or above absolute_max_hz are refused before
@@ -23,7 +33,9 @@
 
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "core/json_io.h"
@@ -66,6 +78,12 @@ struct PlatformReading {
   Json ToJson() const;
 };
 
+// What another thread may know of the platform (RigSupervisor::Snapshot).
+struct PlatformSnapshot {
+  PlatformReading reading;  // the last control period's reading
+  RigState state = RigState::kIdle;
+};
+
 struct HoldSummary {
   double seconds = 0.0;
   int samples = 0;
@@ -99,6 +117,9 @@ class RigSupervisor {
   Status WaitSettled(double timeout_s);
   // Runs the control loop for `seconds`, measuring how well the target is held.
   StatusOr<HoldSummary> Hold(double seconds);
+  // Runs the control loop while keep_holding(seconds held so far) is true (asked once per
+  // control period). Any error ramps to stop and ends the hold.
+  StatusOr<HoldSummary> HoldWhile(const std::function<bool(double held_s)>& keep_holding);
   // Commands a stop (the drive decelerates on its own ramp) and waits until the output is 0.
   // A refused or unconfirmed stop is sent again (3 attempts, each waiting up to
   // safety.stop_timeout_s); if standstill is never confirmed the error says so and names the
@@ -115,6 +136,13 @@ class RigSupervisor {
   // the drive keeps going after facedyn exits (`rig set --detach`).
   Status Detach();
 
+  // Thread-safe: the last reading and state, for telemetry from another thread.
+  PlatformSnapshot Snapshot() const;
+  // Thread-safe to read: `flag` (may be null to detach) is set to true the moment the
+  // supervisor starts to stop the platform or finds it stopped, faulted or its link lost, so
+  // that work running beside a hold (HoldDuring) ends at once rather than after standstill.
+  void NotifyOnStop(std::atomic<bool>* flag) { notify_on_stop_ = flag; }
+
   RigState state() const { return state_; }
   const PlatformReading& last() const { return last_; }
   VibrationExposure& exposure() { return exposure_; }
@@ -125,6 +153,11 @@ class RigSupervisor {
  private:
   RigSupervisor(const RigConfig& config, SessionLog* log, const std::atomic<bool>* stop_requested);
   Status Tick();
+  // Adds the time since the last exposure update at `platform_hz`, with no clamp: the platform
+  // vibrated for all of it, however late this tick is.
+  void AccountExposure(double platform_hz);
+  // Copies last_ and state_ for Snapshot().
+  void Publish();
   Status ReadPlatform(PlatformReading* reading);
   Status WriteMotorSetpoint(double motor_hz);
   Status WriteWatchdog(double seconds);
@@ -149,7 +182,11 @@ class RigSupervisor {
   RigState state_ = RigState::kIdle;
   PlatformReading last_;
   std::chrono::steady_clock::time_point start_;
-  std::chrono::steady_clock::time_point last_tick_;
+  std::chrono::steady_clock::time_point last_tick_;      // the ramp's clock
+  std::chrono::steady_clock::time_point last_exposure_;  // exposure counted up to here
+  std::atomic<bool>* notify_on_stop_ = nullptr;
+  mutable std::mutex snapshot_mutex_;
+  PlatformSnapshot snapshot_;
   double target_hz_ = 0.0;
   double commanded_hz_ = 0.0;
   double written_motor_hz_ = -1.0;  // last setpoint written (-1: none)
@@ -161,5 +198,21 @@ class RigSupervisor {
   bool standstill_confirmed_ = false;  // the drive last reported 0 Hz output and not running
   bool closed_ = false;
 };
+
+// Runs `work` on a thread of its own while the calling thread — the supervisor's — keeps the
+// control loop running (HoldWhile): the hold lasts until `work` returns, and at least
+// min_hold_s when it succeeds. `abort` becomes true as soon as the supervisor stops the
+// platform (a trip, overspeed, a disagreeing sensor, a stop request, a lost link) or the hold
+// reaches max_hold_s (> 0; a work that never returns must not keep a person vibrating); work
+// must then return promptly. Returns after `work` has returned. The hold's error, when there
+// is one, comes first: the platform is then stopped (RampToStop) or its link lost.
+struct SupervisedWork {
+  Status hold_status;  // the supervisor's verdict
+  HoldSummary hold;
+  Status work_status;    // what `work` returned
+  bool aborted = false;  // `work` was told to stop
+};
+SupervisedWork HoldDuring(RigSupervisor* supervisor, double min_hold_s, double max_hold_s,
+                          const std::function<Status(const std::atomic<bool>& abort)>& work);
 
 }  // namespace facedyn::rig

@@ -355,7 +355,9 @@ StatusOr<PriorSession> ReadPrior(const std::string& log_path, const SweepScript&
                                        record_number, e.what()));
     }
   }
-  if (!prior.started) {
+  // A run killed between creating the log and its first record left nothing to resume: the
+  // sweep starts from its beginning (sweep_start is written below).
+  if (!prior.started && !records.empty()) {
     return FailedPreconditionError(
         fmt::format("{}: no sweep_start record: not a sweep session log", log_path));
   }
@@ -395,7 +397,7 @@ StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig,
   }
 
   FACEDYN_ASSIGN_OR_RETURN(auto log, SessionLog::Open(result.log_path, prior.last_t_ns));
-  if (options.resume) {
+  if (options.resume && prior.started) {
     log->Write("resume", {{"done", prior.done.size()},
                           {"interrupted_instance", prior.interrupted},
                           {"finished", prior.finished}});
@@ -424,6 +426,21 @@ StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig,
     for (const SweepStepInfo& info : instances) {
       if (prior.done.count(info.instance)) continue;
       const SweepStep& spec = info.spec;
+      if (options.resume && options.hooks.already_done && options.hooks.already_done(info)) {
+        log->Write("step_done", {{"instance", info.instance},
+                                 {"step", info.step},
+                                 {"repeat", info.repeat},
+                                 {"hz", spec.hz},
+                                 {"prompt", spec.prompt},
+                                 {"recovered", true},
+                                 {"exposure", supervisor->exposure().ToJson()}});
+        SweepStepResult recovered;
+        recovered.instance = info.instance;
+        recovered.target_hz = spec.hz;
+        recovered.prompt = spec.prompt;
+        prior.done[info.instance] = recovered;
+        continue;
+      }
       log->Write("step_start", {{"instance", info.instance},
                                 {"step", info.step},
                                 {"repeat", info.repeat},
@@ -442,8 +459,33 @@ StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig,
         status = options.hooks.on_hold_start(info).WithContext(
             fmt::format("step {} hook", info.instance));
       }
-      StatusOr<HoldSummary> hold =
-          status.ok() ? supervisor->Hold(spec.hold_s) : StatusOr<HoldSummary>(status);
+      StatusOr<HoldSummary> hold = InternalError("step not held");
+      if (!status.ok()) {
+        hold = status;
+      } else if (options.hooks.during_hold) {
+        const SupervisedWork supervised =
+            HoldDuring(supervisor.get(), spec.hold_s, options.hooks.max_hold_s,
+                       [&](const std::atomic<bool>& abort) {
+                         HoldWork work;
+                         work.abort = &abort;
+                         work.platform = [&supervisor] { return supervisor->Snapshot(); };
+                         return options.hooks.during_hold(info, work);
+                       });
+        const Status work =
+            supervised.work_status.WithContext(fmt::format("step {} hook", info.instance));
+        if (!supervised.hold_status.ok()) {
+          // The platform's verdict first; what it did to the work is logged beside it.
+          hold = supervised.hold_status;
+          if (!supervised.work_status.ok())
+            log->Write("step_work", {{"instance", info.instance}, {"result", work.message()}});
+        } else if (!supervised.work_status.ok()) {
+          hold = work;
+        } else {
+          hold = supervised.hold;
+        }
+      } else {
+        hold = supervisor->Hold(spec.hold_s);
+      }
       if (hold.ok() && options.hooks.on_hold_end) {
         status = options.hooks.on_hold_end(info, *hold)
                      .WithContext(fmt::format("step {} hook", info.instance));

@@ -79,13 +79,33 @@ struct SweepStepInfo {
   SweepStep spec;
 };
 
+// What during_hold gets besides its step.
+struct HoldWork {
+  const std::atomic<bool>* abort = nullptr;    // never null inside during_hold
+  std::function<PlatformSnapshot()> platform;  // the supervisor's last reading (thread-safe)
+};
+
 // Per-step hooks, e.g. for the capture module to record one take per step. on_hold_start runs
 // once the platform has settled (and dwelt settle_s), right before the hold; on_hold_end right
-// after it, with how well the frequency was held. A failed hook ramps the platform to a stop
-// and ends the sweep with that error; the step is then not marked done, so --resume redoes it.
+// after it, with how well the frequency was held. Both run on the supervisor's thread, which
+// does not tick while they run: they must return at once (bookkeeping, a marker).
+// during_hold is for work that takes time (recording a take): it runs on a thread of its own
+// during the hold while the supervisor keeps the platform supervised (HoldDuring): the hold
+// lasts hold_s and until during_hold returns, at most max_hold_s; `abort` becomes true when
+// the supervisor stops the platform (trip, overspeed, stop request, lost link), and
+// during_hold must then return promptly (a take keeps what it recorded). A failed hook ramps
+// the platform to a stop and ends the sweep with that error; the step is then not marked
+// done, so --resume redoes it.
 struct SweepHooks {
   std::function<Status(const SweepStepInfo&)> on_hold_start;
+  std::function<Status(const SweepStepInfo&, const HoldWork&)> during_hold;
   std::function<Status(const SweepStepInfo&, const HoldSummary&)> on_hold_end;
+  double max_hold_s = 600.0;  // bound on a hold that waits for during_hold
+  // Asked (on --resume) for each step not yet marked done, before the platform moves: true
+  // when the step's work was completed by an earlier run that died before its "step_done"
+  // (a kill between the end of a take and the log record). The step is then marked done,
+  // "recovered", and not run again.
+  std::function<bool(const SweepStepInfo&)> already_done;
 };
 
 struct SweepOptions {

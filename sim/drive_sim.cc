@@ -322,6 +322,11 @@ void DriveSim::ForceFault(int code) {
   model_.ForceFault(code);
 }
 
+void DriveSim::SetSensorGain(double gain) {
+  std::lock_guard<std::mutex> lock(model_mutex_);
+  model_.SetSensorGain(gain);
+}
+
 void DriveSim::ScheduleTrip(double after_s, int code) {
   std::lock_guard<std::mutex> lock(model_mutex_);
   model_.ScheduleTrip(after_s, code);

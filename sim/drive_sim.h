@@ -107,6 +107,8 @@ class DriveModel {
   void NoteRequest() { silent_s_ = 0.0; }
   // The drive-side watchdog time as written over Modbus (0 = off).
   void SetWatchdogS(double watchdog_s) { options_.watchdog_s = watchdog_s; }
+  // Fault injection: the sensor starts reporting `gain` times the truth (a sensor gone bad).
+  void SetSensorGain(double gain) { options_.sensor_gain = gain; }
   // Advances the motor, platform, sensor and watchdog by dt_s seconds.
   void Advance(double dt_s);
 
@@ -180,6 +182,8 @@ class DriveSim {
   void CutLink(bool cut) { link_cut_ = cut; }
   void ForceFault(int code);
   void ScheduleTrip(double after_s, int code);
+  // The oscillation sensor reports `gain` times the true platform frequency from now on.
+  void SetSensorGain(double gain);
 
   DriveModelState state() const;
   long requests_served() const { return requests_served_; }

@@ -129,7 +129,7 @@ TEST(RecordTake, CameraErrorStopsTheTakeAndNamesTheCamera) {
   EXPECT_FALSE(check->takes[0].complete);
 }
 
-TEST(RecordTake, StopRequestEndsTheTakeAborted) {
+TEST(RecordTake, StopRequestEndsTheTakeInterrupted) {
   testing::TempDir dir;
   auto session = SessionWriter::Open(dir.path(), "virtual", Infos(1), Json::object());
   ASSERT_TRUE(session.ok());
@@ -150,7 +150,7 @@ TEST(RecordTake, StopRequestEndsTheTakeAborted) {
   options.telemetry_period_s = 1e-9;  // every trigger
   auto report = RecordTake(session->get(), {&a}, &trigger, options);
   ASSERT_TRUE(report.ok());
-  EXPECT_EQ(report->result.status, "aborted");
+  EXPECT_EQ(report->result.status, "interrupted");
   EXPECT_NE(report->result.reason.find("interrupted"), std::string::npos) << report->result.reason;
   EXPECT_EQ(report->result.triggers_emitted, 3);
   // Pulses 0..2 went out (the request is seen at the start of pulse 3); each has its frame.

@@ -37,7 +37,7 @@ Frame MakeFrame(int camera, int64_t trigger) {
 
 // Records `frames` triggers on every camera into a new take and ends it.
 void RecordTake(SessionWriter* session, const std::string& name, int cameras, int frames,
-                int skip_trigger = -1) {
+                int skip_trigger = -1, const Json& extra = Json::object()) {
   auto take_dir = session->BeginTake(name, 128.0, frames);
   ASSERT_TRUE(take_dir.ok()) << take_dir.status().message();
   std::vector<std::string> paths;
@@ -50,6 +50,7 @@ void RecordTake(SessionWriter* session, const std::string& name, int cameras, in
   result.fps = 128.0;
   result.triggers_requested = frames;
   result.triggers_emitted = frames;
+  result.extra = extra;
   for (int k = 0; k < cameras; ++k) {
     FrameSyncChecker checker(0);
     for (int t = 0; t < frames; ++t) {
@@ -109,7 +110,14 @@ TEST(Session, ReopenAppendsAndRefusesExistingTake) {
   ASSERT_TRUE(check.ok());
   EXPECT_EQ(check->takes.size(), 2u);
   EXPECT_TRUE(check->Complete()) << check->ToText();
-  EXPECT_FALSE(SessionWriter::Open(dir.path(), "virtual", Cameras(3), Json::object()).ok());
+  // Two writers on one session: refused.
+  auto second = SessionWriter::Open(dir.path(), "virtual", Cameras(1), Json::object());
+  ASSERT_FALSE(second.ok());
+  EXPECT_NE(second.status().message().find("another facedyn process"), std::string::npos);
+  session->reset();
+  auto other = SessionWriter::Open(dir.path(), "virtual", Cameras(3), Json::object());
+  ASSERT_FALSE(other.ok());
+  EXPECT_NE(other.status().message().find("cameras"), std::string::npos);
 }
 
 TEST(Session, MissingFrameAndTornEventLineAreReported) {
@@ -172,6 +180,44 @@ TEST(Session, FramePathsOutsideTheTakeAreRefused) {
     const std::string text = check->ToText();
     EXPECT_NE(text.find("refused"), std::string::npos) << text;
   }
+}
+
+// session.json's calibration reference is confined to the session like capture.json's frame
+// paths: before, "../" or an absolute path made reconstruct load camera models from anywhere.
+TEST(Session, CalibrationPathOutsideTheSessionIsRefusedNamingTheField) {
+  for (const std::string hostile :
+       {"../outside/calibration.yaml", "sub/../../outside/calibration.yaml", "/OUTSIDE"}) {
+    testing::TempDir dir;
+    {
+      auto session = SessionWriter::Open(dir.Join("s"), "virtual", Cameras(1), Json::object());
+      ASSERT_TRUE(session.ok());
+      ASSERT_TRUE((*session)->SetCalibration("calibration.yaml").ok());
+      EXPECT_FALSE((*session)->SetCalibration(hostile).ok()) << hostile;
+    }
+    std::filesystem::create_directories(dir.Join("outside"));
+    testing::WriteBytes(dir.Join("outside/calibration.yaml"), "cameras: []\n");
+    std::string target = hostile == "/OUTSIDE" ? dir.Join("outside/calibration.yaml") : hostile;
+    const std::string path = dir.Join("s/session.json");
+    Json json = Json::parse(testing::ReadBytes(path));
+    EXPECT_EQ(json["calibration"], "calibration.yaml");
+    json["calibration"] = target;
+    testing::WriteBytes(path, json.dump(2));
+    auto info = ReadSession(dir.Join("s"));
+    ASSERT_FALSE(info.ok()) << target;
+    EXPECT_NE(info.status().message().find("field 'calibration'"), std::string::npos)
+        << info.status().message();
+    EXPECT_NE(info.status().message().find(target), std::string::npos) << info.status().message();
+    EXPECT_FALSE(CheckSession(dir.Join("s")).ok());
+  }
+  // A path inside the session is still read.
+  testing::TempDir dir;
+  ASSERT_TRUE(SessionWriter::Open(dir.path(), "virtual", Cameras(1), Json::object()).ok());
+  Json json = Json::parse(testing::ReadBytes(dir.Join("session.json")));
+  json["calibration"] = "calib/cameras.yaml";
+  testing::WriteBytes(dir.Join("session.json"), json.dump(2));
+  auto info = ReadSession(dir.path());
+  ASSERT_TRUE(info.ok()) << info.status().message();
+  EXPECT_EQ(info->calibration_path, info->dir + "/calib/cameras.yaml");
 }
 
 // triggers_emitted sizes reconstruct's per-trigger arrays; 2^40 in a manifest is refused here.
@@ -272,6 +318,32 @@ TEST(Session, KillNineMidTakeLeavesReadableSession) {
   EXPECT_EQ(check->takes[1].status, "recording");
   EXPECT_GT(check->takes[1].cameras[1].frames, 100);
   EXPECT_NE(check->ToText().find("never stopped"), std::string::npos);
+
+  // Reopening the session (`--resume`) marks the dead take interrupted, frames kept; a complete
+  // take that says it supersedes it makes the session complete again.
+  const int64_t kept = check->takes[1].cameras[1].frames;
+  auto reopened = SessionWriter::Open(dir.path(), "virtual", Cameras(2), Json::object());
+  ASSERT_TRUE(reopened.ok()) << reopened.status().message();
+  check = CheckSession(dir.path());
+  ASSERT_TRUE(check.ok());
+  EXPECT_EQ(check->takes[1].status, "interrupted");
+  EXPECT_EQ(check->takes[1].cameras[1].frames, kept);
+  EXPECT_FALSE(check->Complete()) << check->ToText();  // interrupted and not redone
+  EXPECT_NE(testing::ReadBytes(dir.path() + "/events.jsonl").find("take_interrupted"),
+            std::string::npos);
+  RecordTake(reopened->get(), "killed_retry2", 2, 8, -1, Json{{"supersedes", {"killed"}}});
+  check = CheckSession(dir.path());
+  ASSERT_TRUE(check.ok());
+  EXPECT_EQ(check->takes[1].superseded_by, "killed_retry2");
+  EXPECT_TRUE(check->Complete()) << check->ToText();
+  // Only a complete take supersedes: an aborted one that claims to does not.
+  RecordTake(reopened->get(), "victim", 2, 8, /*skip_trigger=*/3);
+  RecordTake(reopened->get(), "bogus", 2, 8, /*skip_trigger=*/3, Json{{"supersedes", {"victim"}}});
+  check = CheckSession(dir.path());
+  ASSERT_TRUE(check.ok());
+  ASSERT_EQ(check->takes.size(), 5u);
+  EXPECT_EQ(check->takes[3].name, "victim");
+  EXPECT_EQ(check->takes[3].superseded_by, "");
 }
 
 }  // namespace

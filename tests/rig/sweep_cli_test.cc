@@ -27,47 +27,7 @@ namespace {
 using ::testing::HasSubstr;
 using Clock = std::chrono::steady_clock;
 
-// A child process with stdout and stderr in a file.
-class Child {
- public:
-  Child(const std::vector<std::string>& args, const std::string& output_path) {
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      const int fd = ::open(output_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      ::dup2(fd, 1);
-      ::dup2(fd, 2);
-      std::vector<std::string> copy = args;
-      std::vector<char*> argv;
-      for (std::string& a : copy) argv.push_back(a.data());
-      argv.push_back(nullptr);
-      ::execv(argv[0], argv.data());
-      ::_exit(127);
-    }
-  }
-  ~Child() {
-    if (pid_ > 0) {
-      ::kill(pid_, SIGKILL);
-      Wait(5.0);
-    }
-  }
-  void Signal(int signal) { ::kill(pid_, signal); }
-  // Exit code, 128 + signal when killed, or -1 on timeout.
-  int Wait(double timeout_s) {
-    const auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
-    while (Clock::now() < deadline) {
-      int status = 0;
-      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
-        pid_ = -1;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return -1;
-  }
-
- private:
-  pid_t pid_ = -1;
-};
+using Child = testing::ChildProcess;
 
 struct Stage {
   testing::TempDir dir;

@@ -6,8 +6,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <map>
 #include <string>
+#include <thread>
 
 #include "rig/session_log.h"
 #include "sim/drive_sim.h"
@@ -17,6 +20,7 @@ namespace facedyn::rig {
 namespace {
 
 using ::testing::HasSubstr;
+using Clock = std::chrono::steady_clock;
 
 StatusOr<SweepScript> ParseText(const std::string& text) {
   FACEDYN_ASSIGN_OR_RETURN(const ConfigNode root, ConfigNode::Parse(text, "sweep.yaml"));
@@ -275,5 +279,166 @@ TEST(RunSweep, RunsEveryStepCallsHooksAndResumesAfterAFailure) {
   EXPECT_THAT(mismatch.status().message(), HasSubstr("different sweep script"));
 }
 
+// Issue 18, item 4: a take recorded during a sweep step (during_hold) stands in for capture's:
+// it "records" for take_s unless told to abort, calling `inject` once, `inject_after_s` in.
+struct FakeTake {
+  double take_s = 6.0;
+  double inject_after_s = 0.5;
+  std::function<void()> inject;
+  // Filled in by the take.
+  int frames = 0;
+  bool aborted = false;
+  double ran_s = 0.0;
+  Clock::time_point injected_at{};
+
+  std::function<Status(const SweepStepInfo&, const HoldWork&)> Hook() {
+    return [this](const SweepStepInfo&, const HoldWork& work) {
+      const auto start = Clock::now();
+      bool injected = false;
+      while (std::chrono::duration<double>(Clock::now() - start).count() < take_s) {
+        if (work.abort->load()) {
+          aborted = true;
+          break;
+        }
+        if (!injected && inject &&
+            std::chrono::duration<double>(Clock::now() - start).count() >= inject_after_s) {
+          injected = true;
+          injected_at = Clock::now();
+          inject();
+        }
+        ++frames;  // one frame per 1/128 s
+        std::this_thread::sleep_for(std::chrono::microseconds(7812));
+      }
+      ran_s = std::chrono::duration<double>(Clock::now() - start).count();
+      return aborted ? AbortedError("take interrupted") : Status::Ok();
+    };
+  }
+};
+
+StatusOr<SweepScript> OneStep(double hz) {
+  return ParseText(fmt::format(
+      "name: t\ndefaults: {{hold_s: 0.2, settle_timeout_s: 15}}\nsteps:\n  - {{hz: {}}}\n", hz));
+}
+
+// The simulated drive trips 0.5 s into a 6 s take: the supervisor, still ticking, sees the trip,
+// stops the platform and interrupts the take (before, it ran unsupervised to its end).
+TEST(RunSweep, TripDuringATakeStopsThePlatformMidTake) {
+  SimRigBench bench = StartSim();
+  ASSERT_NE(bench.sim, nullptr);
+  auto script = OneStep(8.0);
+  ASSERT_TRUE(script.ok());
+  testing::TempDir dir;
+  SweepOptions options;
+  options.session_dir = dir.Join("session");
+  FakeTake take;
+  take.inject = [&] { bench.sim->ForceFault(2); };
+  options.hooks.during_hold = take.Hook();
+  auto result = RunSweep(*script, bench.rig, options);
+  ASSERT_FALSE(result.ok());
+  EXPECT_THAT(result.status().message(), HasSubstr("tripped"));
+  EXPECT_TRUE(take.aborted);
+  EXPECT_LT(take.ran_s, 2.0);  // stopped mid-take, far from its 6 s
+  EXPECT_GT(take.frames, 0);
+  EXPECT_FALSE(bench.sim->state().run_commanded);
+  EXPECT_TRUE(StepDoneCounts(dir.Join("session/rig_log.jsonl")).empty());
+}
+
+// The sensor starts reading 30 % high mid-take (10 Hz reads 13 Hz, above absolute_max_hz +
+// overspeed_margin_hz): the overspeed check runs during the take and stops the platform.
+TEST(RunSweep, OverspeedReadingDuringATakeStopsThePlatformMidTake) {
+  SimRigBench bench = StartSim();
+  ASSERT_NE(bench.sim, nullptr);
+  auto script = OneStep(10.0);
+  ASSERT_TRUE(script.ok());
+  testing::TempDir dir;
+  SweepOptions options;
+  options.session_dir = dir.Join("session");
+  FakeTake take;
+  take.inject = [&] { bench.sim->SetSensorGain(1.3); };
+  options.hooks.during_hold = take.Hook();
+  auto result = RunSweep(*script, bench.rig, options);
+  ASSERT_FALSE(result.ok());
+  EXPECT_THAT(result.status().message(), HasSubstr("overspeed"));
+  EXPECT_TRUE(take.aborted);
+  EXPECT_LT(take.ran_s, 2.0);
+  EXPECT_EQ(bench.sim->state().output_hz, 0.0);  // ramped to a confirmed standstill
+  EXPECT_FALSE(bench.sim->state().run_commanded);
+}
+
+// A stop request (what SIGINT sets) 0.5 s into a take reaches the drive — its run command
+// dropped, as the simulated drive's own state shows — within the 0.5 s the issue requires.
+TEST(RunSweep, StopRequestDuringATakeReachesTheDriveWithinHalfASecond) {
+  SimRigBench bench = StartSim();
+  ASSERT_NE(bench.sim, nullptr);
+  auto script = OneStep(8.0);
+  ASSERT_TRUE(script.ok());
+  testing::TempDir dir;
+  std::atomic<bool> stop{false};
+  SweepOptions options;
+  options.session_dir = dir.Join("session");
+  options.stop_requested = &stop;
+  FakeTake take;
+  take.inject = [&] { stop = true; };
+  options.hooks.during_hold = take.Hook();
+  std::atomic<bool> watching{true};
+  std::atomic<bool> was_running{false};
+  Clock::time_point stopped_at{};
+  std::thread watcher([&] {
+    while (watching) {
+      const bool running = bench.sim->state().run_commanded;
+      if (running) was_running = true;
+      if (was_running && !running && stopped_at == Clock::time_point{}) stopped_at = Clock::now();
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  });
+  auto result = RunSweep(*script, bench.rig, options);
+  watching = false;
+  watcher.join();
+  ASSERT_FALSE(result.ok());
+  EXPECT_EQ(result.status().code(), StatusCode::kAborted);
+  EXPECT_THAT(result.status().message(), HasSubstr("stop requested"));
+  EXPECT_TRUE(take.aborted);
+  EXPECT_GT(take.frames, 0);  // what the take recorded is its own to keep
+  ASSERT_NE(take.injected_at, Clock::time_point{});
+  ASSERT_NE(stopped_at, Clock::time_point{}) << "the stop never reached the drive";
+  EXPECT_LT(std::chrono::duration<double>(stopped_at - take.injected_at).count(), 0.5);
+  EXPECT_EQ(bench.sim->state().output_hz, 0.0);
+}
+
+// The person's exposure counts all of a 3 s take (before, one tick after the take added at
+// most 1 s). Truth: the time the simulated drive's output is above 0 Hz, sampled beside.
+TEST(RunSweep, ExposureOverATakeIsItsWallTime) {
+  SimRigBench bench = StartSim();
+  ASSERT_NE(bench.sim, nullptr);
+  auto script = OneStep(8.0);
+  ASSERT_TRUE(script.ok());
+  testing::TempDir dir;
+  SweepOptions options;
+  options.session_dir = dir.Join("session");
+  FakeTake take;
+  take.take_s = 3.0;
+  options.hooks.during_hold = take.Hook();
+  std::atomic<bool> watching{true};
+  double vibrating_s = 0.0;
+  std::thread watcher([&] {
+    auto last = Clock::now();
+    while (watching) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      const auto now = Clock::now();
+      if (bench.sim->state().output_hz > 0.0)
+        vibrating_s += std::chrono::duration<double>(now - last).count();
+      last = now;
+    }
+  });
+  auto result = RunSweep(*script, bench.rig, options);
+  watching = false;
+  watcher.join();
+  ASSERT_TRUE(result.ok()) << result.status().ToString();
+  EXPECT_FALSE(take.aborted);
+  EXPECT_GE(take.ran_s, 3.0);
+  EXPECT_GT(vibrating_s, 3.0);
+  // Both clocks see the same run; they differ by a control period or two at either end.
+  EXPECT_NEAR(result->exposure["vibrating_s"].get<double>(), vibrating_s, 0.4);
+}
 }  // namespace
 }  // namespace facedyn::rig

@@ -1,9 +1,10 @@
 // Helpers shared by facedyn's tests: temporary folders, the shared assets, Eigen matchers.
 #pragma once
 
-#include <string>
-
 #include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
 
 namespace facedyn::testing {
 
@@ -32,6 +33,23 @@ bool InCi();
 std::string FacedynExecutable();
 // Runs a shell command, captures stdout+stderr into *output, returns the exit code.
 int RunCommand(const std::string& command, std::string* output);
+
+// A child process (argv[0] is a path, no shell) with stdout and stderr in `output_path`;
+// killed with SIGKILL and reaped when the object goes.
+class ChildProcess {
+ public:
+  ChildProcess(const std::vector<std::string>& args, const std::string& output_path);
+  ~ChildProcess();
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+  void Signal(int signal_number);
+  // Exit code, 128 + signal when killed by one, or -1 when still running after timeout_s.
+  int Wait(double timeout_s);
+  bool running() const { return pid_ > 0; }
+
+ private:
+  int pid_ = -1;
+};
 
 // Writes bytes to a file (for crafting corrupt inputs).
 void WriteBytes(const std::string& path, const std::string& bytes);

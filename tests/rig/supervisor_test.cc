@@ -327,7 +327,11 @@ TEST(RigSupervisor, UnconfirmedStopLeavesTheWatchdogArmed) {
   while (!bench->sim->state().watchdog_fired && Clock::now() - quiet < std::chrono::seconds(4))
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_TRUE(bench->sim->state().watchdog_fired) << "the watchdog was disarmed";
-  std::this_thread::sleep_for(std::chrono::milliseconds(2000));  // the sim's ramp from 8 Hz
+  // The sim's ramp from 8 Hz takes 1.6 s of its model time, which falls behind the wall clock
+  // on a loaded machine: wait for it (bounded) instead of a fixed sleep.
+  const auto fired = Clock::now();
+  while (bench->sim->state().output_hz != 0.0 && Clock::now() - fired < std::chrono::seconds(15))
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   EXPECT_EQ(bench->sim->state().output_hz, 0.0);
 }
 

@@ -543,5 +543,20 @@ TEST(ReadMesh, MediaPipeCanonicalFace) {
   EXPECT_EIGEN_NEAR(again->positions_mm, face.positions_mm, 1e-6);  // coordinates below 10
 }
 
+// A PLY header may claim any element count; OpenMesh reserves it before reading, so 2e9
+// vertices in a 189-byte file threw std::bad_alloc (fuzz/mesh_ply). Now a DataLoss naming it.
+TEST(ReadMesh, PlyElementCountLargerThanTheFileIsCorrupt) {
+  TempDir dir;
+  const std::string path = dir.Join("huge.ply");
+  WriteBytes(path,
+             "ply\nformat ascii 1.0\nelement vertex 2000000000\nproperty float x\n"
+             "property float y\nproperty float z\nelement face 1\n"
+             "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  const auto read = ReadMesh(path);
+  ASSERT_FALSE(read.ok());
+  EXPECT_EQ(read.status().code(), StatusCode::kDataLoss);
+  EXPECT_THAT(read.status().message(), HasSubstr("declares 2000000000 vertex elements"));
+}
+
 }  // namespace
 }  // namespace facedyn

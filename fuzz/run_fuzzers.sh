@@ -12,7 +12,8 @@ shift 2
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
   targets=(pc2 mesh_obj mesh_ply take_json transform_csv drive_profile rig_config sweep_script
-           rig_log modbus_reply capture_config session_json session_events frame_file drive_request)
+           rig_log modbus_reply capture_config session_json session_events frame_file calibration
+           drive_request)
 fi
 work="$build/fuzz-work"
 mkdir -p "$work"

@@ -10,9 +10,11 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <set>
 #include <sstream>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -94,12 +96,23 @@ Status CheckObjFaceIndices(const std::string& path) {
     std::istringstream words(line);
     std::string tag;
     words >> tag;
-    if (tag == "v") {
-      ++defined[0];
-    } else if (tag == "vt") {
-      ++defined[1];
-    } else if (tag == "vn") {
-      ++defined[2];
+    if (tag == "v" || tag == "vt" || tag == "vn") {
+      // OpenMesh reads these coordinates as floats and silently skips a "v" line whose three do
+      // not parse ("v 0 1", "v nan 0 0", "v 1e50 0 0"), so counting every "v" line made a face
+      // index that passed here name a vertex OpenMesh never added, and it wrote that vertex's uv
+      // past the end of its array (heap overflow, found by fuzz/mesh_obj). Such a line is an
+      // error naming it instead.
+      const int kind = tag == "v" ? 0 : tag == "vt" ? 1 : 2;
+      const int needed = kind == 1 ? 2 : 3;
+      for (int k = 0; k < needed; ++k) {
+        float value = 0.0f;
+        if (!(words >> value)) {
+          return DataLossError(fmt::format(
+              "{}:{}: '{}' line does not start with {} numbers (each a finite float)", path,
+              line_number, tag, needed));
+        }
+      }
+      ++defined[kind];
     } else if (tag == "f") {
       std::string corner;
       int corner_number = 0;
@@ -157,6 +170,68 @@ Status CheckObjFaceIndices(const std::string& path) {
     }
   }
   return Status::Ok();
+}
+
+// Checks a PLY header's grammar before OpenMesh sees it: "ply", a format line, then element,
+// property, comment and obj_info lines up to "end_header". OpenMesh's header reader never
+// returned on some malformed headers: a "property list uchar" without its index type and name
+// made can_u_read read past end_header and loop at the end of the file (found by
+// fuzz/mesh_ply). Errors name the file and the line.
+Status CheckPlyHeader(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return UnavailableError(path + ": cannot read");
+  static const std::set<std::string> kTypes = {
+      "char",  "uchar",  "short", "ushort",  "int",    "uint",    "float",   "double",
+      "int8",  "uint8",  "int16", "uint16",  "int32",  "uint32",  "float32", "float64"};
+  std::string line;
+  int line_number = 0;
+  bool have_element = false;
+  while (std::getline(in, line)) {
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream stream(line);
+    std::vector<std::string> words;
+    for (std::string word; stream >> word;) words.push_back(word);
+    auto fail = [&](const std::string& why) {
+      return DataLossError(fmt::format("{}:{}: PLY header: {}", path, line_number, why));
+    };
+    if (line_number == 1) {
+      if (line != "ply") return fail("the file must start with a line 'ply'");
+      continue;
+    }
+    if (line_number == 2) {
+      if (words.size() != 3 || words[0] != "format" ||
+          (words[1] != "ascii" && words[1] != "binary_little_endian" &&
+           words[1] != "binary_big_endian")) {
+        return fail("expected 'format ascii|binary_little_endian|binary_big_endian 1.0'");
+      }
+      continue;
+    }
+    if (words.empty()) return fail("empty line");
+    const std::string& key = words[0];
+    if (key == "comment" || key == "obj_info") continue;
+    if (key == "end_header") return Status::Ok();
+    if (key == "element") {
+      long long count = -1;
+      std::istringstream number(words.size() == 3 ? words[2] : "");
+      if (words.size() != 3 || !(number >> count) || !number.eof() || count < 0) {
+        return fail("expected 'element <name> <count>' with a count >= 0");
+      }
+      have_element = true;
+    } else if (key == "property") {
+      if (!have_element) return fail("a property before any element");
+      const bool is_list = words.size() >= 2 && words[1] == "list";
+      const bool ok = is_list ? words.size() == 5 && kTypes.count(words[2]) && kTypes.count(words[3])
+                              : words.size() == 3 && kTypes.count(words[1]);
+      if (!ok) {
+        return fail("expected 'property <type> <name>' or 'property list <count type> <type> "
+                    "<name>' with known types");
+      }
+    } else {
+      return fail("unknown header keyword '" + key + "'");
+    }
+  }
+  return DataLossError(path + ": PLY header has no end_header line");
 }
 
 }  // namespace
@@ -260,6 +335,7 @@ StatusOr<Mesh> ReadMesh(const std::string& path) {
   // element takes at least one byte of the file in either encoding: more elements than bytes is
   // a corrupt header.
   if (ext == ".ply") {
+    FACEDYN_RETURN_IF_ERROR(CheckPlyHeader(path));
     const auto file_bytes = std::filesystem::file_size(path, ec);
     for (const char* element : {"vertex", "face"}) {
       const int declared = DeclaredElementCount(path, ext, element);

@@ -6,7 +6,7 @@
 # Work files: BUILD_DIR/fuzz-work/<target>/{corpus,crash-*,log}; summary BUILD_DIR/fuzz-work/summary.tsv
 set -uo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
-build="$1"
+build="$(cd "$1" && pwd)"
 seconds="$2"
 shift 2
 targets=("$@")

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <exception>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/core/eigen.hpp>
@@ -241,6 +242,11 @@ StatusOr<std::vector<CameraModel>> ReadCameraModels(const std::string& path) {
     }
   } catch (const cv::Exception& e) {
     return InvalidArgumentError(path + ": cannot parse as OpenCV FileStorage YAML: " + e.what());
+  } catch (const std::exception& e) {
+    // OpenCV's parser also lets standard exceptions out: a malformed key made FileStorage's
+    // constructor throw std::length_error, which ended the process (fuzz/calibration).
+    return InvalidArgumentError(path + ": cannot parse as OpenCV FileStorage YAML (" + e.what() +
+                                ")");
   }
   if (cameras.empty()) return InvalidArgumentError(path + ": 'cameras' is empty");
   return cameras;

@@ -186,6 +186,7 @@ Status CheckPlyHeader(const std::string& path) {
   std::string line;
   int line_number = 0;
   bool have_element = false;
+  std::string element;
   while (std::getline(in, line)) {
     ++line_number;
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -217,10 +218,20 @@ Status CheckPlyHeader(const std::string& path) {
       if (words.size() != 3 || !(number >> count) || !number.eof() || count < 0) {
         return fail("expected 'element <name> <count>' with a count >= 0");
       }
+      // facedyn meshes have vertices and faces only; OpenMesh also looped forever on a header
+      // whose only element was an unknown one carrying a list property (fuzz/mesh_ply).
+      if (words[1] != "vertex" && words[1] != "face") {
+        return fail("element '" + words[1] + "' is not supported (only vertex and face)");
+      }
+      element = words[1];
       have_element = true;
     } else if (key == "property") {
       if (!have_element) return fail("a property before any element");
       const bool is_list = words.size() >= 2 && words[1] == "list";
+      if (is_list != (element == "face")) {
+        return fail(element == "face" ? "a face's property must be a list"
+                                      : "a vertex property must not be a list");
+      }
       const bool ok = is_list ? words.size() == 5 && kTypes.count(words[2]) && kTypes.count(words[3])
                               : words.size() == 3 && kTypes.count(words[1]);
       if (!ok) {

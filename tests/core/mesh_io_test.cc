@@ -596,6 +596,8 @@ TEST(ReadMesh, MalformedPlyHeaderNamesFileAndLine) {
       {"ply\nformat ascii 1.0\nproperty float x\n" + body, ":3: PLY header: a property before"},
       {"ply\nformat ascii 1.0\nelement vertex -3\n" + body, ":3: PLY header: expected 'element"},
       {"ply\nformat ascii 1.0\n" + vertex + "frobnicate\n" + body, "unknown header keyword"},
+      {"ply\nformat ascii 1.0\nelement veface 1\nproperty list uchar int v\n" + body,
+       ":3: PLY header: element 'veface' is not supported"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.text);

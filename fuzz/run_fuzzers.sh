@@ -25,6 +25,7 @@ for t in "${targets[@]}"; do
   if [ ! -x "$bin" ]; then echo "fuzz: $bin is not built" >&2; failed=1; continue; fi
   dir="$work/$t"
   rm -rf "$dir/corpus"
+  rm -f "$dir"/crash-* "$dir"/leak-* "$dir"/timeout-* "$dir"/oom-* "$dir"/slow-unit-*
   mkdir -p "$dir/corpus"
   for seeds in "$here/corpus/$t" "$here/regressions/$t"; do
     [ -d "$seeds" ] && cp -r "$seeds/." "$dir/corpus/"

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <exception>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/core/eigen.hpp>
@@ -163,6 +164,16 @@ namespace {
 Status ReadMatrix(const cv::FileNode& node, const std::string& field, int rows, int cols,
                   const std::string& what, cv::Mat* out) {
   if (node[field].empty()) return InvalidArgumentError(what + ": missing field '" + field + "'");
+  // OpenCV allocates rows x cols before reading the data, so a header claiming 2^18 x 2^18 asked
+  // for 64 GiB (fuzz/calibration). The size is checked first.
+  const cv::FileNode header_rows = node[field]["rows"];
+  const cv::FileNode header_cols = node[field]["cols"];
+  if (!header_rows.isInt() || !header_cols.isInt() ||
+      static_cast<int64_t>(static_cast<int>(header_rows)) * static_cast<int>(header_cols) !=
+          static_cast<int64_t>(rows) * cols) {
+    return InvalidArgumentError(what + ": field '" + field + "' must be an opencv-matrix of " +
+                                std::to_string(rows) + "x" + std::to_string(cols));
+  }
   try {
     node[field] >> *out;
   } catch (const cv::Exception& e) {
@@ -241,6 +252,11 @@ StatusOr<std::vector<CameraModel>> ReadCameraModels(const std::string& path) {
     }
   } catch (const cv::Exception& e) {
     return InvalidArgumentError(path + ": cannot parse as OpenCV FileStorage YAML: " + e.what());
+  } catch (const std::exception& e) {
+    // OpenCV's parser also lets standard exceptions out: a malformed key made FileStorage's
+    // constructor throw std::length_error, which ended the process (fuzz/calibration).
+    return InvalidArgumentError(path + ": cannot parse as OpenCV FileStorage YAML (" + e.what() +
+                                ")");
   }
   if (cameras.empty()) return InvalidArgumentError(path + ": 'cameras' is empty");
   return cameras;

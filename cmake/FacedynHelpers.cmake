@@ -8,9 +8,18 @@ function(_facedyn_common_options target)
   if(FACEDYN_WERROR)
     target_compile_options(${target} PRIVATE -Werror)
   endif()
+  # -fno-sanitize-recover=all: a UBSan finding ends the process (and fails the test) instead of
+  # printing a line that a passing run would hide.
   if(FACEDYN_SANITIZE)
     target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer
-                                             -fno-sanitize-recover=undefined)
+                                             -fno-sanitize-recover=all)
+    target_link_options(${target} PRIVATE -fsanitize=address,undefined)
+  endif()
+  # FACEDYN_FUZZ: libFuzzer's coverage instrumentation everywhere, the fuzzer's main only in
+  # the fuzz targets (fuzz/CMakeLists.txt links them with -fsanitize=fuzzer).
+  if(FACEDYN_FUZZ)
+    target_compile_options(${target} PRIVATE -fsanitize=fuzzer-no-link,address,undefined
+                                             -fno-omit-frame-pointer -fno-sanitize-recover=all)
     target_link_options(${target} PRIVATE -fsanitize=address,undefined)
   endif()
 endfunction()
@@ -25,7 +34,7 @@ function(facedyn_add_library module)
   target_include_directories(${target} PUBLIC ${PROJECT_SOURCE_DIR} ${PROJECT_BINARY_DIR}/generated)
   target_link_libraries(${target} PUBLIC ${ARG_DEPS})
   _facedyn_common_options(${target})
-  if(FACEDYN_SANITIZE)
+  if(FACEDYN_SANITIZE OR FACEDYN_FUZZ)
     target_link_options(${target} PUBLIC -fsanitize=address,undefined)
   endif()
 endfunction()
@@ -71,6 +80,10 @@ function(facedyn_add_test module name)
     _facedyn_common_options(facedyn_test_main)
   endif()
   add_executable(${target} ${name}.cc ${ARG_SOURCES})
+  # For facedyn_add_sanitizer_ci_target (the module's tests, by binary and CTest prefix).
+  set_property(GLOBAL APPEND PROPERTY FACEDYN_TEST_TARGETS ${target})
+  set_target_properties(${target} PROPERTIES FACEDYN_TEST_MODULE ${module}
+                                             FACEDYN_TEST_NAME ${module}/${name})
   target_link_libraries(${target} PRIVATE facedyn_test_main facedyn_test_support ${ARG_DEPS}
                                           GTest::gtest GTest::gmock)
   target_compile_definitions(${target} PRIVATE FACEDYN_TEST_SKIP_CODE=${FACEDYN_TEST_SKIP_CODE})
@@ -98,4 +111,37 @@ function(facedyn_add_test module name)
                          DISCOVERY_TIMEOUT 120 PROPERTIES ${properties} LABELS ${module}
                          RESOURCE_LOCK ${target})
   endif()
+endfunction()
+
+# facedyn_add_sanitizer_ci_target(<target> MODULES ...)
+#   A target that builds the test binaries of MODULES (and the fuzz replays) but not the ones
+#   that run the `facedyn` executable (add_dependencies(... facedyn)): those need every library
+#   of the project, which is what makes a full sanitizer build long. The CTest names of the
+#   tests left out are written, as one regular expression for `ctest -E`, to
+#   <build>/<target>_exclude.txt (`make asan-ci` reads it), so ctest does not report their
+#   unbuilt binaries as failures. Call after every facedyn_add_test.
+function(facedyn_add_sanitizer_ci_target name)
+  cmake_parse_arguments(ARG "" "" "MODULES" ${ARGN})
+  get_property(all GLOBAL PROPERTY FACEDYN_TEST_TARGETS)
+  set(built "")
+  set(left_out "")
+  foreach(target IN LISTS all)
+    get_target_property(module ${target} FACEDYN_TEST_MODULE)
+    get_target_property(test_name ${target} FACEDYN_TEST_NAME)
+    if(NOT module IN_LIST ARG_MODULES)
+      continue()
+    endif()
+    get_target_property(manual ${target} MANUALLY_ADDED_DEPENDENCIES)
+    if(manual AND "facedyn" IN_LIST manual)
+      list(APPEND left_out "^${test_name}([.]|$)")
+    else()
+      list(APPEND built ${target})
+    endif()
+  endforeach()
+  add_custom_target(${name} DEPENDS ${built} fuzz_all)
+  list(JOIN left_out "|" regex)
+  if(NOT regex)
+    set(regex "^$")
+  endif()
+  file(WRITE ${PROJECT_BINARY_DIR}/${name}_exclude.txt "${regex}\n")
 endfunction()

@@ -83,35 +83,72 @@ struct IsVector<std::vector<T>> : std::true_type {};
 // `max_hz: 11` then `max_hz: 8` meant 11) and aliases (`*name`), which make self-referential or
 // exponentially nested documents (a "billion laughs") that crash or exhaust the builder. No
 // shipped config uses anchors; refusing aliases costs nothing.
+//
+// It also bounds the number of events by the length of the text: yaml-cpp 0.7 never returns on a
+// ',' outside brackets where a block node is expected (a document "," or "- 1\n,", or "'a' ,"),
+// emitting null nodes and allocating until memory runs out (found by fuzz/take_json). Every
+// event of a real document consumes at least a character or so (a key and its null value take
+// "a:"), so more than 4 events per byte means the parser is not progressing; the pass then
+// stops with an error naming the line.
 class StrictYamlCheck : public YAML::EventHandler {
  public:
+  explicit StrictYamlCheck(size_t text_bytes) : max_events_(4 * text_bytes + 16) {}
+
+  // Thrown out of the parser when the event budget is spent (the parser would not return).
+  struct NotProgressing {};
+
   std::string error;  // first problem, "line:column: message"
 
-  void OnDocumentStart(const YAML::Mark&) override {}
-  void OnDocumentEnd() override {}
-  void OnNull(const YAML::Mark& mark, YAML::anchor_t) override { Value(mark, nullptr); }
+  void OnDocumentStart(const YAML::Mark& mark) override { Count(mark); }
+  void OnDocumentEnd() override { Count(last_mark_); }
+  void OnNull(const YAML::Mark& mark, YAML::anchor_t) override {
+    Count(mark);
+    Value(mark, nullptr);
+  }
   void OnAlias(const YAML::Mark& mark, YAML::anchor_t) override {
+    Count(mark);
     Fail(mark, "aliases (*name) are not supported in facedyn configs; write the value out");
     Value(mark, nullptr);
   }
   void OnScalar(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
                 const std::string& value) override {
+    Count(mark);
     Value(mark, &value);
   }
   void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
                        YAML::EmitterStyle::value) override {
+    Count(mark);
     Value(mark, nullptr);
     Push(mark, false);
   }
-  void OnSequenceEnd() override { Pop(); }
+  void OnSequenceEnd() override {
+    Count(last_mark_);
+    Pop();
+  }
   void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
                   YAML::EmitterStyle::value) override {
+    Count(mark);
     Value(mark, nullptr);
     Push(mark, true);
   }
-  void OnMapEnd() override { Pop(); }
+  void OnMapEnd() override {
+    Count(last_mark_);
+    Pop();
+  }
 
  private:
+  void Count(const YAML::Mark& mark) {
+    last_mark_ = mark;
+    if (++events_ <= max_events_) return;
+    Fail(mark,
+         "syntax error: the YAML parser makes no progress here (a ',' outside [ ] or { }?)");
+    throw NotProgressing{};
+  }
+
+  size_t events_ = 0;
+  size_t max_events_;
+  YAML::Mark last_mark_;
+
   struct Container {
     bool is_map = false;
     bool expecting_key = true;
@@ -157,8 +194,12 @@ StatusOr<ConfigNode> ConfigNode::Parse(const std::string& text, const std::strin
     {
       std::istringstream stream(text);
       YAML::Parser parser(stream);
-      StrictYamlCheck check;
-      while (parser.HandleNextDocument(check) && check.error.empty()) {
+      StrictYamlCheck check(text.size());
+      try {
+        while (parser.HandleNextDocument(check) && check.error.empty()) {
+        }
+      } catch (const StrictYamlCheck::NotProgressing&) {
+        // check.error says where.
       }
       if (!check.error.empty())
         return InvalidArgumentError(fmt::format("{}:{}", source_name, check.error));

@@ -10,9 +10,11 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <set>
 #include <sstream>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -94,12 +96,23 @@ Status CheckObjFaceIndices(const std::string& path) {
     std::istringstream words(line);
     std::string tag;
     words >> tag;
-    if (tag == "v") {
-      ++defined[0];
-    } else if (tag == "vt") {
-      ++defined[1];
-    } else if (tag == "vn") {
-      ++defined[2];
+    if (tag == "v" || tag == "vt" || tag == "vn") {
+      // OpenMesh reads these coordinates as floats and silently skips a "v" line whose three do
+      // not parse ("v 0 1", "v nan 0 0", "v 1e50 0 0"), so counting every "v" line made a face
+      // index that passed here name a vertex OpenMesh never added, and it wrote that vertex's uv
+      // past the end of its array (heap overflow, found by fuzz/mesh_obj). Such a line is an
+      // error naming it instead.
+      const int kind = tag == "v" ? 0 : tag == "vt" ? 1 : 2;
+      const int needed = kind == 1 ? 2 : 3;
+      for (int k = 0; k < needed; ++k) {
+        float value = 0.0f;
+        if (!(words >> value)) {
+          return DataLossError(fmt::format(
+              "{}:{}: '{}' line does not start with {} numbers (each a finite float)", path,
+              line_number, tag, needed));
+        }
+      }
+      ++defined[kind];
     } else if (tag == "f") {
       std::string corner;
       int corner_number = 0;
@@ -157,6 +170,79 @@ Status CheckObjFaceIndices(const std::string& path) {
     }
   }
   return Status::Ok();
+}
+
+// Checks a PLY header's grammar before OpenMesh sees it: "ply", a format line, then element,
+// property, comment and obj_info lines up to "end_header". OpenMesh's header reader never
+// returned on some malformed headers: a "property list uchar" without its index type and name
+// made can_u_read read past end_header and loop at the end of the file (found by
+// fuzz/mesh_ply). Errors name the file and the line.
+Status CheckPlyHeader(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return UnavailableError(path + ": cannot read");
+  static const std::set<std::string> kTypes = {
+      "char",  "uchar",  "short", "ushort",  "int",    "uint",    "float",   "double",
+      "int8",  "uint8",  "int16", "uint16",  "int32",  "uint32",  "float32", "float64"};
+  std::string line;
+  int line_number = 0;
+  bool have_element = false;
+  std::string element;
+  while (std::getline(in, line)) {
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream stream(line);
+    std::vector<std::string> words;
+    for (std::string word; stream >> word;) words.push_back(word);
+    auto fail = [&](const std::string& why) {
+      return DataLossError(fmt::format("{}:{}: PLY header: {}", path, line_number, why));
+    };
+    if (line_number == 1) {
+      if (line != "ply") return fail("the file must start with a line 'ply'");
+      continue;
+    }
+    if (line_number == 2) {
+      if (words.size() != 3 || words[0] != "format" ||
+          (words[1] != "ascii" && words[1] != "binary_little_endian" &&
+           words[1] != "binary_big_endian")) {
+        return fail("expected 'format ascii|binary_little_endian|binary_big_endian 1.0'");
+      }
+      continue;
+    }
+    if (words.empty()) return fail("empty line");
+    const std::string& key = words[0];
+    if (key == "comment" || key == "obj_info") continue;
+    if (key == "end_header") return Status::Ok();
+    if (key == "element") {
+      long long count = -1;
+      std::istringstream number(words.size() == 3 ? words[2] : "");
+      if (words.size() != 3 || !(number >> count) || !number.eof() || count < 0) {
+        return fail("expected 'element <name> <count>' with a count >= 0");
+      }
+      // facedyn meshes have vertices and faces only; OpenMesh also looped forever on a header
+      // whose only element was an unknown one carrying a list property (fuzz/mesh_ply).
+      if (words[1] != "vertex" && words[1] != "face") {
+        return fail("element '" + words[1] + "' is not supported (only vertex and face)");
+      }
+      element = words[1];
+      have_element = true;
+    } else if (key == "property") {
+      if (!have_element) return fail("a property before any element");
+      const bool is_list = words.size() >= 2 && words[1] == "list";
+      if (is_list != (element == "face")) {
+        return fail(element == "face" ? "a face's property must be a list"
+                                      : "a vertex property must not be a list");
+      }
+      const bool ok = is_list ? words.size() == 5 && kTypes.count(words[2]) && kTypes.count(words[3])
+                              : words.size() == 3 && kTypes.count(words[1]);
+      if (!ok) {
+        return fail("expected 'property <type> <name>' or 'property list <count type> <type> "
+                    "<name>' with known types");
+      }
+    } else {
+      return fail("unknown header keyword '" + key + "'");
+    }
+  }
+  return DataLossError(path + ": PLY header has no end_header line");
 }
 
 }  // namespace
@@ -255,6 +341,22 @@ StatusOr<Mesh> ReadMesh(const std::string& path) {
   if (!std::filesystem::is_regular_file(path, ec)) return NotFoundError(path + ": no such file");
 
   if (ext == ".obj") FACEDYN_RETURN_IF_ERROR(CheckObjFaceIndices(path));
+  // OpenMesh reserves a PLY's declared element counts before reading one element, so a header
+  // claiming 2e9 vertices threw std::bad_alloc out of read_mesh (found by fuzz/mesh_ply). Every
+  // element takes at least one byte of the file in either encoding: more elements than bytes is
+  // a corrupt header.
+  if (ext == ".ply") {
+    FACEDYN_RETURN_IF_ERROR(CheckPlyHeader(path));
+    const auto file_bytes = std::filesystem::file_size(path, ec);
+    for (const char* element : {"vertex", "face"}) {
+      const int declared = DeclaredElementCount(path, ext, element);
+      if (!ec && declared > 0 && static_cast<uintmax_t>(declared) > file_bytes) {
+        return DataLossError(fmt::format("{}: declares {} {} elements in a file of {} bytes "
+                                         "(corrupt header)",
+                                         path, declared, element, file_bytes));
+      }
+    }
+  }
   OmMesh om;
   om.request_vertex_texcoords2D();
   om.request_halfedge_texcoords2D();

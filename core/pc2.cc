@@ -49,6 +49,13 @@ StatusOr<PointCache> ReadPc2(const std::string& path) {
   if (!std::isfinite(start_frame) || !std::isfinite(sampling) || sampling <= 0) {
     return DataLossError(fmt::format("{}: bad start frame {} or sampling {}", path, start_frame, sampling));
   }
+  // Zero points make every frame zero bytes long, so a 32-byte file could claim 2^31 - 1 frames
+  // and pass the size check: a cache of two billion empty frames that every reader then loops
+  // over (a fuzz/pc2 run hung on it for minutes).
+  if (vertex_count == 0 && frame_count > 0) {
+    return DataLossError(fmt::format("{}: header declares {} frames of 0 vertices", path,
+                                     frame_count));
+  }
   const uint64_t frame_bytes = uint64_t(vertex_count) * 3 * sizeof(float);  // < 2^35
   // frame_bytes * frame_count can pass 2^64 for a hostile header (and wrap to the file's size):
   // compare by division against the bytes that are there before multiplying.

@@ -77,32 +77,34 @@ Status DriveClient::ResetFault() {
   return Status::Ok();
 }
 
+DriveStatus DecodeDriveStatus(const DriveProfile& profile, uint16_t status_word,
+                              uint16_t output_frequency_word,
+                              std::optional<uint16_t> fault_code_word) {
+  DriveStatus status;
+  status.status_word = status_word;
+  status.output_hz = profile.output_scaling.RegisterToHz(output_frequency_word);
+  if (profile.fault_code_register) {
+    status.fault_code = profile.FaultCodeFrom(fault_code_word ? *fault_code_word : status_word);
+  }
+  status.faulted = profile.IsFaultBitSet(status.status_word) || status.fault_code != 0;
+  status.running = !status.faulted && profile.IsRunning(status.status_word);
+  if (status.faulted) status.fault_text = profile.DescribeFault(status.fault_code);
+  return status;
+}
+
 StatusOr<DriveStatus> DriveClient::ReadStatus() {
   const std::string context = fmt::format("drive {} status", profile_.name);
-  DriveStatus status;
-  {
-    auto words = transport_->ReadRegisters(profile_.status_register, 1);
+  auto status_words = transport_->ReadRegisters(profile_.status_register, 1);
+  if (!status_words.ok()) return status_words.status().WithContext(context);
+  auto output_words = transport_->ReadRegisters(profile_.output_frequency_register, 1);
+  if (!output_words.ok()) return output_words.status().WithContext(context);
+  std::optional<uint16_t> fault_word;
+  if (profile_.fault_code_register && *profile_.fault_code_register != profile_.status_register) {
+    auto words = transport_->ReadRegisters(*profile_.fault_code_register, 1);
     if (!words.ok()) return words.status().WithContext(context);
-    status.status_word = (*words)[0];
+    fault_word = (*words)[0];
   }
-  {
-    auto words = transport_->ReadRegisters(profile_.output_frequency_register, 1);
-    if (!words.ok()) return words.status().WithContext(context);
-    status.output_hz = profile_.output_scaling.RegisterToHz((*words)[0]);
-  }
-  if (profile_.fault_code_register) {
-    uint16_t fault_word = status.status_word;
-    if (*profile_.fault_code_register != profile_.status_register) {
-      auto words = transport_->ReadRegisters(*profile_.fault_code_register, 1);
-      if (!words.ok()) return words.status().WithContext(context);
-      fault_word = (*words)[0];
-    }
-    status.fault_code = profile_.FaultCodeFrom(fault_word);
-  }
-  status.faulted = profile_.IsFaultBitSet(status.status_word) || status.fault_code != 0;
-  status.running = !status.faulted && profile_.IsRunning(status.status_word);
-  if (status.faulted) status.fault_text = profile_.DescribeFault(status.fault_code);
-  return status;
+  return DecodeDriveStatus(profile_, (*status_words)[0], (*output_words)[0], fault_word);
 }
 
 }  // namespace facedyn::rig

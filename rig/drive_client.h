@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "core/json_io.h"
@@ -36,6 +37,14 @@ struct DriveStatus {
 
   Json ToJson() const;
 };
+
+// The status a drive reports, decoded from the register values it returned: the status word,
+// the output-frequency register and, when the profile has a separate fault-code register, that
+// register's value (nullopt: the code is read out of the status word, or the profile has none).
+// Any 16-bit values are accepted: a drive's reply is outside input.
+DriveStatus DecodeDriveStatus(const DriveProfile& profile, uint16_t status_word,
+                              uint16_t output_frequency_word,
+                              std::optional<uint16_t> fault_code_word);
 
 class DriveClient {
  public:

@@ -30,6 +30,8 @@ packages=(
   gstreamer1.0-plugins-base
   # the demo report is checked by a screenshot in headless Chromium (tests/app/report_test)
   chromium
+  # `make fuzz`: clang with libFuzzer and the sanitizer runtimes (fuzz/)
+  clang libclang-rt-14-dev
 )
 
 missing=()

@@ -236,6 +236,84 @@ Status DriveSimOptions::Check() const {
 DriveSim::DriveSim(const rig::DriveProfile& profile, const DriveSimOptions& options)
     : profile_(profile), options_(options), model_(options.model) {}
 
+std::optional<DriveWrite> DecodeAcceptedWrite(const uint8_t* pdu, int length,
+                                              int register_count) {
+  if (pdu == nullptr || length < 5) return std::nullopt;
+  DriveWrite write;
+  write.function = pdu[0];
+  write.address = (pdu[1] << 8) | pdu[2];
+  if (write.function == MODBUS_FC_WRITE_SINGLE_REGISTER) {
+    if (write.address >= register_count) return std::nullopt;
+    write.values.push_back(static_cast<uint16_t>((pdu[3] << 8) | pdu[4]));
+    return write;
+  }
+  if (write.function != MODBUS_FC_WRITE_MULTIPLE_REGISTERS || length < 6) return std::nullopt;
+  const int quantity = (pdu[3] << 8) | pdu[4];
+  const int byte_count = pdu[5];
+  if (quantity < 1 || quantity > MODBUS_MAX_WRITE_REGISTERS || byte_count != 2 * quantity ||
+      write.address + quantity > register_count || length < 6 + byte_count) {
+    return std::nullopt;
+  }
+  for (int i = 0; i < quantity; ++i) {
+    write.values.push_back(static_cast<uint16_t>((pdu[6 + 2 * i] << 8) | pdu[7 + 2 * i]));
+  }
+  return write;
+}
+
+void ApplyDriveWrite(const rig::DriveProfile& profile, const DriveWrite& write, DriveModel* model) {
+  for (size_t i = 0; i < write.values.size(); ++i) {
+    const int reg = write.address + static_cast<int>(i);
+    const uint16_t value = write.values[i];
+    const bool is_reset =
+        !profile.fault_reset_values.empty() && value == profile.fault_reset_values[0];
+    if (reg == profile.fault_reset_register && is_reset) {
+      model->ResetFault();
+    } else if (reg == profile.command_register) {
+      if (value == profile.run_value)
+        model->Run();
+      else if (value == profile.stop_value)
+        model->Stop();
+    }
+    if (reg == profile.setpoint_register) {
+      model->SetSetpointHz(profile.setpoint_scaling.RegisterToHz(value));
+    }
+    if (profile.comm_watchdog && profile.comm_watchdog->register_address &&
+        reg == *profile.comm_watchdog->register_address) {
+      model->SetWatchdogS(value / profile.comm_watchdog->counts_per_s);
+    }
+  }
+}
+
+void RefreshDriveRegisters(const rig::DriveProfile& profile, const DriveModel& model,
+                           uint16_t* registers, int register_count) {
+  const auto in_map = [register_count](int address) {
+    return address >= 0 && address < register_count;
+  };
+  const DriveModelState& s = model.state();
+  uint16_t status = 0;
+  if (model.output_active()) status |= profile.running_value & profile.running_mask;
+  if (s.fault_code != 0) status |= profile.fault_mask;
+  if (in_map(profile.status_register)) registers[profile.status_register] = status;
+  const auto output = profile.output_scaling.HzToRegister(s.output_hz, "simulated output");
+  if (in_map(profile.output_frequency_register)) {
+    registers[profile.output_frequency_register] = output.ok() ? *output : 0xFFFF;
+  }
+  if (profile.oscillation_register && in_map(*profile.oscillation_register)) {
+    const auto sensor = profile.oscillation_scaling.HzToRegister(s.sensor_hz, "simulated sensor");
+    registers[*profile.oscillation_register] = sensor.ok() ? *sensor : 0xFFFF;
+  }
+  if (profile.fault_code_register && in_map(*profile.fault_code_register)) {
+    const uint16_t code_bits = static_cast<uint16_t>((s.fault_code << profile.fault_code_shift) &
+                                                     profile.fault_code_mask);
+    uint16_t& word = registers[*profile.fault_code_register];
+    if (*profile.fault_code_register == profile.status_register) {
+      word = static_cast<uint16_t>((word & ~profile.fault_code_mask) | code_bits);
+    } else {
+      word = code_bits;
+    }
+  }
+}
+
 StatusOr<std::unique_ptr<DriveSim>> DriveSim::Start(const rig::DriveProfile& profile,
                                                     const DriveSimOptions& options) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
@@ -339,57 +417,7 @@ DriveModelState DriveSim::state() const {
 
 // Caller holds model_mutex_ (or the thread is not started yet).
 void DriveSim::RefreshRegisters() {
-  const DriveModelState& s = model_.state();
-  uint16_t status = 0;
-  if (model_.output_active()) status |= profile_.running_value & profile_.running_mask;
-  if (s.fault_code != 0) status |= profile_.fault_mask;
-  uint16_t* registers = mapping_->tab_registers;
-  registers[profile_.status_register] = status;
-  const auto output = profile_.output_scaling.HzToRegister(s.output_hz, "simulated output");
-  registers[profile_.output_frequency_register] = output.ok() ? *output : 0xFFFF;
-  if (profile_.oscillation_register) {
-    const auto sensor = profile_.oscillation_scaling.HzToRegister(s.sensor_hz, "simulated sensor");
-    registers[*profile_.oscillation_register] = sensor.ok() ? *sensor : 0xFFFF;
-  }
-  if (profile_.fault_code_register) {
-    const uint16_t code_bits = static_cast<uint16_t>((s.fault_code << profile_.fault_code_shift) &
-                                                     profile_.fault_code_mask);
-    uint16_t& word = registers[*profile_.fault_code_register];
-    if (*profile_.fault_code_register == profile_.status_register) {
-      word = static_cast<uint16_t>((word & ~profile_.fault_code_mask) | code_bits);
-    } else {
-      word = code_bits;
-    }
-  }
-}
-
-// Caller holds model_mutex_.
-void DriveSim::HandleWrite(int function, int address, int count) {
-  if (function != MODBUS_FC_WRITE_SINGLE_REGISTER &&
-      function != MODBUS_FC_WRITE_MULTIPLE_REGISTERS) {
-    return;
-  }
-  const int register_count = mapping_->nb_registers;
-  for (int reg = address; reg < address + count && reg < register_count; ++reg) {
-    const uint16_t value = mapping_->tab_registers[reg];
-    const bool is_reset =
-        !profile_.fault_reset_values.empty() && value == profile_.fault_reset_values[0];
-    if (reg == profile_.fault_reset_register && is_reset) {
-      model_.ResetFault();
-    } else if (reg == profile_.command_register) {
-      if (value == profile_.run_value)
-        model_.Run();
-      else if (value == profile_.stop_value)
-        model_.Stop();
-    }
-    if (reg == profile_.setpoint_register) {
-      model_.SetSetpointHz(profile_.setpoint_scaling.RegisterToHz(value));
-    }
-    if (profile_.comm_watchdog && profile_.comm_watchdog->register_address &&
-        reg == *profile_.comm_watchdog->register_address) {
-      model_.SetWatchdogS(value / profile_.comm_watchdog->counts_per_s);
-    }
-  }
+  RefreshDriveRegisters(profile_, model_, mapping_->tab_registers, mapping_->nb_registers);
 }
 
 void DriveSim::AdvanceModel() {
@@ -403,21 +431,6 @@ void DriveSim::AdvanceModel() {
   model_.Advance(std::min(kMaxStepS, std::chrono::duration<double>(now - last_advance_).count()));
   RefreshRegisters();
   last_advance_ = now;
-}
-
-bool DriveSim::IsAcceptableWrite(const uint8_t* query, int length) const {
-  const int h = header_length_;
-  if (length < h + 5) return false;
-  const int function = query[h];
-  const int address = (query[h + 1] << 8) | query[h + 2];
-  const int registers = mapping_->nb_registers;
-  if (function == MODBUS_FC_WRITE_SINGLE_REGISTER) return address < registers;
-  if (function != MODBUS_FC_WRITE_MULTIPLE_REGISTERS || length < h + 6) return false;
-  // Modbus Application Protocol v1.1b3, 6.12: quantity 1..123 (0x7B), byte count = 2 x quantity.
-  const int quantity = (query[h + 3] << 8) | query[h + 4];
-  const int byte_count = query[h + 5];
-  return quantity >= 1 && quantity <= MODBUS_MAX_WRITE_REGISTERS && byte_count == 2 * quantity &&
-         address + quantity <= registers;
 }
 
 bool DriveSim::Answer(const uint8_t* query, int length) {
@@ -450,17 +463,13 @@ bool DriveSim::Answer(const uint8_t* query, int length) {
   // (an FC16 of 200 registers, an address past the map) with an exception and writes nothing,
   // and such a request must change nothing here either: a real drive does not act on a write
   // it refused (re-applying the mapping's run word restarted the motor).
-  const bool accepted_write = IsAcceptableWrite(query, length);
+  const std::optional<DriveWrite> write =
+      DecodeAcceptedWrite(query + header_length_, length - header_length_, mapping_->nb_registers);
   if (modbus_reply(ctx_, query, length, mapping_) == -1) {
     spdlog::debug("simulated drive: reply failed: {}", modbus_strerror(errno));
     return false;
   }
-  const int function = query[header_length_];
-  const int address = (query[header_length_ + 1] << 8) | query[header_length_ + 2];
-  const int count = function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS
-                        ? ((query[header_length_ + 3] << 8) | query[header_length_ + 4])
-                        : 1;
-  if (accepted_write) HandleWrite(function, address, count);
+  if (write) ApplyDriveWrite(profile_, *write, &model_);
   RefreshRegisters();
   ++requests_served_;
   return true;

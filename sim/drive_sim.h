@@ -38,10 +38,12 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <string>
 #include <thread>
 #include <utility>
+#include <vector>
 
 #include "core/config_node.h"
 #include "core/status.h"
@@ -138,6 +140,32 @@ class DriveModel {
   std::normal_distribution<double> noise_{0.0, 1.0};
 };
 
+// One register write the simulated drive acts on, decoded from a request.
+struct DriveWrite {
+  int function = 0;  // MODBUS_FC_WRITE_SINGLE_REGISTER (06) or _MULTIPLE_REGISTERS (16)
+  int address = 0;   // first register, PDU address
+  std::vector<uint16_t> values;
+};
+
+// The request handling of DriveSim as pure functions (no socket, no libmodbus context), so the
+// part that interprets outside bytes can be tested and fuzzed on its own.
+//
+// DecodeAcceptedWrite reads a request PDU (function code first; no MBAP header, unit id or
+// CRC) of `length` bytes and returns the write a drive accepts: FC06 to an address below
+// register_count, or FC16 of 1..123 registers (Modbus Application Protocol v1.1b3, 6.12) with
+// byte count 2 x quantity, every value present and every register below register_count.
+// Anything else (reads, other functions, malformed or out-of-range requests) is nullopt: the
+// drive answers it (an exception, or the read values) and acts on none of it.
+std::optional<DriveWrite> DecodeAcceptedWrite(const uint8_t* pdu, int length, int register_count);
+// What an accepted write does: run, stop or fault reset through the command and reset
+// registers, a new setpoint, the comm-watchdog time.
+void ApplyDriveWrite(const rig::DriveProfile& profile, const DriveWrite& write, DriveModel* model);
+// The registers the drive shows, from the model: status word, output frequency, oscillation
+// frequency and fault code, into registers[0, register_count) (the profile's registers that lie
+// beyond are left out).
+void RefreshDriveRegisters(const rig::DriveProfile& profile, const DriveModel& model,
+                           uint16_t* registers, int register_count);
+
 struct DriveSimOptions {
   // TCP endpoint, used when rtu_device is empty.
   std::string host = "127.0.0.1";
@@ -198,9 +226,6 @@ class DriveSim {
   void ServeRtu();
   // Handles one received frame on the current socket; false when the reply could not be sent.
   bool Answer(const uint8_t* query, int length);
-  // True for a write function (06, 16) that a drive accepts: in range and well formed.
-  bool IsAcceptableWrite(const uint8_t* query, int length) const;
-  void HandleWrite(int function, int address, int count);
   void RefreshRegisters();
   void AdvanceModel();
 

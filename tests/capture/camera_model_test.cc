@@ -97,6 +97,41 @@ TEST(CameraModels, RoundTripThroughOpenCvYaml) {
   }
 }
 
+// OpenCV's FileStorage constructor threw std::length_error (not a cv::Exception) on a key line
+// ": 5" inside a matrix, and the process terminated (fuzz/calibration). Now an error naming the
+// file.
+TEST(CameraModels, MalformedKeyIsAnErrorNotATermination) {
+  testing::TempDir dir;
+  const std::string path = dir.Join("calibration.yaml");
+  testing::WriteBytes(path,
+                      "%YAML:1.0\n---\ncamera_count: 7\ncameras:\n   -\n      name: cam0\n"
+                      "      image_width: 320\n      image_height: 256\n"
+                      "      camera_matrix: !!opencv-matrix\n         rows: 3\n      : 5\n"
+                      "         dt: u\n         data: [ -0.05, 0., 0., 0., 0. ]\n");
+  const auto read = ReadCameraModels(path);
+  ASSERT_FALSE(read.ok());
+  EXPECT_EQ(read.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(read.status().message().find(path + ": cannot parse"), std::string::npos)
+      << read.status().message();
+}
+
+// OpenCV sized a matrix from its header before reading the data: rows 262144 x cols 262144 asked
+// for 64 GiB (ASan: out of memory; fuzz/calibration). The size is checked against 3x3 first.
+TEST(CameraModels, HugeMatrixHeaderIsRefusedBeforeAllocation) {
+  testing::TempDir dir;
+  const std::string path = dir.Join("calibration.yaml");
+  testing::WriteBytes(path,
+                      "%YAML:1.0\n---\ncameras:\n   -\n      name: cam0\n"
+                      "      image_width: 320\n      image_height: 256\n"
+                      "      camera_matrix: !!opencv-matrix\n         rows: 262144\n"
+                      "         cols: 262144\n         dt: d\n         data: [ 1. ]\n");
+  const auto read = ReadCameraModels(path);
+  ASSERT_FALSE(read.ok());
+  EXPECT_NE(read.status().message().find("'camera_matrix' must be an opencv-matrix of 3x3"),
+            std::string::npos)
+      << read.status().message();
+}
+
 TEST(CameraModels, TruncatedAndCorruptFilesNameTheProblem) {
   testing::TempDir dir;
   ASSERT_TRUE(WriteCameraModels(dir.Join("cameras.yaml"), {DistortedCamera()}).ok());

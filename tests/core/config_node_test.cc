@@ -359,5 +359,23 @@ TEST(ConfigNodeParse, AliasesAreRefused) {
   EXPECT_THAT(nested.status().message(), HasSubstr("bomb.yaml:2:"));
 }
 
+// yaml-cpp 0.7 never returns on a ',' where a block node is expected: it emits null nodes and
+// allocates until memory runs out (fuzz/take_json). Each of these is now a syntax error naming
+// the file and line, returned at once.
+TEST(ConfigNodeParse, CommaOutsideBracketsIsASyntaxErrorNotAHang) {
+  for (const char* text : {",", " ,\n", "- 1\n,\n", "'a' ,", "# comment\n\"a\" ,\n"}) {
+    SCOPED_TRACE(text);
+    const auto parsed = ConfigNode::Parse(text, "take.json");
+    ASSERT_FALSE(parsed.ok());
+    EXPECT_EQ(parsed.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_THAT(parsed.status().message(), HasSubstr("take.json:"));
+    EXPECT_THAT(parsed.status().message(), HasSubstr("makes no progress"));
+  }
+  // Commas where YAML allows them still parse.
+  const auto fine = ConfigNode::Parse("a: [1, 2]\nb: {c: 3, d: 4}\ne: x, y\n", "ok.yaml");
+  ASSERT_TRUE(fine.ok()) << fine.status().message();
+  EXPECT_EQ(*fine->Get<std::string>("e"), "x, y");
+}
+
 }  // namespace
 }  // namespace facedyn

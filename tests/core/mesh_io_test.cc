@@ -543,5 +543,73 @@ TEST(ReadMesh, MediaPipeCanonicalFace) {
   EXPECT_EIGEN_NEAR(again->positions_mm, face.positions_mm, 1e-6);  // coordinates below 10
 }
 
+// A PLY header may claim any element count; OpenMesh reserves it before reading, so 2e9
+// vertices in a 189-byte file threw std::bad_alloc (fuzz/mesh_ply). Now a DataLoss naming it.
+TEST(ReadMesh, PlyElementCountLargerThanTheFileIsCorrupt) {
+  TempDir dir;
+  const std::string path = dir.Join("huge.ply");
+  WriteBytes(path,
+             "ply\nformat ascii 1.0\nelement vertex 2000000000\nproperty float x\n"
+             "property float y\nproperty float z\nelement face 1\n"
+             "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  const auto read = ReadMesh(path);
+  ASSERT_FALSE(read.ok());
+  EXPECT_EQ(read.status().code(), StatusCode::kDataLoss);
+  EXPECT_THAT(read.status().message(), HasSubstr("declares 2000000000 vertex elements"));
+}
+
+// OpenMesh skips a "v" line whose three coordinates do not parse as floats; counting it as a
+// vertex let "f 1/1 2/2 3/3" through with 2 vertices read, and OpenMesh wrote the third
+// vertex's uv past the end of its array (heap overflow under ASan; fuzz/mesh_obj).
+TEST(ReadMesh, ObjCoordinateLinesThatDoNotParseNameFileAndLine) {
+  for (const char* bad : {"v 0 1", "v nan 0 0", "v 1e50 0 0", "vt 0", "vn 0 0 x"}) {
+    SCOPED_TRACE(bad);
+    TempDir dir;
+    const std::string path = dir.Join("bad_line.obj");
+    WriteBytes(path, std::string("v 0 0 0\nv 1 0 0\n") + bad +
+                         "\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n");
+    const auto read = ReadMesh(path);
+    ASSERT_FALSE(read.ok());
+    EXPECT_EQ(read.status().code(), StatusCode::kDataLoss);
+    EXPECT_THAT(read.status().message(), HasSubstr(path + ":3: '"));
+    EXPECT_THAT(read.status().message(), HasSubstr("numbers"));
+  }
+}
+
+// OpenMesh's PLY header reader never returned on some malformed headers ("property list uchar"
+// without its index type and name read past end_header and looped at end of file;
+// fuzz/mesh_ply). The header grammar is checked first; errors name file and line.
+TEST(ReadMesh, MalformedPlyHeaderNamesFileAndLine) {
+  const std::string vertex = "element vertex 3\nproperty float x\nproperty float y\n"
+                             "property float z\n";
+  const std::string body = "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  struct Case {
+    std::string text;
+    std::string expected;
+  };
+  const Case cases[] = {
+      {"ply\nformat ascii 1.0\n" + vertex + "element face 1\nproperty list uchar\n" + body,
+       ":8: PLY header: expected 'property <type> <name>'"},
+      {"ply\nformat ascii 1.0\n" + vertex + "element face 1\nproperty list uchar int v\n",
+       "PLY header has no end_header line"},
+      {"ply\nformat text 1.0\n" + vertex + body, ":2: PLY header: expected 'format"},
+      {"ply\nformat ascii 1.0\nproperty float x\n" + body, ":3: PLY header: a property before"},
+      {"ply\nformat ascii 1.0\nelement vertex -3\n" + body, ":3: PLY header: expected 'element"},
+      {"ply\nformat ascii 1.0\n" + vertex + "frobnicate\n" + body, "unknown header keyword"},
+      {"ply\nformat ascii 1.0\nelement veface 1\nproperty list uchar int v\n" + body,
+       ":3: PLY header: element 'veface' is not supported"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.text);
+    TempDir dir;
+    const std::string path = dir.Join("bad_header.ply");
+    WriteBytes(path, c.text);
+    const auto read = ReadMesh(path);
+    ASSERT_FALSE(read.ok());
+    EXPECT_EQ(read.status().code(), StatusCode::kDataLoss);
+    EXPECT_THAT(read.status().message(), HasSubstr(c.expected));
+  }
+}
+
 }  // namespace
 }  // namespace facedyn

@@ -334,5 +334,17 @@ TEST(ReadPc2, HeaderWhoseSizeWrapsIsTruncatedNotAnAllocation) {
   EXPECT_THAT(read.status().message(), HasSubstr("truncated"));
 }
 
+// Zero points make frames zero bytes long: a 32-byte header claiming 2^31 - 1 frames passed the
+// size check and every reader then looped over two billion empty frames (fuzz/pc2).
+TEST(ReadPc2, FramesOfZeroVerticesAreRefused) {
+  TempDir dir;
+  const std::string path = dir.Join("zero.pc2");
+  WriteBytes(path, Pc2Bytes(1, 0, 0.0f, 1.0f, 2147483647, {}));
+  const auto read = ReadPc2(path);
+  ASSERT_FALSE(read.ok());
+  EXPECT_EQ(read.status().code(), StatusCode::kDataLoss);
+  EXPECT_THAT(read.status().message(), HasSubstr("2147483647 frames of 0 vertices"));
+}
+
 }  // namespace
 }  // namespace facedyn

@@ -1,0 +1,121 @@
+#!/usr/bin/env python3
+"""Writes the binary seed inputs of fuzz/corpus/ (the text seeds are hand-written files).
+
+Run from anywhere: python3 fuzz/make_seeds.py. Deterministic; rerunning rewrites the same
+files. Formats: core/pc2.h, capture/frame_file.h, Modbus TCP (Modbus Messaging on TCP/IP
+Implementation Guide v1.0b: MBAP header = transaction id, protocol 0, length, unit id).
+"""
+import os
+import struct
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def put(target, name, data):
+    folder = os.path.join(HERE, "corpus", target)
+    os.makedirs(folder, exist_ok=True)
+    with open(os.path.join(folder, name), "wb") as f:
+        f.write(data)
+
+
+def pc2(points, frames, start=0.0, sampling=1.0, version=1, magic=b"POINTCACHE2\0", values=None):
+    header = magic + struct.pack("<iiffi", version, points, start, sampling, frames)
+    if values is None:
+        values = [float(i % 7) for i in range(points * frames * 3)]
+    return header + struct.pack("<%df" % len(values), *values)
+
+
+put("pc2", "valid_3v_2f.pc2", pc2(3, 2))
+put("pc2", "valid_empty.pc2", pc2(1, 0))
+put("pc2", "truncated.pc2", pc2(3, 2)[:-5])
+put("pc2", "nan.pc2", pc2(2, 1, values=[0.0, float("nan"), 1.0, 2.0, 3.0, 4.0]))
+put("pc2", "negative_count.pc2", pc2(-1, 2, values=[]))
+put("pc2", "bad_version.pc2", pc2(1, 1, version=2))
+put("pc2", "huge_count.pc2", pc2(0x7FFFFFFF, 0x7FFFFFFF, values=[]))
+
+
+def fnv1a64(data):
+    h = 1469598103934665603
+    for b in data:
+        h ^= b
+        h = (h * 1099511628211) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+def frame_record(trigger, width, height, fmt=1, camera=0, payload=None):
+    bpp = {1: 1, 2: 2, 3: 3}.get(fmt, 1)
+    if payload is None:
+        payload = bytes((i * 7) & 0xFF for i in range(width * height * bpp))
+    head = b"FDFR" + struct.pack("<IqqiIIIQII", 64, trigger, trigger * 7812500, 2000, width,
+                                 height, fmt, len(payload), camera, 0)
+    return head + struct.pack("<Q", fnv1a64(head)) + payload
+
+
+# frame_file: first byte odd = the harness fixes checksums, even = file as is.
+two = frame_record(0, 4, 2) + frame_record(1, 4, 2)
+put("frame_file", "valid_two.bin", b"\x00" + two)
+put("frame_file", "valid_two_fix.bin", b"\x01" + two)
+put("frame_file", "torn_tail.bin", b"\x00" + two[:-3])
+put("frame_file", "mono16_rgb.bin", b"\x00" + frame_record(0, 2, 2, fmt=2) + frame_record(1, 2, 1, fmt=3))
+put("frame_file", "bad_trigger.bin", b"\x00" + frame_record(-5, 2, 2) + frame_record(2, 2, 2))
+bad = bytearray(two)
+bad[30] ^= 0xFF
+put("frame_file", "bad_checksum.bin", b"\x00" + bytes(bad))
+put("frame_file", "huge_side_fix.bin", b"\x01" + frame_record(0, 0xFFFFFFFF, 0xFFFFFFFF, payload=b"x"))
+
+
+# modbus_reply: first byte = profile (0 sim, 1 delta, 2 siemens, 3 invertek), then the reply
+# stream for the reads ReadStatus makes (transaction ids 1, 2, 3; unit id 0xFF, libmodbus's TCP
+# default, or the profile's unit id).
+def read_reply(tid, words, unit=1):
+    pdu = bytes([3, 2 * len(words)]) + b"".join(struct.pack(">H", w) for w in words)
+    return struct.pack(">HHHB", tid, 0, len(pdu) + 1, unit) + pdu
+
+
+def exception_reply(tid, code, unit=1):
+    pdu = bytes([0x83, code])
+    return struct.pack(">HHHB", tid, 0, len(pdu) + 1, unit) + pdu
+
+
+for profile in range(4):
+    put("modbus_reply", "running_%d.bin" % profile,
+        bytes([profile]) + read_reply(1, [0x0001]) + read_reply(2, [850]) + read_reply(3, [0]))
+    put("modbus_reply", "faulted_%d.bin" % profile,
+        bytes([profile]) + read_reply(1, [0xFFFF]) + read_reply(2, [0xFFFF]) + read_reply(3, [0xFFFF]))
+put("modbus_reply", "busy.bin", b"\x00" + exception_reply(1, 6))
+put("modbus_reply", "illegal_address.bin", b"\x01" + exception_reply(1, 2))
+put("modbus_reply", "wrong_tid.bin", b"\x00" + read_reply(7, [1]))
+put("modbus_reply", "short.bin", b"\x00" + read_reply(1, [1])[:5])
+put("modbus_reply", "two_words.bin", b"\x00" + read_reply(1, [1, 2]))
+
+
+# drive_request: first byte = profile, then records of [length][PDU].
+def rec(pdu):
+    return bytes([len(pdu)]) + pdu
+
+
+def fc06(address, value):
+    return struct.pack(">BHH", 6, address, value)
+
+
+def fc16(address, values, count=None, byte_count=None):
+    count = len(values) if count is None else count
+    byte_count = 2 * count if byte_count is None else byte_count
+    return struct.pack(">BHHB", 16, address, count, byte_count) + b"".join(
+        struct.pack(">H", v) for v in values)
+
+
+def fc03(address, count):
+    return struct.pack(">BHH", 3, address, count)
+
+
+# Profile 0 is config/drives/sim.yaml; the fuzzer explores the register map from these.
+put("drive_request", "run_set_stop.bin", b"\x00" + rec(fc06(1, 850)) + rec(fc06(0, 1)) +
+    rec(fc03(0, 4)) * 3 + rec(fc06(0, 0)))
+put("drive_request", "fc16_block.bin", b"\x00" + rec(fc16(0, [1, 900, 0, 0, 0, 10])))
+put("drive_request", "fc16_bad_count.bin", b"\x00" + rec(fc16(0, [1, 2], count=200, byte_count=4)))
+put("drive_request", "fc16_short.bin", b"\x00" + rec(fc16(0, [1, 2, 3])[:-3]))
+put("drive_request", "out_of_range.bin", b"\x00" + rec(fc06(0xFFFF, 1)) + rec(fc16(0xFFF0, [1] * 20)))
+for profile in range(1, 4):
+    put("drive_request", "profile_%d.bin" % profile,
+        bytes([profile]) + b"".join(rec(fc06(a, v)) for a in range(0, 12) for v in (0, 1, 0xFFFF)))

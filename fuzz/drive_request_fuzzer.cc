@@ -6,38 +6,19 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
-#include <cstdio>
-#include <cstdlib>
 #include <vector>
 
+#include "fuzz/drive_profiles.h"
 #include "fuzz/fuzz_util.h"
 #include "rig/drive_profile.h"
 #include "sim/drive_sim.h"
 
-namespace {
-
-const std::vector<facedyn::rig::DriveProfile>& Profiles() {
-  static const std::vector<facedyn::rig::DriveProfile> profiles = [] {
-    std::vector<facedyn::rig::DriveProfile> out;
-    for (const char* name : {"sim", "delta_ms300", "siemens_v20", "invertek_e3"}) {
-      auto profile = facedyn::rig::LoadDriveProfile(
-          facedyn::fuzz::SourcePath(std::string("config/drives/") + name + ".yaml"));
-      if (!profile.ok()) {
-        std::fprintf(stderr, "%s\n", profile.status().ToString().c_str());
-        std::abort();
-      }
-      out.push_back(*profile);
-    }
-    return out;
-  }();
-  return profiles;
-}
-
-}  // namespace
+using facedyn::fuzz::ShippedDriveProfiles;
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size == 0) return 0;
-  const facedyn::rig::DriveProfile& profile = Profiles()[data[0] % Profiles().size()];
+  const auto& profiles = ShippedDriveProfiles();
+  const facedyn::rig::DriveProfile& profile = profiles[data[0] % profiles.size()];
   const int register_count = profile.MaxRegister() + 1;
   std::vector<uint16_t> registers(static_cast<size_t>(register_count), 0);
   facedyn::sim::DriveModelOptions options;

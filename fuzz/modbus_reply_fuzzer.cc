@@ -20,28 +20,14 @@
 #include <string>
 #include <vector>
 
+#include "fuzz/drive_profiles.h"
 #include "fuzz/fuzz_util.h"
 #include "rig/drive_client.h"
 #include "rig/drive_profile.h"
 
-namespace {
+using facedyn::fuzz::ShippedDriveProfiles;
 
-const std::vector<facedyn::rig::DriveProfile>& Profiles() {
-  static const std::vector<facedyn::rig::DriveProfile> profiles = [] {
-    std::vector<facedyn::rig::DriveProfile> out;
-    for (const char* name : {"sim", "delta_ms300", "siemens_v20", "invertek_e3"}) {
-      auto profile = facedyn::rig::LoadDriveProfile(
-          facedyn::fuzz::SourcePath(std::string("config/drives/") + name + ".yaml"));
-      if (!profile.ok()) {
-        std::fprintf(stderr, "%s\n", profile.status().ToString().c_str());
-        std::abort();
-      }
-      out.push_back(*profile);
-    }
-    return out;
-  }();
-  return profiles;
-}
+namespace {
 
 // One register read through libmodbus; the reply comes from the stream already in the socket.
 std::optional<uint16_t> ReadOne(modbus_t* ctx, int address) {
@@ -59,7 +45,8 @@ std::optional<uint16_t> ReadOne(modbus_t* ctx, int address) {
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size == 0) return 0;
-  const facedyn::rig::DriveProfile& profile = Profiles()[data[0] % Profiles().size()];
+  const auto& profiles = ShippedDriveProfiles();
+  const facedyn::rig::DriveProfile& profile = profiles[data[0] % profiles.size()];
   int fds[2];
   if (::socketpair(AF_UNIX, SOCK_STREAM, 0, fds) != 0) std::abort();
   // The whole reply stream is queued, then the "drive" hangs up: a short reply ends in

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "app/command.h"
+#include "core/json_io.h"
 #include "reconstruct/board.h"
 #include "reconstruct/calibration.h"
 #include "reconstruct/calibration_images.h"
@@ -108,7 +109,7 @@ void AddCalibrateCommand(CLI::App& app, CommandRunner* selected) {
         report["skipped"].push_back({{"image", skip.path}, {"reason", skip.reason}});
       }
       if (options->json) {
-        std::printf("%s\n", report.dump(2).c_str());
+        std::printf("%s\n", report.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       } else {
         std::printf(
             "calibrated %zu camera(s) from %zu images (%zu skipped), %d corners, %d "

@@ -37,6 +37,7 @@
 #include "capture/trigger.h"
 #include "core/config_node.h"
 #include "core/file_util.h"
+#include "core/json_io.h"
 #include "rig/drive_client.h"
 #include "rig/modbus_transport.h"
 #include "rig/rig_config.h"
@@ -210,6 +211,11 @@ StatusOr<TakeOutput> CaptureTake(const capture::CaptureConfig& config,
   if (stage) {
     options.extra["ground_truth"] = "ground_truth";
     options.extra["platform_hz_true"] = stage->platform_hz;
+    if (stage->hold_start_s) {
+      // When the prompted expression is held (from trigger 0): the session's prompt script for
+      // the simulated actor (sim/sim_capture.h), which reconstruction carries into take.json.
+      options.extra["hold_start_s"] = *stage->hold_start_s;
+    }
     options.before_first_trigger = [&](const std::string& take_dir) {
       return sim::WriteGroundTruth(*stage, sim_options, config.cameras, take_dir);
     };
@@ -357,7 +363,7 @@ Status RunCaptureCommand(const CaptureCommandOptions& options) {
       return platform_status;
     }
     if (options.json) {
-      std::printf("%s\n", TakeJson(*output).dump(2).c_str());
+      std::printf("%s\n", TakeJson(*output).dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
     } else {
       PrintTake(options.take, *output);
     }
@@ -454,8 +460,9 @@ Status RunCaptureCommand(const CaptureCommandOptions& options) {
   };
   auto result = rig::RunSweep(script, platform.rig, sweep_options);
   if (options.json)
-    std::printf("%s\n",
-                Json{{"takes", takes}, {"complete", result.ok() && all_complete}}.dump(2).c_str());
+    std::printf("%s\n", Json{{"takes", takes}, {"complete", result.ok() && all_complete}}
+                            .dump(2, ' ', false, kJsonReplaceInvalidUtf8)
+                            .c_str());
   if (!result.ok()) return result.status();
   return Status::Ok();
 }
@@ -463,7 +470,7 @@ Status RunCaptureCommand(const CaptureCommandOptions& options) {
 Status RunSessionCheck(const std::string& dir, bool json) {
   FACEDYN_ASSIGN_OR_RETURN(const capture::SessionCheck check, capture::CheckSession(dir));
   if (json) {
-    std::printf("%s\n", check.ToJson().dump(2).c_str());
+    std::printf("%s\n", check.ToJson().dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
   } else {
     std::printf("%s", check.ToText().c_str());
   }

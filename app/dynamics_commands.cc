@@ -1,18 +1,19 @@
 // `facedyn dynamics quasistatic` and `facedyn dynamics eval`.
 
+#include <spdlog/spdlog.h>
+
 #include <cmath>
 #include <cstdio>
 #include <memory>
 #include <optional>
 #include <string>
 
-#include <spdlog/spdlog.h>
-
 #include "app/command.h"
 #include "core/face_rig.h"
+#include "core/json_io.h"
 #include "core/take.h"
-#include "eval/metrics.h"
 #include "dynamics/quasistatic.h"
+#include "eval/metrics.h"
 
 namespace facedyn::app {
 
@@ -159,7 +160,9 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
           eval::Evaluate(predicted, truth, input ? &*input : nullptr, rig ? &*rig : nullptr,
                              options));
       if (eval_options->json) {
-        std::printf("%s\n", eval::EvaluationToJson(evaluation).dump(2).c_str());
+        std::printf("%s\n", eval::EvaluationToJson(evaluation)
+                                .dump(2, ' ', false, kJsonReplaceInvalidUtf8)
+                                .c_str());
       } else {
         std::printf("%s", eval::EvaluationToText(evaluation).c_str());
       }

@@ -153,7 +153,9 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       spdlog::info("wrote {} ({} training rows, validation loss {:.4g})", train_removal->out,
                    summary.training_rows,
                    summary.validation_loss.empty() ? 0.0 : summary.validation_loss.back());
-      if (train_removal->json) std::printf("%s\n", SummaryJson(summary).dump(2).c_str());
+      if (train_removal->json)
+        std::printf("%s\n",
+                    SummaryJson(summary).dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       return Status::Ok();
     };
   });
@@ -192,7 +194,7 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
                                   {"predict_s", summary.predict_s},
                                   {"propagate_s", summary.propagate_s},
                                   {"frames_per_s", summary.frames_per_s}})
-                                .dump(2)
+                                .dump(2, ' ', false, kJsonReplaceInvalidUtf8)
                                 .c_str());
       }
       return Status::Ok();
@@ -273,7 +275,9 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
           dynamics::TrainSynthesis(AsTraining(takes, rig), train_synthesis->options, &summary));
       FACEDYN_RETURN_IF_ERROR(model.Save(train_synthesis->out));
       spdlog::info("wrote {} ({} training frames)", train_synthesis->out, summary.training_rows);
-      if (train_synthesis->json) std::printf("%s\n", SummaryJson(summary).dump(2).c_str());
+      if (train_synthesis->json)
+        std::printf("%s\n",
+                    SummaryJson(summary).dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       return Status::Ok();
     };
   });

@@ -82,6 +82,7 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
                      result.jaw_status.message());
       }
       if (input.platform_hz) result.take.info.platform_hz = input.platform_hz;
+      if (input.hold_start_s) result.take.info.hold_start_s = input.hold_start_s;
       result.take.info.metadata["session"] = options->session;
       result.take.info.metadata["session_take"] = options->take;
       FACEDYN_RETURN_IF_ERROR(SaveTake(result.take, options->out));
@@ -139,7 +140,7 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
       if (options->json) {
         Json brief = report;
         brief.erase("per_frame");
-        std::printf("%s\n", brief.dump(2).c_str());
+        std::printf("%s\n", brief.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       } else {
         std::printf(
             "reconstructed %d frames from %zu cameras -> %s\n"

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "app/face_render.h"
+#include "core/json_io.h"
 
 namespace facedyn::app {
 namespace {
@@ -190,7 +191,8 @@ double Number(const Json& object, const std::string& key) {
 std::string Text(const Json& object, const std::string& key) {
   if (!object.is_object() || !object.contains(key)) return "";
   const Json& value = object[key];
-  return value.is_string() ? value.get<std::string>() : value.dump();
+  return value.is_string() ? value.get<std::string>()
+                           : value.dump(-1, ' ', false, kJsonReplaceInvalidUtf8);
 }
 
 const Json& Field(const Json& object, const std::string& key) {
@@ -214,7 +216,7 @@ std::string FieldTable(const Json& object, const std::vector<std::string>& keys)
     table += "<tr><td>" + Escape(key) + "</td><td>" +
              (value.is_number_float() ? fmt::format("{:.4g}", value.get<double>())
               : value.is_string()     ? Escape(value.get<std::string>())
-                                      : Escape(value.dump())) +
+                                  : Escape(value.dump(-1, ' ', false, kJsonReplaceInvalidUtf8))) +
              "</td></tr>";
   }
   return table + "</table>";

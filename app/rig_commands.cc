@@ -16,6 +16,7 @@
 #include "app/command.h"
 #include "app/rig_demo.h"
 #include "core/config_node.h"
+#include "core/json_io.h"
 #include "rig/drive_client.h"
 #include "rig/drive_profile.h"
 #include "rig/modbus_transport.h"
@@ -67,7 +68,7 @@ Status PrintStatus(rig::DriveClient& client, bool json) {
   if (json) {
     Json out = status.ToJson();
     out["profile"] = client.profile().name;
-    std::printf("%s\n", out.dump(2).c_str());
+    std::printf("%s\n", out.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
   } else {
     std::printf("drive     %s\nrunning   %s\noutput    %.2f Hz\nfault     %s\n",
                 client.profile().name.c_str(), status.running ? "yes" : "no", status.output_hz,
@@ -114,7 +115,8 @@ Json ReadingJson(const rig::RigSupervisor& supervisor, const rig::PlatformReadin
 
 void PrintReading(const rig::RigSupervisor& supervisor, const rig::PlatformReading& r, bool json) {
   if (json) {
-    std::printf("%s\n", ReadingJson(supervisor, r).dump(2).c_str());
+    std::printf("%s\n",
+                ReadingJson(supervisor, r).dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
     return;
   }
   std::printf(
@@ -276,7 +278,7 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
         out["device"] = options.Describe();
         out["info"] = controller->info().ToJson();
         out["status"] = status.ToJson();
-        std::printf("%s\n", out.dump(2).c_str());
+        std::printf("%s\n", out.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       } else {
         std::printf(
             "controller %s, protocol %d, firmware %d\nrunning    %s\nsetpoint   %.2f Hz\n"
@@ -355,7 +357,7 @@ void AddRigCommands(CLI::App& app, CommandRunner* selected) {
       }
       out["exposure"] = supervisor.exposure().ToJson();
       if (o.json) {
-        std::printf("%s\n", out.dump(2).c_str());
+        std::printf("%s\n", out.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       } else {
         std::printf("settled at %.3f Hz (target %.2f Hz, trim %+.3f Hz)\n", settled.measured_hz,
                     o.hz, settled.correction_hz);

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "app/command.h"
+#include "core/json_io.h"
 #include "rig/rig_config.h"
 #include "rig/stop_signal.h"
 #include "rig/sweep.h"
@@ -76,7 +77,7 @@ void AddSweepCommand(CLI::App& app, CommandRunner* selected) {
           plan["instances"] = script.InstanceCount();
           plan["minimum_duration_s"] = script.MinimumDurationS();
           plan["planned_exposure"] = planned.ToJson();
-          std::printf("%s\n", plan.dump(2).c_str());
+          std::printf("%s\n", plan.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
         }
         return Status::Ok();
       }
@@ -88,7 +89,7 @@ void AddSweepCommand(CLI::App& app, CommandRunner* selected) {
       FACEDYN_ASSIGN_OR_RETURN(const rig::SweepResult result,
                                rig::RunSweep(script, rig, sweep_options));
       if (options->json) {
-        std::printf("%s\n", result.ToJson().dump(2).c_str());
+        std::printf("%s\n", result.ToJson().dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       } else {
         for (const rig::SweepStepResult& step : result.steps) {
           std::printf("step %3d  %6.2f Hz  measured %7.3f Hz  max error %.3f Hz  %s%s\n",

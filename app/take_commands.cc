@@ -1,12 +1,13 @@
 // `facedyn take info` and `facedyn export`.
 
+#include <spdlog/spdlog.h>
+
 #include <cstdio>
 #include <memory>
 #include <string>
 
-#include <spdlog/spdlog.h>
-
 #include "app/command.h"
+#include "core/json_io.h"
 #include "core/take.h"
 #include "core/take_export.h"
 #include "core/take_summary.h"
@@ -31,7 +32,9 @@ void AddTakeCommands(CLI::App& app, CommandRunner* selected) {
       FACEDYN_ASSIGN_OR_RETURN(const Take loaded, LoadTake(info_options->take_dir));
       const TakeSummary summary = SummarizeTake(loaded);
       if (info_options->json) {
-        std::printf("%s\n", TakeSummaryToJson(loaded, summary).dump(2).c_str());
+        std::printf("%s\n", TakeSummaryToJson(loaded, summary)
+                                .dump(2, ' ', false, kJsonReplaceInvalidUtf8)
+                                .c_str());
       } else {
         std::printf("take          %s\n%s", info_options->take_dir.c_str(),
                     TakeSummaryToText(loaded, summary).c_str());

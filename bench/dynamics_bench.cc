@@ -52,15 +52,16 @@
 #include <string>
 #include <vector>
 
-#include "eval/dynamics_study.h"
-#include "eval/replicates.h"
 #include "bench/bench_flags.h"
+#include "core/json_io.h"
 #include "core/log.h"
 #include "core/progress.h"
 #include "dynamics/mlp.h"
 #include "dynamics/propagation.h"
 #include "dynamics/removal_model.h"
 #include "dynamics/synthesis_model.h"
+#include "eval/dynamics_study.h"
+#include "eval/replicates.h"
 #include "sim/procedural_face.h"
 #include "sim/skull_motion.h"
 

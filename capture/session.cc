@@ -17,6 +17,7 @@
 #include "capture/frame_file.h"
 #include "core/config_node.h"
 #include "core/file_util.h"
+#include "core/json_io.h"
 
 namespace facedyn::capture {
 namespace fs = std::filesystem;
@@ -98,7 +99,7 @@ EventLog::~EventLog() { ::close(fd_); }
 
 Status EventLog::Append(Json event) {
   event["utc"] = UtcNowIso8601();
-  const std::string line = event.dump() + "\n";
+  const std::string line = event.dump(-1, ' ', false, kJsonReplaceInvalidUtf8) + "\n";
   std::lock_guard<std::mutex> lock(mutex_);
   // All or nothing: a short write (ENOSPC) is rolled back; a crash mid-write leaves a torn
   // last line, which readers skip and the next Open moves aside.
@@ -207,7 +208,8 @@ Status SessionWriter::MarkInterrupted(const std::string& name) {
   }
   manifest["interrupted_found_utc"] = UtcNowIso8601();
   ::unlink(JoinPath(take_dir, kReserveFileName).c_str());
-  FACEDYN_RETURN_IF_ERROR(WriteFileAtomic(manifest_path, manifest.dump(2) + "\n"));
+  FACEDYN_RETURN_IF_ERROR(
+      WriteFileAtomic(manifest_path, manifest.dump(2, ' ', false, kJsonReplaceInvalidUtf8) + "\n"));
   bool listed = false;
   for (auto& take : session_["takes"]) {
     if (take["name"] == name) {
@@ -224,7 +226,8 @@ Status SessionWriter::MarkInterrupted(const std::string& name) {
 }
 
 Status SessionWriter::WriteSessionJson() {
-  return WriteFileAtomic(JoinPath(dir_, "session.json"), session_.dump(2) + "\n");
+  return WriteFileAtomic(JoinPath(dir_, "session.json"),
+                         session_.dump(2, ' ', false, kJsonReplaceInvalidUtf8) + "\n");
 }
 
 Status SessionWriter::SetCalibration(const std::string& relative_path) {
@@ -267,7 +270,8 @@ StatusOr<std::string> SessionWriter::BeginTake(const std::string& name, double f
   }
   Json manifest = TakeResultToJson(name, result);
   FACEDYN_RETURN_IF_ERROR(
-      WriteFileAtomic(JoinPath(take_dir, "capture.json"), manifest.dump(2) + "\n"));
+      WriteFileAtomic(JoinPath(take_dir, "capture.json"),
+                      manifest.dump(2, ' ', false, kJsonReplaceInvalidUtf8) + "\n"));
   session_["takes"].push_back({{"name", name}, {"dir", "takes/" + name}, {"status", "recording"}});
   FACEDYN_RETURN_IF_ERROR(WriteSessionJson());
   FACEDYN_RETURN_IF_ERROR(events_->Append({{"event", "take_start"},
@@ -308,8 +312,9 @@ Json TakeResultToJson(const std::string& name, const TakeResult& result) {
 Status SessionWriter::EndTake(const std::string& name, const TakeResult& result) {
   const std::string take_dir = TakeDir(name);
   ::unlink(JoinPath(take_dir, kReserveFileName).c_str());
-  Status status = WriteFileAtomic(JoinPath(take_dir, "capture.json"),
-                                  TakeResultToJson(name, result).dump(2) + "\n");
+  Status status = WriteFileAtomic(
+      JoinPath(take_dir, "capture.json"),
+      TakeResultToJson(name, result).dump(2, ' ', false, kJsonReplaceInvalidUtf8) + "\n");
   for (auto& take : session_["takes"]) {
     if (take["name"] == name) take["status"] = result.status;
   }

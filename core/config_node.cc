@@ -1,5 +1,9 @@
 #include "core/config_node.h"
 
+#include <fmt/format.h>
+#include <yaml-cpp/eventhandler.h>
+#include <yaml-cpp/parser.h>
+
 #include <cmath>
 #include <limits>
 #include <map>
@@ -7,11 +11,8 @@
 #include <type_traits>
 #include <vector>
 
-#include <fmt/format.h>
-#include <yaml-cpp/eventhandler.h>
-#include <yaml-cpp/parser.h>
-
 #include "core/file_util.h"
+#include "core/utf8.h"
 
 namespace facedyn {
 namespace {
@@ -113,6 +114,9 @@ class StrictYamlCheck : public YAML::EventHandler {
   void OnScalar(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
                 const std::string& value) override {
     Count(mark);
+    if (!IsValidUtf8(value)) {
+      Fail(mark, "a string here is not valid UTF-8 (facedyn files are UTF-8 text)");
+    }
     Value(mark, &value);
   }
   void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,

@@ -1,13 +1,14 @@
 #include "core/csv.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <cstdlib>
 #include <limits>
 #include <sstream>
 
-#include <fmt/format.h>
-
 #include "core/file_util.h"
+#include "core/utf8.h"
 
 namespace facedyn {
 namespace {
@@ -36,6 +37,13 @@ StatusOr<CsvTable> CsvTable::Read(const std::string& path, const std::string& he
   while (std::getline(stream, line)) {
     ++line_number;
     if (!line.empty() && line.back() == '\r') line.pop_back();
+    // Field text (marker names, labels) reaches JSON reports, which must be UTF-8.
+    size_t bad_byte = 0;
+    if (!IsValidUtf8(line, &bad_byte)) {
+      return DataLossError(
+          fmt::format("{}:{}: byte {} is not valid UTF-8 (CSV files are UTF-8 text)", path,
+                      line_number, bad_byte + 1));
+    }
     if (!have_header) {
       if (line != header) {
         return DataLossError(fmt::format("{}:{}: header is '{}', expected '{}'", path, line_number, line, header));

@@ -5,7 +5,7 @@
 namespace facedyn {
 
 Status WriteJsonFile(const std::string& path, const Json& json) {
-  return WriteFileAtomic(path, json.dump(2) + "\n");
+  return WriteFileAtomic(path, json.dump(2, ' ', false, kJsonReplaceInvalidUtf8) + "\n");
 }
 
 }  // namespace facedyn

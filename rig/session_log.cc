@@ -11,6 +11,7 @@
 #include <memory>
 
 #include "core/file_util.h"
+#include "core/json_io.h"
 
 namespace facedyn::rig {
 namespace {
@@ -66,7 +67,7 @@ void SessionLog::Write(const std::string& event, Json fields) {
   record["wall"] = WallClockUtc();
   record["event"] = event;
   for (auto& [key, value] : fields.items()) record[key] = std::move(value);
-  const std::string line = record.dump() + "\n";
+  const std::string line = record.dump(-1, ' ', false, kJsonReplaceInvalidUtf8) + "\n";
   std::lock_guard<std::mutex> lock(mutex_);
   const Status appended = AppendLogLine(fd_, line, path_);
   if (!appended.ok() && status_.ok()) status_ = appended;

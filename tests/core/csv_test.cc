@@ -51,6 +51,16 @@ TEST(CsvTableRead, HeaderOnlyIsAnEmptyTable) {
   EXPECT_EQ(table->row_count(), 0u);
 }
 
+TEST(CsvTableRead, InvalidUtf8IsAnErrorNamingLineAndByte) {
+  TempDir dir;
+  const std::string path = dir.Join("table.csv");
+  WriteBytes(path, "name,count,value\nnose_tip,1,2\nbrow_\xff,3,4\n");
+  const auto table = CsvTable::Read(path, kHeader);
+  ASSERT_FALSE(table.ok());
+  EXPECT_EQ(table.status().code(), StatusCode::kDataLoss);
+  EXPECT_THAT(table.status().message(), HasSubstr(path + ":3: byte 6 is not valid UTF-8"));
+}
+
 TEST(CsvTableRead, MissingFile) {
   TempDir dir;
   const auto table = CsvTable::Read(dir.Join("absent.csv"), kHeader);

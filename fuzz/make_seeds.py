@@ -119,3 +119,24 @@ put("drive_request", "out_of_range.bin", b"\x00" + rec(fc06(0xFFFF, 1)) + rec(fc
 for profile in range(1, 4):
     put("drive_request", "profile_%d.bin" % profile,
         bytes([profile]) + b"".join(rec(fc06(a, v)) for a in range(0, 12) for v in (0, 1, 0xFFFF)))
+
+
+# sweep_resume: rig_log.jsonl records for config/sweeps/demo.yaml (3 instances), whose
+# sweep_start carries the script's FNV-1a 64 hash (rig/sweep.cc) so the reader gets past it.
+with open(os.path.join(HERE, "..", "config", "sweeps", "demo.yaml"), "rb") as f:
+    DEMO_HASH = "%016x" % fnv1a64(f.read())
+START = '{"event":"sweep_start","t_ns":1,"script":"demo.yaml","script_hash":"%s"}\n' % DEMO_HASH
+put("sweep_resume", "resumable.jsonl", (START +
+    '{"event":"step_start","t_ns":2,"instance":0,"hz":6.5}\n'
+    '{"event":"step_done","t_ns":3,"instance":0,"hz":6.5,"prompt":"neutral",'
+    '"hold":{"seconds":1.0,"samples":100,"target_hz":6.5,"mean_measured_hz":6.49},'
+    '"vibrating_s":3.2,"dose_m2_s3":0.8,"exposure":{"peak_rms_m_s2":1.1}}\n'
+    '{"event":"step_start","t_ns":4,"instance":1,"hz":8.5}\n').encode())
+put("sweep_resume", "finished.jsonl", (START + "".join(
+    '{"event":"step_done","t_ns":%d,"instance":%d}\n' % (i + 2, i) for i in range(3)) +
+    '{"event":"sweep_done","t_ns":9}\n').encode())
+put("sweep_resume", "bad_values.jsonl", (START +
+    '{"event":"step_done","instance":7}\n{"event":"x","vibrating_s":-1,"dose_m2_s3":1e308}\n'
+    '{"event":"step_done","instance":0,"hold":{"seconds":"1"}}\n').encode())
+put("sweep_resume", "other_script.jsonl",
+    b'{"event":"sweep_start","script_hash":"0123456789abcdef"}\n{"event":"step_done"}\n')

@@ -12,6 +12,7 @@
 
 #include "core/file_util.h"
 #include "rig/session_log.h"
+#include "rig/sweep_resume.h"
 
 namespace facedyn::rig {
 namespace {
@@ -277,93 +278,6 @@ std::vector<SweepStepInfo> Expand(const SweepScript& script) {
   return instances;
 }
 
-HoldSummary HoldFromJson(const Json& json) {
-  HoldSummary hold;
-  hold.seconds = json.value("seconds", 0.0);
-  hold.samples = json.value("samples", 0);
-  hold.target_hz = json.value("target_hz", 0.0);
-  hold.mean_measured_hz = json.value("mean_measured_hz", 0.0);
-  hold.max_abs_error_hz = json.value("max_abs_error_hz", 0.0);
-  hold.rms_error_hz = json.value("rms_error_hz", 0.0);
-  return hold;
-}
-
-// What an earlier run of this session left in the log.
-struct PriorSession {
-  bool started = false;
-  bool finished = false;
-  std::map<int, SweepStepResult> done;
-  int interrupted = -1;  // a step_start without its step_done
-  int64_t last_t_ns = 0;
-  double vibrating_s = 0.0;
-  double dose_m2_s3 = 0.0;
-  double peak_rms_m_s2 = 0.0;
-};
-
-StatusOr<PriorSession> ReadPrior(const std::string& log_path, const SweepScript& script) {
-  PriorSession prior;
-  bool truncated = false;
-  FACEDYN_ASSIGN_OR_RETURN(const std::vector<Json> records, ReadSessionLog(log_path, &truncated));
-  if (truncated)
-    spdlog::warn("{}: the last line was cut off (crash mid-write); ignoring it", log_path);
-  const std::string hash = fmt::format("{:016x}", script.text_hash);
-  size_t record_number = 0;
-  for (const Json& r : records) {
-    ++record_number;
-    // A record with a missing or mistyped field (a hand-edited or foreign log) is a clear
-    // error naming the record, never an exception escaping the resume.
-    try {
-    const std::string event = r.at("event").get<std::string>();
-    prior.last_t_ns = std::max(prior.last_t_ns, r.value("t_ns", int64_t{0}));
-    if (r.contains("vibrating_s") && r.contains("dose_m2_s3")) {
-      prior.vibrating_s = r.at("vibrating_s").get<double>();
-      prior.dose_m2_s3 = r.at("dose_m2_s3").get<double>();
-    }
-    if (r.contains("exposure") && r.at("exposure").is_object()) {
-      prior.peak_rms_m_s2 =
-          std::max(prior.peak_rms_m_s2, r.at("exposure").value("peak_rms_m_s2", 0.0));
-    }
-    if (event == "sweep_start") {
-      if (r.value("script_hash", std::string()) != hash) {
-        return FailedPreconditionError(fmt::format(
-            "{}: this session was started with a different sweep script ({} hash {}, now {}); "
-            "resume with the original file or start a new --session",
-            log_path, r.value("script", std::string("?")), r.value("script_hash", std::string("?")),
-            hash));
-      }
-      prior.started = true;
-    } else if (event == "step_start") {
-      prior.interrupted = r.at("instance").get<int>();
-    } else if (event == "step_done") {
-      const int instance = r.at("instance").get<int>();
-      if (prior.done.count(instance)) {
-        return DataLossError(
-            fmt::format("{}: step instance {} is marked done twice", log_path, instance));
-      }
-      SweepStepResult result;
-      result.instance = instance;
-      result.target_hz = r.value("hz", 0.0);
-      result.prompt = r.value("prompt", std::string());
-      result.hold = HoldFromJson(r.value("hold", Json::object()));
-      prior.done[instance] = result;
-      if (prior.interrupted == instance) prior.interrupted = -1;
-    } else if (event == "sweep_done") {
-      prior.finished = true;
-    }
-    } catch (const Json::exception& e) {
-      return DataLossError(fmt::format("{}: record {} is not a valid sweep record: {}", log_path,
-                                       record_number, e.what()));
-    }
-  }
-  // A run killed between creating the log and its first record left nothing to resume: the
-  // sweep starts from its beginning (sweep_start is written below).
-  if (!prior.started && !records.empty()) {
-    return FailedPreconditionError(
-        fmt::format("{}: no sweep_start record: not a sweep session log", log_path));
-  }
-  return prior;
-}
-
 }  // namespace
 
 StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig,
@@ -376,20 +290,15 @@ StatusOr<SweepResult> RunSweep(const SweepScript& script, const RigConfig& rig,
   result.summary_path = JoinPath(options.session_dir, kSummaryName);
   const std::vector<SweepStepInfo> instances = Expand(script);
 
-  PriorSession prior;
+  PriorSweep prior;
   const bool has_log = FileExists(result.log_path);
   if (options.resume) {
     if (!has_log) {
       return NotFoundError(fmt::format(
           "--resume: {} does not exist; start the sweep without --resume", result.log_path));
     }
-    FACEDYN_ASSIGN_OR_RETURN(prior, ReadPrior(result.log_path, script));
-    for (const auto& [instance, done] : prior.done) {
-      if (instance < 0 || instance >= static_cast<int>(instances.size())) {
-        return DataLossError(fmt::format("{}: step instance {} is not in the script ({} instances)",
-                                         result.log_path, instance, instances.size()));
-      }
-    }
+    FACEDYN_ASSIGN_OR_RETURN(
+        prior, ReadPriorSweep(result.log_path, script, static_cast<int>(instances.size())));
   } else if (has_log) {
     return FailedPreconditionError(fmt::format(
         "{} already exists: continue that session with --resume, or choose a new --session",

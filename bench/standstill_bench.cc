@@ -12,7 +12,9 @@
 // Scenarios: stop_request (the flag SIGINT sets, during a hold), ctrl_c_during_take (a real
 // SIGINT while a take runs beside the hold, rig::HoldDuring as `capture --sweep` uses it),
 // refused_stop_retried (a stop whose first 15 replies are exception 06 "busy": more than the
-// transport's 10 retries, so the supervisor sends the stop again),
+// transport's 10 retries, so the supervisor sends the stop again), busy_status_reads (16 busy
+// replies from a hold on: a status read fails after the transport's retries, and the live
+// drive gets a controlled ramp to stop rather than the lost-link path),
 // overspeed (the sensor starts reading 30 % high), sensor_disagreement (10 % high: below the
 // overspeed limit, beyond safety.sensor_tolerance_hz), link_cut (requests vanish; the drive's
 // comm watchdog, safety.comm_watchdog_s, stops it). Real time: about 8 s per run.
@@ -56,6 +58,7 @@ enum class Fault {
   kStopRequest,
   kCtrlCDuringTake,
   kRefusedStopRetried,
+  kBusyStatusReads,
   kOverspeed,
   kSensorDisagreement,
   kLinkCut
@@ -73,6 +76,8 @@ const Scenario kScenarios[] = {
      "the supervisor, ticking beside the take, ramps to stop; the take ends interrupted"},
     {"refused_stop_retried", Fault::kRefusedStopRetried,
      "busy replies are retried until the drive reports standstill"},
+    {"busy_status_reads", Fault::kBusyStatusReads,
+     "a status read still busy after the transport's retries: ramps to a confirmed stop"},
     {"overspeed", Fault::kOverspeed, "stops: measured above absolute_max_hz + margin"},
     {"sensor_disagreement", Fault::kSensorDisagreement,
      "stops: sensor and drive output disagree beyond sensor_tolerance_hz"},
@@ -117,6 +122,9 @@ Sample RunOnce(const facedyn::rig::RigConfig& base, const facedyn::rig::DrivePro
       case Fault::kRefusedStopRetried:
         drive.ExceptionNextReplies(15, MODBUS_EXCEPTION_SLAVE_OR_SERVER_BUSY);
         break;
+      case Fault::kBusyStatusReads:
+        drive.ExceptionNextReplies(16, MODBUS_EXCEPTION_SLAVE_OR_SERVER_BUSY);
+        break;
       case Fault::kOverspeed:
         drive.SetSensorGain(1.3);
         break;
@@ -130,8 +138,9 @@ Sample RunOnce(const facedyn::rig::RigConfig& base, const facedyn::rig::DrivePro
     injected = true;
   };
   // The watcher: the drive's own state, every millisecond, from the injection on.
-  // A refused stop is injected on the supervisor's thread right before it stops (busy replies
-  // to a status read instead would count as a lost link); every other fault from the watcher.
+  // A refused stop is injected on the supervisor's thread right before it stops, so that the
+  // busy replies land on the stop command (busy_status_reads has them land on the status reads
+  // of the hold); every other fault from the watcher.
   const bool inject_here = fault == Fault::kRefusedStopRetried;
   std::atomic<bool> watching{true};
   std::thread watcher([&] {
@@ -231,8 +240,8 @@ int main(int argc, char** argv) {
   const std::atomic<bool>* signal_flag = facedyn::rig::InstallStopSignalHandlers();
 
   Json out;
-  out["command"] =
-      "standstill_bench --runs " + std::to_string(runs) + " --hz " + facedyn::Json(hz).dump();
+  out["command"] = "standstill_bench --runs " + std::to_string(runs) + " --hz " +
+                   facedyn::Json(hz).dump();
   out["rig"] = rig_path;
   out["from_hz"] = hz;
   out["runs"] = runs;

@@ -368,6 +368,13 @@ Status RigSupervisor::Tick() {
   logged_stats_ = stats;
   if (!read.ok()) {
     if (log_) log_->Write("reply", {{"result", read.message()}});
+    // Only a read that got no answer means the link is lost. A drive that answered "busy"
+    // more often than the transport retries (or refused the read) is alive and listening:
+    // it gets a controlled ramp to stop, whose stop is retried until standstill, instead of
+    // the single stop attempt of a lost link.
+    if (read.code() != StatusCode::kUnavailable) {
+      return FailAndStop(read.WithContext(fmt::format("rig {}: status read", config_.name)));
+    }
     return LinkLost(read);
   }
   last_ = reading;
@@ -586,7 +593,18 @@ Status RigSupervisor::RampToStop(const std::string& reason) {
       std::this_thread::sleep_for(std::chrono::duration<double>(config_.safety.control_period_s));
       PlatformReading reading;
       const Status read = ReadPlatform(&reading);
-      if (!read.ok()) return LinkLost(read);
+      if (!read.ok()) {
+        if (read.code() == StatusCode::kUnavailable) return LinkLost(read);
+        // Busy or refused: the drive answers, so keep polling it until the deadline, then
+        // send the stop again.
+        last_failure = fmt::format("status read refused: {}", read.message());
+        if (ElapsedS() > deadline_s) {
+          spdlog::warn("rig {}: {} (attempt {}/{})", config_.name, last_failure, attempt,
+                       kStopAttempts);
+          break;
+        }
+        continue;
+      }
       AccountExposure(reading.measured_hz);
       last_tick_ = Clock::now();
       last_ = reading;

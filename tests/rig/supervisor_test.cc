@@ -20,6 +20,7 @@ namespace facedyn::rig {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 using Clock = std::chrono::steady_clock;
 
 struct Bench {
@@ -298,6 +299,35 @@ TEST(RigSupervisor, BusyRepliesToTheStopAreRetriedUntilStandstill) {
     if (r["event"] == "close") closed_disarmed = r["watchdog_armed"] == false;
   }
   EXPECT_TRUE(closed_disarmed);
+}
+
+// A status read answered "busy" more often than the transport retries one request is a live
+// drive, not a lost link: the supervisor ramps it to a confirmed stop (before, it took the
+// lost-link path: one stop attempt and no check that the platform stopped).
+TEST(RigSupervisor, BusyStatusReadsRampToAConfirmedStopNotALostLink) {
+  auto bench = StartBench();
+  ASSERT_NE(bench, nullptr);
+  auto supervisor = RigSupervisor::Connect(bench->config, bench->log.get(), nullptr);
+  ASSERT_TRUE(supervisor.ok());
+  ASSERT_TRUE((*supervisor)->Arm().ok());
+  ASSERT_TRUE((*supervisor)->SetTargetHz(8.0).ok());
+  ASSERT_TRUE((*supervisor)->WaitSettled(15.0).ok());
+  // 11 busy replies exhaust the transport's retries of the next status read; the rest land on
+  // the stop command and the first reads after it, which are retried.
+  bench->sim->ExceptionNextReplies(16, MODBUS_EXCEPTION_SLAVE_OR_SERVER_BUSY);
+  const auto hold = (*supervisor)->Hold(5.0);
+  ASSERT_FALSE(hold.ok());
+  EXPECT_EQ(hold.status().code(), StatusCode::kFailedPrecondition) << hold.status().ToString();
+  EXPECT_THAT(hold.status().message(), HasSubstr("status read"));
+  EXPECT_THAT(hold.status().message(), HasSubstr("busy"));
+  EXPECT_THAT(hold.status().message(), Not(HasSubstr("link to the drive lost")));
+  EXPECT_EQ((*supervisor)->state(), RigState::kStopped);
+  EXPECT_EQ(bench->sim->state().output_hz, 0.0);
+  EXPECT_FALSE(bench->sim->state().run_commanded);
+  bool link_lost = false;
+  for (const Json& r : Records(*bench)) link_lost |= r["event"] == "link_lost";
+  EXPECT_FALSE(link_lost);
+  ASSERT_TRUE((*supervisor)->Close().ok());
 }
 
 // Issue 18, item 1: a stop that never reaches standstill within safety.stop_timeout_s is

@@ -8,6 +8,7 @@
 
 #include "capture/frame_file.h"
 #include "capture/session.h"
+#include "core/json_io.h"
 #include "core/progress.h"
 #include "reconstruct/calibration.h"
 
@@ -82,6 +83,16 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
         out.platform_hz = platform[key].get<double>();
         break;
       }
+    }
+  }
+  if (take->manifest.is_object() && take->manifest.contains("hold_start_s")) {
+    const Json& held = take->manifest["hold_start_s"];
+    if (held.is_number() && std::isfinite(held.get<double>()) && held.get<double>() >= 0) {
+      out.hold_start_s = held.get<double>();
+    } else {
+      out.take_problems.push_back("capture.json hold_start_s is " +
+                                  held.dump(-1, ' ', false, kJsonReplaceInvalidUtf8) +
+                                  ", not a time >= 0 s; every frame counts as held");
     }
   }
   out.take_problems.insert(out.take_problems.end(), take->problems.begin(), take->problems.end());

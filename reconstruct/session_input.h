@@ -33,6 +33,10 @@ struct SessionDetections {
   // "platform.measured_hz_at_start", else its target_hz), when the take was on a platform: what
   // platform-synchronous quasistatic extraction needs (dynamics/quasistatic.h).
   std::optional<double> platform_hz;
+  // From when (s from trigger 0) a held expression is held, when the capture recorded it
+  // (capture.json "hold_start_s"): the take's held part for training and evaluation
+  // (core/take.h TakeInfo::hold_start_s). Absent: every frame counts as held.
+  std::optional<double> hold_start_s;
   // detections[f][c]: frame f (trigger index f), camera c of `cameras`.
   std::vector<std::vector<std::vector<ImageObservation>>> detections;
   std::vector<std::vector<std::string>> frame_problems;  // per frame

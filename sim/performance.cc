@@ -76,6 +76,20 @@ Status PerformanceOptions::Check() const {
   return tissue.Check();
 }
 
+std::optional<double> HeldExpressionStartS(const PerformanceOptions& options) {
+  if (options.expression == "speech") return std::nullopt;
+  // The expression forms over kExpressionRamp_s and the motion fades in over its ramp_in_s;
+  // the skin's transient from both then decays. Before that a held-expression target (moving
+  // average, platform fit) is wrong by up to 0.5 mm at the mouth corners (smile, 8 Hz), so
+  // training and evaluation start after a fixed margin (core/take.h kHeldExpressionSettleS):
+  // the take's metadata is what a capture would know, never the tissue's true parameters.
+  const double motion_ramp_s =
+      (options.motion.kind == MotionKind::kNone || options.motion.kind == MotionKind::kFile)
+          ? 0.0
+          : options.motion.ramp_in_s;
+  return std::max(kExpressionRamp_s, motion_ramp_s) + kHeldExpressionSettleS;
+}
+
 StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions& options,
                                    PerformanceSummary* summary) {
   const auto start = std::chrono::steady_clock::now();
@@ -171,18 +185,7 @@ StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions&
   progress.Finish();
   take.channels["quasistatic"] = std::move(quasistatic);
   take.channels["dynamic_offset"] = std::move(offset);
-  if (options.expression != "speech") {
-    // The expression forms over kExpressionRamp_s and the motion fades in over its ramp_in_s;
-    // the skin's transient from both then decays. Before that a held-expression target (moving
-    // average, platform fit) is wrong by up to 0.5 mm at the mouth corners (smile, 8 Hz), so
-    // training and evaluation start after a fixed margin (core/take.h kHeldExpressionSettleS):
-    // the take's metadata is what a capture would know, never the tissue's true parameters.
-    const double motion_ramp_s =
-        (options.motion.kind == MotionKind::kNone || options.motion.kind == MotionKind::kFile)
-            ? 0.0
-            : options.motion.ramp_in_s;
-    take.info.hold_start_s = std::max(kExpressionRamp_s, motion_ramp_s) + kHeldExpressionSettleS;
-  }
+  take.info.hold_start_s = HeldExpressionStartS(options);
 
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   take.info.metadata = {

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "core/face_rig.h"
@@ -39,6 +40,14 @@ struct PerformanceSummary {
 // region of the rig plus "face" (all vertices). Requires the take's dynamic_offset channel.
 StatusOr<std::map<std::string, double>> PeakOffsetByRegionMm(const FaceRig& rig, const Take& take,
                                                              double skip_first_s = 0.5);
+
+// When a held-expression take made with `options` is held, in s from its first frame: the
+// expression's formation (0.3 s) and the motion's fade-in, whichever is longer, plus
+// core/take.h kHeldExpressionSettleS; nullopt for speech (a performance is never held).
+// It follows from the performance's script alone (its ramps), never from the tissue, so a
+// capture session that prompts the simulated actor may write it into its takes as a real
+// session writes the time it prompted. SimulatePerformance writes it into take.info.
+std::optional<double> HeldExpressionStartS(const PerformanceOptions& options);
 
 // Deterministic for given options. Shows progress per frame.
 StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions& options,

@@ -142,6 +142,10 @@ Take TrimTake(const Take& take, int first_frame) {
   if (!take.skull_from_jaw.empty())
     out.skull_from_jaw.assign(take.skull_from_jaw.begin() + first_frame, take.skull_from_jaw.end());
   out.SetUniformTimes();
+  // Times are from the first frame kept: the held part starts first_frame frames earlier.
+  if (out.info.hold_start_s && out.info.fps > 0) {
+    out.info.hold_start_s = std::max(0.0, *out.info.hold_start_s - first_frame / out.info.fps);
+  }
   return out;
 }
 
@@ -170,6 +174,9 @@ StatusOr<SimulatedStage> PrepareSimulatedStage(const SimCaptureOptions& options,
     return InternalError("the simulated take has " + std::to_string(simulated.frame_count()) +
                          " frames, fewer than the " + std::to_string(lead_frames + triggers) +
                          " needed");
+  }
+  if (const auto held = HeldExpressionStartS(performance)) {
+    stage.hold_start_s = std::max(0.0, *held - lead_frames / fps);
   }
   Take trimmed = TrimTake(simulated, lead_frames);
   trimmed.info.metadata["capture_lead_in_frames"] = lead_frames;

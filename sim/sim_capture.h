@@ -29,6 +29,7 @@
 
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,10 @@ struct SimulatedStage {
   std::vector<std::unique_ptr<SimCamera>> cameras;
   double platform_hz = 0.0;
   double simulate_s = 0.0;
+  // When the prompted expression is held, in s from trigger 0 (HeldExpressionStartS less the
+  // lead-in, at least 0); nullopt for speech. The stage's script, not its truth: the capture
+  // writes it into capture.json as a session records when it prompted the actor.
+  std::optional<double> hold_start_s;
 };
 
 // Simulates `triggers` frames at `fps` (plus the lead-in) with the platform at `platform_hz`

@@ -62,6 +62,7 @@ Take WriteSession(const std::string& dir) {
   result.triggers_requested = result.triggers_emitted = frames;
   // What `facedyn capture` records for a take on the platform.
   result.extra["platform"] = {{"target_hz", 11.0}, {"measured_hz_at_start", 10.998}};
+  result.extra["hold_start_s"] = 0.125;  // when the prompted expression is held
   for (size_t c = 0; c < cameras.size(); ++c) {
     auto writer = capture::FrameFileWriter::Create(take_dir + "/cam" + std::to_string(c) + "/" +
                                                    capture::kFrameFileName)
@@ -129,6 +130,9 @@ TEST(ReconstructCommand, SessionWithDroppedLateAndUncalibratedCameras) {
   // quasistatic extraction).
   ASSERT_TRUE(take->info.platform_hz.has_value());
   EXPECT_DOUBLE_EQ(*take->info.platform_hz, 10.998);
+  // And so does the capture's held part (training and metrics use only frames after it).
+  ASSERT_TRUE(take->info.hold_start_s.has_value());
+  EXPECT_DOUBLE_EQ(*take->info.hold_start_s, 0.125);
   EXPECT_EQ(take->skull_from_jaw.size(), static_cast<size_t>(truth.frame_count()));
   EXPECT_GT(frames[0]["jaw_markers"].get<int>(), 0);
   EXPECT_TRUE(frames[0].contains("jaw_angle_rad"));

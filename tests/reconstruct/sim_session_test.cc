@@ -65,6 +65,14 @@ sim:
   ASSERT_TRUE(face.ok()) << face.status().ToString();
   ASSERT_GT(rec->frame_count(), 0);
   ASSERT_LE(rec->frame_count(), truth->frame_count());
+  // The held part travels from the capture's prompt script to the reconstructed take: the
+  // smile forms over 0.3 s and the platform fades in over 0.25 s from the start of the 0.5 s
+  // (64-frame) lead-in, plus the 0.25 s settle margin: held from 0.55 - 0.5 = 0.05 s after
+  // trigger 0. The truth take, trimmed by the same lead-in, agrees.
+  ASSERT_TRUE(rec->info.hold_start_s.has_value());
+  EXPECT_NEAR(*rec->info.hold_start_s, 0.55 - 64 / 128.0, 1e-9);
+  ASSERT_TRUE(truth->info.hold_start_s.has_value());
+  EXPECT_NEAR(*truth->info.hold_start_s, *rec->info.hold_start_s, 1e-9);
   double sq = 0.0;
   int n = 0;
   for (int f = 0; f < rec->frame_count(); ++f) {

@@ -5,13 +5,14 @@
 
 #include "sim/performance.h"
 
-#include <cmath>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "sim/expressions.h"
 #include "sim/procedural_face.h"
+#include "sim/sim_capture.h"
 #include "tests/support/test_support.h"
 
 namespace facedyn::sim {
@@ -82,6 +83,27 @@ TEST(SimulatePerformance, HeldExpressionRecordsWhenItIsHeld) {
   EXPECT_GT(onset_change, 0.05);  // mm per frame while the smile forms
   EXPECT_LT(held_change, 0.05 * onset_change) << onset_change << " " << held_change;
   EXPECT_FALSE(Perform("speech", MotionKind::kPlatform, 8.0, 0.5).info.hold_start_s.has_value());
+  // HeldExpressionStartS is the same figure, from the options alone (what a capture writes).
+  PerformanceOptions smile;
+  smile.expression = "smile";
+  smile.motion.kind = MotionKind::kPlatform;
+  EXPECT_EQ(HeldExpressionStartS(smile), take.info.hold_start_s);
+  smile.motion.kind = MotionKind::kNone;
+  EXPECT_NEAR(*HeldExpressionStartS(smile), 0.3 + kHeldExpressionSettleS, 1e-12);
+  smile.expression = "speech";
+  EXPECT_FALSE(HeldExpressionStartS(smile).has_value());
+}
+
+// A capture's lead-in is trimmed off the simulated take: the held part's start moves with it,
+// and never before the first frame.
+TEST(TrimTake, ShiftsTheHeldPartWithTheFirstFrame) {
+  const Take take = Perform("smile", MotionKind::kPlatform, 8.0, 1.0);
+  ASSERT_TRUE(take.info.hold_start_s.has_value());
+  const Take trimmed = TrimTake(take, 32);
+  ASSERT_TRUE(trimmed.info.hold_start_s.has_value());
+  EXPECT_NEAR(*trimmed.info.hold_start_s, *take.info.hold_start_s - 32 / take.info.fps, 1e-12);
+  EXPECT_EQ(FirstHeldFrame(trimmed), FirstHeldFrame(take) - 32);
+  EXPECT_EQ(*TrimTake(take, 100).info.hold_start_s, 0.0);
 }
 
 TEST(SimulatePerformance, NoMotionHeldExpressionIsQuasistatic) {

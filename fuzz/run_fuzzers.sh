@@ -3,7 +3,7 @@
 # 10: the machine is shared), each from a scratch copy of its seed corpus and regressions (the
 # tree's corpus is never grown by a run), and prints per target the executions and any crash
 # file. Usage: fuzz/run_fuzzers.sh BUILD_DIR SECONDS [TARGET...]   (default: every target)
-# Work files: BUILD_DIR/fuzz-work/<target>/{corpus,crash-*,log}; summary BUILD_DIR/fuzz-work/summary.tsv
+# Work files ($FUZZ_WORK, default BUILD_DIR/fuzz-work): BUILD_DIR/fuzz-work/<target>/{corpus,crash-*,log}; summary BUILD_DIR/fuzz-work/summary.tsv
 set -uo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 build="$(cd "$1" && pwd)"
@@ -11,11 +11,11 @@ seconds="$2"
 shift 2
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-  targets=(pc2 mesh_obj mesh_ply take_json transform_csv drive_profile rig_config sweep_script
-           rig_log modbus_reply capture_config session_json session_events frame_file calibration
+  targets=(pc2 mesh_obj mesh_ply take_json transform_csv face_rig drive_profile rig_config
+           sweep_script rig_log sweep_resume modbus_reply capture_config session_json session_events frame_file calibration
            drive_request)
 fi
-work="$build/fuzz-work"
+work="${FUZZ_WORK:-$build/fuzz-work}"  # FUZZ_WORK: run two lists side by side
 mkdir -p "$work"
 summary="$work/summary.tsv"
 printf 'target\tseconds\texecutions\tcrashes\n' > "$summary"

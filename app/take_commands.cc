@@ -54,7 +54,7 @@ void AddExportCommand(CLI::App& app, CommandRunner* selected) {
   auto* command = app.add_subcommand(
       "export", "Write a take as per-frame OBJ/PLY meshes, or as topology.obj + PC2 point caches");
   command->add_option("--take", options->take_dir, "Take folder")->required();
-  command->add_option("--format", options->format, "obj | ply | pc2")
+  command->add_option("--format", options->format, "obj | ply | pc2 | mdd")
       ->required()
       ->check(CLI::IsMember({"obj", "ply", "pc2"}));
   command->add_option("--out", options->out_dir, "Output folder (created if missing)")->required();

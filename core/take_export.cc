@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "core/file_util.h"
+#include "core/mdd.h"
 #include "core/progress.h"
 
 namespace facedyn {
@@ -11,19 +12,30 @@ StatusOr<ExportFormat> ParseExportFormat(const std::string& name) {
   if (name == "obj") return ExportFormat::kObj;
   if (name == "ply") return ExportFormat::kPly;
   if (name == "pc2") return ExportFormat::kPc2;
-  return InvalidArgumentError("unknown export format '" + name + "' (use obj, ply or pc2)");
+  if (name == "mdd") return ExportFormat::kMdd;
+  return InvalidArgumentError("unknown export format '" + name + "' (use obj, ply, pc2 or mdd)");
 }
 
 StatusOr<ExportSummary> ExportTake(const Take& take, ExportFormat format, const std::string& dir) {
   FACEDYN_RETURN_IF_ERROR(take.Validate());
   FACEDYN_RETURN_IF_ERROR(MakeDirectories(dir));
   ExportSummary summary;
-  if (format == ExportFormat::kPc2) {
+  if (format == ExportFormat::kPc2 || format == ExportFormat::kMdd) {
+    const bool mdd = format == ExportFormat::kMdd;
+    // MDD frame times from the take's first frame (time_s is the session clock), so a tool
+    // that plays the cache by time starts it at 0.
+    std::vector<double> time_from_first_s(take.time_s.size());
+    for (size_t f = 0; f < take.time_s.size(); ++f)
+      time_from_first_s[f] = take.time_s[f] - take.time_s.front();
+    auto write = [&](const std::string& name, const PointCache& cache) {
+      return mdd ? WriteMdd(JoinPath(dir, name + ".mdd"), cache, time_from_first_s)
+                 : WritePc2(JoinPath(dir, name + ".pc2"), cache);
+    };
     FACEDYN_RETURN_IF_ERROR(WriteMesh(take.topology, JoinPath(dir, "topology.obj")));
-    FACEDYN_RETURN_IF_ERROR(WritePc2(JoinPath(dir, "positions.pc2"), take.positions));
+    FACEDYN_RETURN_IF_ERROR(write("positions", take.positions));
     summary.files_written = 2;
     for (const auto& [name, cache] : take.channels) {
-      FACEDYN_RETURN_IF_ERROR(WritePc2(JoinPath(dir, name + ".pc2"), cache));
+      FACEDYN_RETURN_IF_ERROR(write(name, cache));
       ++summary.files_written;
     }
     return summary;

@@ -1,5 +1,6 @@
 // Exporting a Take for other tools: per-frame meshes (OBJ or PLY, one file per frame), or
-// the topology plus point caches (PC2, which Blender's Mesh Cache modifier reads).
+// the topology plus point caches (PC2 or MDD, both of which Blender's Mesh Cache modifier and
+// 3ds Max's Point Cache read).
 #pragma once
 
 #include <string>
@@ -9,9 +10,9 @@
 
 namespace facedyn {
 
-enum class ExportFormat { kObj, kPly, kPc2 };
+enum class ExportFormat { kObj, kPly, kPc2, kMdd };
 
-// "obj" | "ply" | "pc2".
+// "obj" | "ply" | "pc2" | "mdd".
 StatusOr<ExportFormat> ParseExportFormat(const std::string& name);
 
 struct ExportSummary {
@@ -20,6 +21,8 @@ struct ExportSummary {
 
 // obj/ply: DIR/frame_000000.<ext> ... in world coordinates (mm).
 // pc2: DIR/topology.obj, DIR/positions.pc2 and DIR/<channel>.pc2 for every channel.
+// mdd: the same with .mdd caches (core/mdd.h), each frame stamped with its time from the
+// take's first frame (s).
 // Shows progress for per-frame formats.
 StatusOr<ExportSummary> ExportTake(const Take& take, ExportFormat format, const std::string& dir);
 

@@ -140,3 +140,22 @@ put("sweep_resume", "bad_values.jsonl", (START +
     '{"event":"step_done","instance":0,"hold":{"seconds":"1"}}\n').encode())
 put("sweep_resume", "other_script.jsonl",
     b'{"event":"sweep_start","script_hash":"0123456789abcdef"}\n{"event":"step_done"}\n')
+
+
+# mdd (core/mdd.h): big-endian frame count, point count, F float times, then F*V*3 floats.
+def mdd(frames, points, times=None, values=None):
+    if times is None:
+        times = [k / 128.0 for k in range(frames)]
+    if values is None:
+        values = [float(i % 5) for i in range(frames * points * 3)]
+    return struct.pack(">ii", frames, points) + struct.pack(">%df" % len(times), *times) + \
+        struct.pack(">%df" % len(values), *values)
+
+
+put("mdd", "valid_3v_2f.mdd", mdd(2, 3))
+put("mdd", "valid_empty.mdd", mdd(0, 4))
+put("mdd", "truncated.mdd", mdd(2, 3)[:-3])
+put("mdd", "times_backwards.mdd", mdd(2, 1, times=[1.0, 0.5]))
+put("mdd", "nan.mdd", mdd(1, 1, values=[0.0, float("nan"), 1.0]))
+put("mdd", "huge_counts.mdd", struct.pack(">ii", 0x7FFFFFFF, 0x7FFFFFFF))
+put("mdd", "little_endian.mdd", struct.pack("<ii", 2, 3) + mdd(2, 3)[8:])

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <exception>
 #include <filesystem>
+#include <sstream>
 #include <opencv2/core.hpp>
 #include <opencv2/core/eigen.hpp>
 
@@ -193,11 +194,43 @@ Status ReadMatrix(const cv::FileNode& node, const std::string& field, int rows, 
   return Status::Ok();
 }
 
+// OpenCV's YAML reader never returned on "%YAML:1.0\n---%YAML:1\nc.0\n--a-" (fuzz/calibration),
+// so the text's outline is checked before it sees it: a calibration is one YAML document as
+// SaveCalibration (OpenCV FileStorage) writes it, "%YAML:1.0" then "---", with no further
+// directive or document marker. Errors name the file and line.
+Status CheckCalibrationOutline(const std::string& path) {
+  FACEDYN_ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path));
+  std::istringstream lines(text);
+  std::string line;
+  int line_number = 0;
+  while (std::getline(lines, line)) {
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    auto fail = [&](const std::string& why) {
+      return InvalidArgumentError(path + ":" + std::to_string(line_number) + ": " + why);
+    };
+    if (line_number == 1) {
+      if (line != "%YAML:1.0" && line != "%YAML 1.0")
+        return fail("a calibration starts with the line '%YAML:1.0' (OpenCV FileStorage YAML)");
+    } else if (line_number == 2) {
+      if (line != "---") return fail("expected '---' after '%YAML:1.0'");
+    } else if (line.rfind('%', 0) == 0 || line.rfind("---", 0) == 0 ||
+               line.rfind("...", 0) == 0) {
+      return fail("a calibration is one YAML document: no directive or '---'/'...' here");
+    }
+  }
+  if (line_number < 2) {
+    return InvalidArgumentError(path + ": too short for a calibration ('%YAML:1.0', '---', ...)");
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 StatusOr<std::vector<CameraModel>> ReadCameraModels(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) return NotFoundError(path + ": no such file");
+  FACEDYN_RETURN_IF_ERROR(CheckCalibrationOutline(path));
   std::vector<CameraModel> cameras;
   try {
     cv::FileStorage fs(path, cv::FileStorage::READ);

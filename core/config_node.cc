@@ -211,8 +211,10 @@ StatusOr<ConfigNode> ConfigNode::Parse(const std::string& text, const std::strin
     YAML::Node root = YAML::Load(text);
     return ConfigNode(std::make_shared<const std::string>(source_name), root, "");
   } catch (const YAML::Exception& e) {
+    // yaml-cpp's message can quote the offending byte ("unknown escape character: \xd3").
     return InvalidArgumentError(fmt::format("{}:{}:{}: syntax error: {}", source_name,
-                                            e.mark.line + 1, e.mark.column + 1, e.msg));
+                                            e.mark.line + 1, e.mark.column + 1,
+                                            EscapeInvalidUtf8(e.msg)));
   }
 }
 

@@ -45,4 +45,24 @@ bool IsValidUtf8(std::string_view text, size_t* bad_offset) {
   return true;
 }
 
+std::string EscapeInvalidUtf8(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  while (!text.empty()) {
+    size_t bad = 0;
+    if (IsValidUtf8(text, &bad)) {
+      out.append(text);
+      break;
+    }
+    out.append(text.substr(0, bad));
+    static const char kHex[] = "0123456789abcdef";
+    const auto byte = static_cast<unsigned char>(text[bad]);
+    out += "\\x";
+    out += kHex[byte >> 4];
+    out += kHex[byte & 15];
+    text.remove_prefix(bad + 1);
+  }
+  return out;
+}
+
 }  // namespace facedyn

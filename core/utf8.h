@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstddef>
+#include <string>
 #include <string_view>
 
 namespace facedyn {
@@ -14,5 +15,10 @@ namespace facedyn {
 // U+D800..U+DFFF, nothing above U+10FFFF). On false, *bad_offset (if given) is the byte offset of
 // the first ill-formed sequence.
 bool IsValidUtf8(std::string_view text, size_t* bad_offset = nullptr);
+
+// `text` with every byte that is not part of a well-formed sequence written as \xNN, for error
+// messages that quote a file (a parser's own message, a line that did not parse): the message
+// stays UTF-8 and still shows the byte.
+std::string EscapeInvalidUtf8(std::string_view text);
 
 }  // namespace facedyn

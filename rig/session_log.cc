@@ -12,6 +12,7 @@
 
 #include "core/file_util.h"
 #include "core/json_io.h"
+#include "core/utf8.h"
 
 namespace facedyn::rig {
 namespace {
@@ -98,7 +99,7 @@ StatusOr<std::vector<Json>> ReadSessionLog(const std::string& path, bool* trunca
     Json record = Json::parse(line, nullptr, /*allow_exceptions=*/false);
     if (record.is_discarded() || !record.is_object() || !record.contains("event")) {
       return DataLossError(fmt::format("{}:{}: not a session log record: '{}'", path, line_number,
-                                       line.substr(0, 80)));
+                                       EscapeInvalidUtf8(line.substr(0, 80))));
     }
     records.push_back(std::move(record));
   }

@@ -5,6 +5,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
 
 #include "core/json_io.h"
 #include "rig/session_log.h"
@@ -22,11 +25,31 @@ double NonNegative(const Json& record, const char* key, double fallback) {
   return value;
 }
 
+// An integer field. It must be a JSON integer: nlohmann converts a float such as 8.9e74 to
+// int64 with a plain cast, which is undefined behaviour out of range (fuzz/sweep_resume).
+int64_t IntegerField(const Json& record, const char* key, int64_t fallback) {
+  if (!record.contains(key)) return fallback;
+  const Json& value = record.at(key);
+  if (value.is_number_unsigned() &&
+      value.get<uint64_t>() > uint64_t(std::numeric_limits<int64_t>::max())) {
+    throw std::out_of_range(fmt::format("'{}' is {}, beyond int64", key, value.get<uint64_t>()));
+  }
+  if (!value.is_number_integer()) {
+    throw std::out_of_range(fmt::format("'{}' is {}, not an integer", key,
+                                        value.dump(-1, ' ', false, kJsonReplaceInvalidUtf8)));
+  }
+  return value.get<int64_t>();
+}
+
 HoldSummary HoldFromJson(const Json& json) {
   if (!json.is_object()) throw std::out_of_range("'hold' is not an object");
   HoldSummary hold;
   hold.seconds = NonNegative(json, "seconds", 0.0);
-  hold.samples = json.value("samples", 0);
+  const int64_t samples = IntegerField(json, "samples", 0);
+  if (samples < 0 || samples > std::numeric_limits<int>::max()) {
+    throw std::out_of_range(fmt::format("'samples' is {}, not a count", samples));
+  }
+  hold.samples = static_cast<int>(samples);
   hold.target_hz = NonNegative(json, "target_hz", 0.0);
   hold.mean_measured_hz = NonNegative(json, "mean_measured_hz", 0.0);
   hold.max_abs_error_hz = NonNegative(json, "max_abs_error_hz", 0.0);
@@ -35,7 +58,8 @@ HoldSummary HoldFromJson(const Json& json) {
 }
 
 int Instance(const Json& record, int instance_count) {
-  const int64_t instance = record.at("instance").get<int64_t>();
+  if (!record.contains("instance")) throw std::out_of_range("no 'instance'");
+  const int64_t instance = IntegerField(record, "instance", -1);
   if (instance < 0 || instance >= instance_count) {
     throw std::out_of_range(fmt::format("step instance {} is not in the script ({} instances)",
                                         instance, instance_count));
@@ -60,7 +84,7 @@ StatusOr<PriorSweep> ReadPriorSweep(const std::string& log_path, const SweepScri
     // a clear error naming the record, never an exception escaping the resume.
     try {
       const std::string event = r.at("event").get<std::string>();
-      prior.last_t_ns = std::max(prior.last_t_ns, r.value("t_ns", int64_t{0}));
+      prior.last_t_ns = std::max(prior.last_t_ns, IntegerField(r, "t_ns", 0));
       if (r.contains("vibrating_s") && r.contains("dose_m2_s3")) {
         prior.vibrating_s = std::max(prior.vibrating_s, NonNegative(r, "vibrating_s", 0.0));
         prior.dose_m2_s3 = std::max(prior.dose_m2_s3, NonNegative(r, "dose_m2_s3", 0.0));

@@ -162,6 +162,31 @@ TEST(CameraModels, TruncatedAndCorruptFilesNameTheProblem) {
   EXPECT_FALSE(ReadCameraModels(dir.Join("absent.yaml")).ok());
 }
 
+// OpenCV's YAML reader never returned on a second directive glued to the document marker
+// (fuzz/calibration); a calibration's outline is checked before OpenCV reads it.
+TEST(CameraModels, SecondDirectiveOrDocumentIsRefusedBeforeOpenCvReadsIt) {
+  testing::TempDir dir;
+  struct Case {
+    std::string text;
+    std::string message;
+  };
+  const Case cases[] = {
+      {"%YAML:1.0\n---%YAML:1\nc.0\n--a-", "calibration.yaml:2: expected '---'"},
+      {"%YAML:1.0\n---\ncameras: []\n---\nmore: 1\n", "calibration.yaml:4: a calibration is one"},
+      {"%YAML:1.0\n---\ncameras: []\n%YAML:1.0\n", "calibration.yaml:4:"},
+      {"cameras: []\n", "calibration.yaml:1: a calibration starts with"},
+      {"%YAML:1.0", "too short"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.text);
+    testing::WriteBytes(dir.Join("calibration.yaml"), c.text);
+    const auto read = ReadCameraModels(dir.Join("calibration.yaml"));
+    ASSERT_FALSE(read.ok());
+    EXPECT_NE(read.status().message().find(c.message), std::string::npos)
+        << read.status().message();
+  }
+}
+
 TEST(CameraModels, WriteRefusesInvalidCamera) {
   testing::TempDir dir;
   CameraModel camera = DistortedCamera();

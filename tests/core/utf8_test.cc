@@ -49,6 +49,13 @@ TEST(IsValidUtf8, RejectsIllFormedSequencesAndSaysWhere) {
   }
 }
 
+TEST(EscapeInvalidUtf8, WritesIllFormedBytesAsHexAndKeepsTheRest) {
+  EXPECT_EQ(EscapeInvalidUtf8("plain caf\xC3\xA9"), "plain caf\xC3\xA9");
+  EXPECT_EQ(EscapeInvalidUtf8("escape: \xD3 end"), "escape: \\xd3 end");
+  EXPECT_EQ(EscapeInvalidUtf8("\xFF\xFE\xE2\x82"), "\\xff\\xfe\\xe2\\x82");
+  EXPECT_TRUE(IsValidUtf8(EscapeInvalidUtf8("\xC0\xAF\xED\xA0\x80ok")));
+}
+
 TEST(JsonDump, AByteThatSlippedPastComesOutAsReplacementNotAThrow) {
   const Json json = {{"status", std::string("complet\xE5")}};
   EXPECT_THROW((void)json.dump(), Json::type_error);  // why every dump passes the handler

@@ -91,6 +91,12 @@ TEST(ReadPriorSweep, BadRecordsAreErrorsNamingTheRecord) {
       {"{\"event\":\"step_done\",\"instance\":0,\"hold\":{\"seconds\":-1}}", "'seconds'"},
       {"{\"event\":7}", "record 2 is not a valid sweep record"},
       {"[1,2]", "rig_log.jsonl:2: not a session log record"},
+      // Floats where integers belong: converting 8.9e74 to int64 was undefined behaviour.
+      {"{\"event\":\"step_start\",\"instance\":8.88889e+74}", "'instance' is 8.88889e+74"},
+      {"{\"event\":\"step_start\",\"instance\":1.0}", "not an integer"},
+      {"{\"event\":\"x\",\"t_ns\":1e300}", "'t_ns'"},
+      {"{\"event\":\"x\",\"t_ns\":18446744073709551615}", "beyond int64"},
+      {"{\"event\":\"step_done\",\"instance\":0,\"hold\":{\"samples\":-3}}", "'samples'"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.record);

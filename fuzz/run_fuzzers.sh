@@ -17,6 +17,7 @@ if [ ${#targets[@]} -eq 0 ]; then
 fi
 work="${FUZZ_WORK:-$build/fuzz-work}"  # FUZZ_WORK: run two lists side by side
 mkdir -p "$work"
+work="$(cd "$work" && pwd)"  # absolute: each fuzzer runs from inside its own work directory
 summary="$work/summary.tsv"
 printf 'target\tseconds\texecutions\tcrashes\n' > "$summary"
 failed=0

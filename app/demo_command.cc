@@ -28,7 +28,7 @@
 #include "core/json_io.h"
 #include "core/mesh_primitives.h"
 #include "core/take.h"
-#include "core/take_export.h"
+#include "export/take_export.h"
 #include "core/take_summary.h"
 #include "sim/performance.h"
 #include "sim/procedural_face.h"

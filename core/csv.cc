@@ -26,10 +26,16 @@ std::vector<std::string> Split(const std::string& line) {
 }  // namespace
 
 StatusOr<CsvTable> CsvTable::Read(const std::string& path, const std::string& header) {
+  return ReadImpl(path, &header);
+}
+
+StatusOr<CsvTable> CsvTable::ReadWithHeader(const std::string& path) { return ReadImpl(path, nullptr); }
+
+StatusOr<CsvTable> CsvTable::ReadImpl(const std::string& path, const std::string* expected_header) {
   FACEDYN_ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path));
   CsvTable table;
   table.path_ = path;
-  table.columns_ = Split(header);
+  if (expected_header != nullptr) table.columns_ = Split(*expected_header);
   std::stringstream stream(text);
   std::string line;
   int line_number = 0;
@@ -45,8 +51,12 @@ StatusOr<CsvTable> CsvTable::Read(const std::string& path, const std::string& he
                       line_number, bad_byte + 1));
     }
     if (!have_header) {
-      if (line != header) {
-        return DataLossError(fmt::format("{}:{}: header is '{}', expected '{}'", path, line_number, line, header));
+      if (expected_header == nullptr) {
+        if (line.empty()) continue;
+        table.columns_ = Split(line);
+      } else if (line != *expected_header) {
+        return DataLossError(fmt::format("{}:{}: header is '{}', expected '{}'", path, line_number,
+                                         line, *expected_header));
       }
       have_header = true;
       continue;
@@ -60,7 +70,10 @@ StatusOr<CsvTable> CsvTable::Read(const std::string& path, const std::string& he
     table.rows_.push_back(std::move(fields));
     table.line_numbers_.push_back(line_number);
   }
-  if (!have_header) return DataLossError(path + ": empty file, expected the header '" + header + "'");
+  if (!have_header) {
+    return DataLossError(path + ": empty file, expected " +
+                         (expected_header ? "the header '" + *expected_header + "'" : "a header line"));
+  }
   return table;
 }
 

@@ -14,6 +14,11 @@ class CsvTable {
   // Reads `path`, requiring its first line to equal `header` (comma-separated column names).
   // Blank lines are skipped; every other line must have as many fields as the header.
   static StatusOr<CsvTable> Read(const std::string& path, const std::string& header);
+  // The same for files whose columns are data (one per blendshape, say): the first line is
+  // the header, whatever it names; the caller checks the names through columns().
+  static StatusOr<CsvTable> ReadWithHeader(const std::string& path);
+
+  const std::vector<std::string>& columns() const { return columns_; }
 
   size_t row_count() const { return rows_.size(); }
   const std::string& path() const { return path_; }
@@ -27,6 +32,8 @@ class CsvTable {
   Status RowError(size_t row, const std::string& message) const;
 
  private:
+  static StatusOr<CsvTable> ReadImpl(const std::string& path, const std::string* expected_header);
+
   std::string path_;
   std::vector<std::string> columns_;
   std::vector<std::vector<std::string>> rows_;

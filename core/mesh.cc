@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include <Eigen/Geometry>  // cross (VertexNormals)
 #include <fmt/format.h>
 
 #include "core/file_util.h"
@@ -576,6 +577,26 @@ Status WriteMesh(const Mesh& mesh, const Eigen::Matrix3Xd& positions_mm, const s
   std::filesystem::rename(tmp, path, ec);
   if (ec) return UnavailableError(path + ": cannot move mesh into place: " + ec.message());
   return Status::Ok();
+}
+
+Eigen::Matrix3Xd VertexNormals(const Mesh& mesh, const Eigen::Matrix3Xd& positions_mm) {
+  Eigen::Matrix3Xd normals = Eigen::Matrix3Xd::Zero(3, positions_mm.cols());
+  const Eigen::Matrix3Xi triangles = mesh.Triangles();
+  for (Eigen::Index t = 0; t < triangles.cols(); ++t) {
+    const Eigen::Vector3d a = positions_mm.col(triangles(0, t));
+    const Eigen::Vector3d n =
+        (positions_mm.col(triangles(1, t)) - a).cross(positions_mm.col(triangles(2, t)) - a);
+    for (int k = 0; k < 3; ++k) normals.col(triangles(k, t)) += n;  // |n| = 2 * area
+  }
+  for (Eigen::Index v = 0; v < normals.cols(); ++v) {
+    const double n = normals.col(v).norm();
+    if (n > 1e-12) {
+      normals.col(v) /= n;
+    } else {
+      normals.col(v) = Eigen::Vector3d::UnitZ();
+    }
+  }
+  return normals;
 }
 
 }  // namespace facedyn

@@ -47,6 +47,10 @@ struct Mesh {
   Status Validate(const std::string& what) const;
 };
 
+// Unit vertex normals of `positions_mm` (3 x V) in `mesh`'s topology: the sum of the adjacent
+// fan triangles' normals weighted by their area; +Z for a vertex no triangle with area touches.
+Eigen::Matrix3Xd VertexNormals(const Mesh& mesh, const Eigen::Matrix3Xd& positions_mm);
+
 // Same topology (faces and UV layout); positions may differ.
 bool SameTopology(const Mesh& a, const Mesh& b);
 

@@ -1,8 +1,8 @@
-// ReadMdd (core/mdd.h) on arbitrary bytes: a point cache a studio tool exported as MDD.
+// ReadMdd (export/mdd.h) on arbitrary bytes: a point cache a studio tool exported as MDD.
 #include <cstddef>
 #include <cstdint>
 
-#include "core/mdd.h"
+#include "export/mdd.h"
 #include "fuzz/fuzz_util.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {

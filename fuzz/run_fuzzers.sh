@@ -11,7 +11,7 @@ seconds="$2"
 shift 2
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-  targets=(pc2 mdd mesh_obj mesh_ply take_json transform_csv face_rig drive_profile rig_config
+  targets=(pc2 mdd mesh_obj mesh_ply take_json transform_csv blendshape_weights face_rig drive_profile rig_config
            sweep_script rig_log sweep_resume modbus_reply capture_config session_json session_events frame_file calibration
            drive_request)
 fi

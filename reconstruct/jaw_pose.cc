@@ -162,7 +162,7 @@ JawPoseEstimator::JawPoseEstimator(const FaceRig& rig, const JawPoseOptions& opt
   }
   // Deflection profiles (see the header): P2_m = (t_m / 10 mm)^2 (I - (1 - r) n_m n_m^T),
   // P4_m = (t_m / 10 mm)^2 P2_m, n_m the skin normal at rest, r = normal_deflection_ratio.
-  const Eigen::Matrix3Xd normals = MeshVertexNormals(rig.neutral, rig.neutral.positions_mm);
+  const Eigen::Matrix3Xd normals = VertexNormals(rig.neutral, rig.neutral.positions_mm);
   profile_t2_.resize(n);
   profile_t4_.resize(n);
   for (int k = 0; k < n; ++k) {

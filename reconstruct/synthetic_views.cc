@@ -157,22 +157,6 @@ std::vector<Eigen::Vector2d> ProjectDiskOutline(const Camera& camera,
   return outline;
 }
 
-Eigen::Matrix3Xd MeshVertexNormals(const Mesh& mesh, const Eigen::Matrix3Xd& positions_mm) {
-  Eigen::Matrix3Xd normals = Eigen::Matrix3Xd::Zero(3, positions_mm.cols());
-  const Eigen::Matrix3Xi triangles = mesh.Triangles();
-  for (int f = 0; f < triangles.cols(); ++f) {
-    const Eigen::Vector3d a = positions_mm.col(triangles(0, f));
-    const Eigen::Vector3d n = (positions_mm.col(triangles(1, f)) - a)
-                                  .cross(positions_mm.col(triangles(2, f)) - a);  // 2 area
-    for (int k = 0; k < 3; ++k) normals.col(triangles(k, f)) += n;
-  }
-  for (int v = 0; v < normals.cols(); ++v) {
-    const double norm = normals.col(v).norm();
-    normals.col(v) = norm > 0 ? Eigen::Vector3d(normals.col(v) / norm) : Eigen::Vector3d::UnitZ();
-  }
-  return normals;
-}
-
 Eigen::Matrix3Xd MarkerPositions(const FaceRig& rig, const Eigen::Matrix3Xd& skin_in_world) {
   Eigen::Matrix3Xd markers(3, rig.markers.size());
   for (size_t m = 0; m < rig.markers.size(); ++m) {
@@ -182,7 +166,7 @@ Eigen::Matrix3Xd MarkerPositions(const FaceRig& rig, const Eigen::Matrix3Xd& ski
 }
 
 Eigen::Matrix3Xd MarkerNormals(const FaceRig& rig, const Eigen::Matrix3Xd& skin_in_world) {
-  const Eigen::Matrix3Xd vertex_normals = MeshVertexNormals(rig.neutral, skin_in_world);
+  const Eigen::Matrix3Xd vertex_normals = VertexNormals(rig.neutral, skin_in_world);
   Eigen::Matrix3Xd normals(3, rig.markers.size());
   for (size_t m = 0; m < rig.markers.size(); ++m) {
     normals.col(m) = rig.markers[m].point.Evaluate(vertex_normals).normalized();

@@ -73,8 +73,6 @@ std::vector<Eigen::Vector2d> ProjectDiskOutline(const Camera& camera,
                                                 const Eigen::Vector3d& normal_in_world,
                                                 double radius_mm, int vertex_count = 32);
 
-// Area-weighted unit vertex normals of `mesh` at `positions_mm` (3 x V).
-Eigen::Matrix3Xd MeshVertexNormals(const Mesh& mesh, const Eigen::Matrix3Xd& positions_mm);
 
 // A rig's painted markers on a skin surface (3 x V, world): positions and unit normals.
 Eigen::Matrix3Xd MarkerPositions(const FaceRig& rig, const Eigen::Matrix3Xd& skin_in_world);

@@ -21,6 +21,7 @@ packages=(
   libyaml-cpp-dev          # YAML configs
   nlohmann-json3-dev       # JSON output
   libspdlog-dev libfmt-dev # logging and formatting
+  libtinygltf-dev          # glTF 2.0 export (export/gltf_export)
   libgtest-dev libgmock-dev libbenchmark-dev  # tests and benchmarks
   # test-only peers: an independent Modbus implementation, pty pairs for RTU, USB replay
   python3-pymodbus python3-serial python3-serial-asyncio socat umockdev
@@ -30,6 +31,8 @@ packages=(
   gstreamer1.0-plugins-base
   # the demo report is checked by a screenshot in headless Chromium (tests/app/report_test)
   chromium
+  # Blender reads back the exported OBJ, PC2, MDD and glTF (tests/export/blender_test)
+  blender python3-numpy  # numpy: Blender's glTF importer needs it
   # `make fuzz`: clang with libFuzzer and the sanitizer runtimes (fuzz/)
   clang libclang-rt-14-dev
 )

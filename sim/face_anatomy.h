@@ -54,9 +54,6 @@ std::map<std::string, std::vector<int>> LabelFaceRegions(const Eigen::Matrix3Xd&
 // (lips and the soft neck are left out), or all of jaw when that is empty.
 std::vector<int> JawFitVertices(const FaceRig& rig);
 
-// Area-weighted unit vertex normals of `mesh` at `positions_mm` (3 x V); isolated vertices
-// get +Z.
-Eigen::Matrix3Xd VertexNormals(const Mesh& mesh, const Eigen::Matrix3Xd& positions_mm);
 
 // Vertex adjacency (sorted neighbour lists) from the mesh's polygon edges.
 std::vector<std::vector<int>> VertexNeighbors(const Mesh& mesh);

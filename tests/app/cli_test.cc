@@ -376,6 +376,46 @@ TEST(Cli, ExportErrorLeavesNoCrash) {
   EXPECT_THAT(out, HasSubstr("file"));
 }
 
+// Every format the help names is accepted (mdd once was not), and the rig's glb export
+// refuses what it cannot do with a message naming it, writing nothing under the final name.
+TEST(Cli, ExportFormatsAndRigGlbErrors) {
+  TempDir dir;
+  const std::string take = MakeDemoTake(dir);
+  std::string out;
+  for (const char* format : {"mdd", "glb"}) {
+    EXPECT_EQ(RunCommand(Facedyn("--quiet export --take " + take + " --format " + format +
+                                 " --out " + dir.Join(format)),
+                         &out),
+              0)
+        << out;
+  }
+  EXPECT_TRUE(std::filesystem::exists(dir.Join("mdd/positions.mdd")));
+  EXPECT_TRUE(std::filesystem::exists(dir.Join("glb/take.glb")));
+  const std::string face = DemoDir().Join("demo/face");
+  EXPECT_EQ(RunCommand(Facedyn("export --rig " + face + " --format pc2 --out " + dir.Join("r")), &out), 1);
+  EXPECT_THAT(out, HasSubstr("--format glb"));
+  EXPECT_EQ(RunCommand(Facedyn("export --format glb --out " + dir.Join("r")), &out), 1);
+  EXPECT_THAT(out, HasSubstr("--take TAKE or --rig FACE"));
+  EXPECT_EQ(RunCommand(Facedyn("export --take " + take + " --rig " + face + " --format glb --out " +
+                               dir.Join("r")),
+                       &out),
+            2);
+  testing::WriteBytes(dir.Join("w.csv"), "time_s,no_such_shape\n0,1\n");
+  EXPECT_EQ(RunCommand(Facedyn("export --rig " + face + " --weights " + dir.Join("w.csv") +
+                               " --format glb --out " + dir.Join("r")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("'no_such_shape'"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("r/rig.glb")));
+  testing::WriteBytes(dir.Join("w.csv"), "time_s,smile\n0,1\n0.5,0\n");
+  EXPECT_EQ(RunCommand(Facedyn("--quiet export --rig " + face + " --weights " + dir.Join("w.csv") +
+                               " --format glb --out " + dir.Join("r")),
+                       &out),
+            0)
+      << out;
+  EXPECT_TRUE(std::filesystem::exists(dir.Join("r/rig.glb")));
+}
+
 TEST(Cli, SimFaceAndPerformWriteATakeWithQuasistaticChannel) {
   TempDir dir;
   std::string out;

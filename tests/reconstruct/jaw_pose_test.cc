@@ -123,7 +123,7 @@ TEST(JawPoseEstimator, RigidHingeRotationGivesTheAngleExactly) {
 TEST(JawPoseEstimator, RecoversAnExactInertialDeflection) {
   const FaceRig& rig = testing::ProceduralFace();
   const JawPoseEstimator estimator(rig, JawPoseOptions());
-  const Eigen::Matrix3Xd normals = MeshVertexNormals(rig.neutral, rig.neutral.positions_mm);
+  const Eigen::Matrix3Xd normals = VertexNormals(rig.neutral, rig.neutral.positions_mm);
   const Eigen::Vector3d d1(0.3, -0.8, 0.2), d2(-0.1, 0.25, 0.05);
   const double angle = 0.12;
   Observed o = RestMarkers(rig);

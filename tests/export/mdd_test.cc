@@ -1,7 +1,7 @@
 // MDD point caches: the big-endian byte layout checked by hand and by an independent reader
 // (Python's struct module), round trips, every corrupt-input path of ReadMdd, and the take
 // export.
-#include "core/mdd.h"
+#include "export/mdd.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "core/mesh_primitives.h"
-#include "core/take_export.h"
+#include "export/take_export.h"
 #include "tests/support/test_support.h"
 
 namespace facedyn {

@@ -1,9 +1,10 @@
-#include "core/take_export.h"
+#include "export/take_export.h"
 
 #include <fmt/format.h>
 
 #include "core/file_util.h"
-#include "core/mdd.h"
+#include "export/gltf_export.h"
+#include "export/mdd.h"
 #include "core/progress.h"
 
 namespace facedyn {
@@ -13,13 +14,19 @@ StatusOr<ExportFormat> ParseExportFormat(const std::string& name) {
   if (name == "ply") return ExportFormat::kPly;
   if (name == "pc2") return ExportFormat::kPc2;
   if (name == "mdd") return ExportFormat::kMdd;
-  return InvalidArgumentError("unknown export format '" + name + "' (use obj, ply, pc2 or mdd)");
+  if (name == "glb") return ExportFormat::kGlb;
+  return InvalidArgumentError("unknown export format '" + name + "' (use obj, ply, pc2, mdd or glb)");
 }
 
 StatusOr<ExportSummary> ExportTake(const Take& take, ExportFormat format, const std::string& dir) {
   FACEDYN_RETURN_IF_ERROR(take.Validate());
   FACEDYN_RETURN_IF_ERROR(MakeDirectories(dir));
   ExportSummary summary;
+  if (format == ExportFormat::kGlb) {
+    FACEDYN_RETURN_IF_ERROR(WriteTakeGlb(take, JoinPath(dir, "take.glb")).status());
+    summary.files_written = 1;
+    return summary;
+  }
   if (format == ExportFormat::kPc2 || format == ExportFormat::kMdd) {
     const bool mdd = format == ExportFormat::kMdd;
     // MDD frame times from the take's first frame (time_s is the session clock), so a tool

@@ -1,4 +1,4 @@
-#include "core/mdd.h"
+#include "export/mdd.h"
 
 #include <cmath>
 #include <cstdint>

@@ -17,6 +17,7 @@ using CommandRunner = std::function<Status()>;
 
 void AddTakeCommands(CLI::App& app, CommandRunner* selected);
 void AddExportCommand(CLI::App& app, CommandRunner* selected);
+void AddViewCommand(CLI::App& app, CommandRunner* selected);
 void AddDemoCommand(CLI::App& app, CommandRunner* selected);
 void AddReportCommand(CLI::App& app, CommandRunner* selected);  // the demo's report again
 void AddSimCommands(CLI::App& app, CommandRunner* selected);

@@ -22,7 +22,7 @@
 #include "app/demo_dynamics.h"
 #include "eval/dynamics_study.h"
 #include "app/reconstruct_demo.h"
-#include "app/report.h"
+#include "report/report.h"
 #include "app/rig_demo.h"
 #include "core/file_util.h"
 #include "core/json_io.h"
@@ -228,7 +228,7 @@ Status RunDemo(const DemoOptions& options) {
   metrics["total_s"] = seconds;
   FACEDYN_RETURN_IF_ERROR(WriteJsonFile(JoinPath(options.out_dir, "metrics.json"), metrics));
   const std::string report = JoinPath(options.out_dir, "report.html");
-  FACEDYN_RETURN_IF_ERROR(WriteDemoReport(metrics, report));
+  FACEDYN_RETURN_IF_ERROR(report::WriteDemoReport(metrics, report));
   std::printf(
       "\nDemo stages: simulated drive and sweep; take I/O and export; simulated face and "
       "soft-tissue\n"

@@ -12,7 +12,8 @@
 #include <thread>
 #include <utility>
 
-#include "app/face_render.h"
+#include "report/face_render.h"
+#include "report/take_viewer.h"
 #include "core/file_util.h"
 #include "dynamics/baselines.h"
 #include "dynamics/features.h"
@@ -718,7 +719,7 @@ StatusOr<Json> RenderDemoDynamics(const FaceRig& face, const DemoDynamicsArtifac
   Json groups = Json::array();
   int image_index = 0;
   // Small enough that 16 renders keep the self-contained report near 1 MB.
-  OffsetRenderOptions render_options;
+  report::OffsetRenderOptions render_options;
   render_options.width_px = 240;
   render_options.height_px = 293;
   // Colour ranges as in the paper's figures: +-5 mm for the platform (Fig. 3), +-2 mm for the
@@ -734,7 +735,7 @@ StatusOr<Json> RenderDemoDynamics(const FaceRig& face, const DemoDynamicsArtifac
         const std::string path =
             JoinPath("renders", fmt::format("{:02d}_frame{:04d}.png", image_index++, t));
         FACEDYN_RETURN_IF_ERROR(WriteBytes(
-            JoinPath(out_dir, path), RenderSignedOffsetPng(topology, view.positions_in_skull,
+            JoinPath(out_dir, path), report::RenderSignedOffsetPng(topology, view.positions_in_skull,
                                                            view.offsets_in_skull, render_options)));
         images.push_back(
             {{"group", group},
@@ -795,7 +796,33 @@ StatusOr<Json> RenderDemoDynamics(const FaceRig& face, const DemoDynamicsArtifac
                          offset_view("naive transfer of A's offsets", artifacts.naive, t),
                          offset_view("B simulated walking (truth)", artifacts.retarget_truth, t)};
                    }));
-  return Json{{"range_mm", 5.0}, {"groups", groups}, {"images", images}};
+
+  // The same takes as browser pages (report/take_viewer.h), one second from the first scored
+  // frame: about 9.3 bytes a vertex a frame, so three 1 s takes are ~18 MB a page.
+  Json viewers = Json::array();
+  FACEDYN_RETURN_IF_ERROR(MakeDirectories(JoinPath(out_dir, "viewers")));
+  auto write_viewer = [&](const std::string& file, const std::string& title,
+                          const std::vector<report::ViewerTake>& takes) -> Status {
+    report::ViewerOptions options;
+    options.title = title;
+    options.first_frame = skip;
+    options.max_frames = static_cast<int>(std::lround(takes.front().take.info.fps));
+    const std::string path = JoinPath("viewers", file);
+    FACEDYN_ASSIGN_OR_RETURN(const report::ViewerSummary summary,
+                             report::WriteTakeViewer(takes, options, JoinPath(out_dir, path)));
+    viewers.push_back({{"title", title}, {"path", path}, {"megabytes", Round4(summary.bytes / 1e6)}});
+    return Status::Ok();
+  };
+  FACEDYN_RETURN_IF_ERROR(write_viewer(
+      "held_out_removal.html", "held-out " + test_name + ": reconstructed, after removal by F, simulated",
+      {{"reconstructed (F's input)", artifacts.test_reconstructed},
+       {"after removal by F", artifacts.test_removed},
+       {"simulated (truth, with its exact quasistatic)", artifacts.test_simulated}}));
+  FACEDYN_RETURN_IF_ERROR(write_viewer("retargeting.html", "A's walk retargeted to subject B",
+                                       {{"B's H", artifacts.retargeted},
+                                        {"naive transfer of A's offsets", artifacts.naive},
+                                        {"B simulated walking (truth)", artifacts.retarget_truth}}));
+  return Json{{"range_mm", 5.0}, {"groups", groups}, {"images", images}, {"viewers", viewers}};
 }
 
 }  // namespace facedyn::app

@@ -134,8 +134,9 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
 // synthesised offsets and the simulated truth's) and the retargeting (B's H, the naive
 // transfer, the truth); colour saturates at +-5 mm for the held-out take and +-2 mm for the
 // walks, as in the paper's figures. Returns {"range_mm" (the largest), "groups": [{group,
-// range_mm}], "images": [{group, range_mm, frame, view, path, max_abs_offset_mm}]}. Errors: a
-// file that cannot be written.
+// range_mm}], "images": [{group, range_mm, frame, view, path, max_abs_offset_mm}], "viewers":
+// [{title, path, megabytes}]} (browser pages under <out_dir>/viewers: the held-out removal and
+// the retargeting, one second each). Errors: a file that cannot be written.
 StatusOr<Json> RenderDemoDynamics(const FaceRig& face, const DemoDynamicsArtifacts& artifacts,
                                   const std::string& out_dir);
 

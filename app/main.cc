@@ -32,6 +32,7 @@ int main(int argc, char** argv) {
   app::CommandRunner selected;
   app::AddTakeCommands(cli, &selected);
   app::AddExportCommand(cli, &selected);
+  app::AddViewCommand(cli, &selected);
   app::AddSimCommands(cli, &selected);
   app::AddDynamicsCommands(cli, &selected);
   app::AddRigCommands(cli, &selected);

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "app/command.h"
-#include "app/report.h"
+#include "report/report.h"
 #include "core/file_util.h"
 #include "core/json_io.h"
 
@@ -37,7 +37,7 @@ Status RunReport(const ReportOptions& options) {
   std::string files_dir = std::filesystem::path(options.metrics_path).parent_path().string();
   if (files_dir.empty()) files_dir = ".";
   const std::string out = options.out.empty() ? JoinPath(files_dir, "report.html") : options.out;
-  FACEDYN_RETURN_IF_ERROR(WriteDemoReport(metrics, out, files_dir));
+  FACEDYN_RETURN_IF_ERROR(report::WriteDemoReport(metrics, out, files_dir));
   std::printf("Report: %s\n", out.c_str());
   return Status::Ok();
 }

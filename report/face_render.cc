@@ -1,4 +1,4 @@
-#include "app/face_render.h"
+#include "report/face_render.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -9,7 +9,7 @@
 
 #include "core/check.h"
 
-namespace facedyn::app {
+namespace facedyn::report {
 
 std::vector<unsigned char> RenderSignedOffsetPng(const Mesh& topology,
                                                  const Eigen::Matrix3Xf& positions_in_skull,
@@ -116,4 +116,4 @@ std::string Base64(const std::vector<unsigned char>& bytes) {
   return out;
 }
 
-}  // namespace facedyn::app
+}  // namespace facedyn::report

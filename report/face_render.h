@@ -12,7 +12,7 @@
 
 #include "core/mesh.h"
 
-namespace facedyn::app {
+namespace facedyn::report {
 
 struct OffsetRenderOptions {
   int width_px = 360;
@@ -31,4 +31,4 @@ std::vector<unsigned char> RenderSignedOffsetPng(const Mesh& topology,
 // RFC 4648 base64 (for data: URIs in the self-contained report).
 std::string Base64(const std::vector<unsigned char>& bytes);
 
-}  // namespace facedyn::app
+}  // namespace facedyn::report

@@ -1,4 +1,4 @@
-#include "app/report.h"
+#include "report/report.h"
 
 #include <fmt/format.h>
 
@@ -11,10 +11,10 @@
 #include <utility>
 #include <vector>
 
-#include "app/face_render.h"
+#include "report/face_render.h"
 #include "core/json_io.h"
 
-namespace facedyn::app {
+namespace facedyn::report {
 namespace {
 
 std::string Escape(const std::string& text) {
@@ -522,6 +522,20 @@ Status WriteDemoReport(const Json& metrics, const std::string& path, const std::
     }
     if (!last_row.empty()) html += "</tr>";
     html += "</table>";
+    // Viewer pages are too large to inline: linked relative to the report, wherever it is.
+    if (renders.contains("viewers") && renders["viewers"].is_array() && !renders["viewers"].empty()) {
+      html += "<p>Play these takes in the browser (facedyn view; drag to orbit):</p><ul>";
+      const std::filesystem::path report_dir = std::filesystem::absolute(path).parent_path();
+      for (const Json& viewer : renders["viewers"]) {
+        std::filesystem::path page(Text(viewer, "path"));
+        if (page.is_relative()) page = std::filesystem::absolute(base / page);
+        const std::string link = page.lexically_relative(report_dir).generic_string();
+        html += fmt::format("<li><a href=\"{}\">{}</a> ({:.1f} MB){}</li>", Escape(link), Escape(Text(viewer, "title")),
+                            Number(viewer, "megabytes"),
+                            std::filesystem::exists(page) ? "" : " &mdash; <em>missing</em>");
+      }
+      html += "</ul>";
+    }
   }
   if (metrics.contains("simulated_reference")) {
     html += ReferenceSection(metrics["simulated_reference"]);
@@ -542,4 +556,4 @@ Status WriteDemoReport(const Json& metrics, const std::string& path, const std::
   return Status::Ok();
 }
 
-}  // namespace facedyn::app
+}  // namespace facedyn::report

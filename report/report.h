@@ -10,7 +10,7 @@
 #include "core/json_io.h"
 #include "core/status.h"
 
-namespace facedyn::app {
+namespace facedyn::report {
 
 // Writes `path` (HTML) from the demo metrics. Renders are embedded from the files the metrics
 // name ("renders" "images" "path"); a relative path is read from `files_dir` (empty: the folder
@@ -42,4 +42,4 @@ std::string SvgLinePlot(const std::string& title, const std::string& x_label,
                         const std::string& y_label, const std::vector<SvgSeries>& series,
                         const std::vector<std::pair<double, double>>& shaded = {});
 
-}  // namespace facedyn::app
+}  // namespace facedyn::report

@@ -1,8 +1,8 @@
-// The demo report (app/report.h) and its renders (app/face_render.h): written from metrics
+// The demo report (report/report.h) and its renders (report/face_render.h): written from metrics
 // alone, self-contained, and — opened in headless Chromium, Debian's `chromium` — drawn with its
 // images and plots (a screenshot that is not blank and holds the renders' colours).
 
-#include "app/report.h"
+#include "report/report.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -14,11 +14,12 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
-#include "app/face_render.h"
+#include "core/mesh_primitives.h"
+#include "report/face_render.h"
 #include "sim/procedural_face.h"
 #include "tests/support/test_support.h"
 
-namespace facedyn::app {
+namespace facedyn::report {
 namespace {
 
 using ::testing::HasSubstr;
@@ -127,6 +128,30 @@ TEST(WriteDemoReport, EmbedsEverythingAndEscapesText) {
   EXPECT_THAT(html, HasSubstr("cam1 (700 corners)"));  // the per-camera chart
 }
 
+// Viewer pages are linked, not inlined, relative to the report wherever it is written; a page
+// that is not there is marked missing.
+TEST(WriteDemoReport, LinksViewerPagesRelativeToTheReport) {
+  testing::TempDir dir;
+  std::filesystem::create_directories(dir.Join("demo/viewers"));
+  testing::WriteBytes(dir.Join("demo/viewers/held_out.html"), "<html></html>");
+  const std::string png = dir.Join("demo/r.png");
+  const Mesh patch = MakeEllipsoidPatch(80, 100, 90, 0.5, 0.5, 4, 4);
+  const std::vector<unsigned char> bytes = RenderSignedOffsetPng(
+      patch, patch.positions_mm.cast<float>(), Eigen::Matrix3Xf::Zero(3, patch.vertex_count()));
+  testing::WriteBytes(png, std::string(bytes.begin(), bytes.end()));
+  Json metrics;
+  metrics["renders"] = {
+      {"range_mm", 5.0},
+      {"images", Json::array({{{"group", "g"}, {"frame", 0}, {"view", "v"}, {"path", "r.png"}}})},
+      {"viewers", Json::array({{{"title", "held-out <removal>"}, {"path", "viewers/held_out.html"}, {"megabytes", 17.5}},
+                               {{"title", "gone"}, {"path", "viewers/gone.html"}, {"megabytes", 1.0}}})}};
+  // Written one folder up from the files (facedyn report --out elsewhere).
+  ASSERT_TRUE(WriteDemoReport(metrics, dir.Join("report.html"), dir.Join("demo")).ok());
+  const std::string html = testing::ReadBytes(dir.Join("report.html"));
+  EXPECT_THAT(html, HasSubstr("<a href=\"demo/viewers/held_out.html\">held-out &lt;removal&gt;</a> (17.5 MB)"));
+  EXPECT_THAT(html, HasSubstr("gone</a> (1.0 MB) &mdash; <em>missing</em>"));
+}
+
 // A report from metrics missing most fields draws what there is instead of failing.
 TEST(WriteDemoReport, PartialMetricsStillWrite) {
   testing::TempDir dir;
@@ -166,12 +191,7 @@ TEST(WriteDemoReport, MissingRenderIsAnError) {
 }
 
 TEST(WriteDemoReport, HeadlessChromiumDrawsItsImagesAndPlots) {
-  const char* candidates[] = {"/usr/bin/chromium", "/usr/bin/chromium-browser"};
-  std::string chromium;
-  for (const char* c : candidates) {
-    if (std::filesystem::exists(c)) chromium = c;
-  }
-  if (chromium.empty()) {
+  if (testing::ChromiumExecutable().empty()) {
     if (testing::InCi())
       FAIL() << "chromium is missing and CI=true (scripts/install-deps.sh installs it)";
     GTEST_SKIP() << "chromium not installed";
@@ -181,12 +201,8 @@ TEST(WriteDemoReport, HeadlessChromiumDrawsItsImagesAndPlots) {
   const std::string shot = dir.Join("shot.png");
   std::string out;
   const int rc = testing::RunCommand(
-      chromium +
-          " --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
-          "--disable-background-networking --disable-component-update --disable-sync "
-          "--user-data-dir=" +
-          dir.Join("profile") + " --window-size=900,1400 --screenshot=" + shot + " file://" +
-          report,
+      testing::HeadlessChromium(dir.Join("profile")) + " --window-size=900,1400 --screenshot=" +
+          shot + " file://" + report,
       &out);
   ASSERT_EQ(rc, 0) << out;
   const cv::Mat image = cv::imread(shot, cv::IMREAD_COLOR);
@@ -204,4 +220,4 @@ TEST(WriteDemoReport, HeadlessChromiumDrawsItsImagesAndPlots) {
 }
 
 }  // namespace
-}  // namespace facedyn::app
+}  // namespace facedyn::report

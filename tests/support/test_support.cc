@@ -63,6 +63,20 @@ std::string FacedynExecutable() {
   return std::string(dir ? dir : FACEDYN_BINARY_DIR_DEFAULT) + "/app/facedyn";
 }
 
+std::string ChromiumExecutable() {
+  for (const char* candidate : {"/usr/bin/chromium", "/usr/bin/chromium-browser"}) {
+    if (std::filesystem::exists(candidate)) return candidate;
+  }
+  return "";
+}
+
+std::string HeadlessChromium(const std::string& profile_dir) {
+  return ChromiumExecutable() +
+         " --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
+         "--disable-background-networking --disable-component-update --disable-sync "
+         "--user-data-dir=" + profile_dir;
+}
+
 int RunCommand(const std::string& command, std::string* output) {
   output->clear();
   FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");

@@ -31,6 +31,12 @@ bool InCi();
 
 // The facedyn executable in the build tree (FACEDYN_BINARY_DIR is set by CTest).
 std::string FacedynExecutable();
+// Debian's chromium, or "" when it is not installed.
+std::string ChromiumExecutable();
+// The start of a headless Chromium command line (the executable and the flags every page test
+// uses: no sandbox as root, software WebGL, no network services), with its profile in
+// `profile_dir`; append --screenshot=..., --dump-dom, --window-size=... and the URL.
+std::string HeadlessChromium(const std::string& profile_dir);
 // Runs a shell command, captures stdout+stderr into *output, returns the exit code.
 int RunCommand(const std::string& command, std::string* output);
 

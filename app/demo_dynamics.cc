@@ -17,7 +17,7 @@
 #include "core/file_util.h"
 #include "dynamics/baselines.h"
 #include "dynamics/features.h"
-#include "dynamics/mlp.h"
+#include "learn/mlp.h"
 #include "dynamics/synthesis_model.h"
 #include "eval/dynamics_study.h"
 #include "eval/metrics.h"
@@ -204,7 +204,7 @@ Status SimulateAndReconstruct(const FaceRig& face, const DemoCameraRig& cameras,
   return Status::Ok();
 }
 
-Json TrainingJson(const dynamics::MlpTrainSummary& summary, int epochs) {
+Json TrainingJson(const learn::MlpTrainSummary& summary, int epochs) {
   return {{"epochs", epochs},
           {"training_rows", summary.training_rows},
           {"validation_rows", summary.validation_rows},
@@ -219,7 +219,7 @@ Json TrainingJson(const dynamics::MlpTrainSummary& summary, int epochs) {
 StatusOr<dynamics::RemovalModel> TrainF(const std::vector<Take>& takes, const FaceRig& face,
                                         dynamics::RemovalTargets targets, int epochs, int batch,
                                         uint64_t seed, const std::string& label,
-                                        dynamics::MlpTrainSummary* summary) {
+                                        learn::MlpTrainSummary* summary) {
   std::vector<dynamics::TrainingTake> training;
   for (const Take& take : takes) training.push_back({&take, &face});
   dynamics::RemovalTrainOptions options;
@@ -237,7 +237,7 @@ StatusOr<dynamics::RemovalModel> TrainF(const std::vector<Take>& takes, const Fa
 // H on takes decomposed by F (positions = F's quasistatic, channel dynamic_offset = F's dx).
 StatusOr<dynamics::SynthesisModel> TrainH(const std::vector<Take>& decomposed, const FaceRig& face,
                                           int epochs, uint64_t seed, const std::string& label,
-                                          dynamics::MlpTrainSummary* summary) {
+                                          learn::MlpTrainSummary* summary) {
   std::vector<dynamics::TrainingTake> training;
   for (const Take& take : decomposed) training.push_back({&take, &face});
   dynamics::SynthesisTrainOptions options;
@@ -396,7 +396,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   const double data_s = SecondsSince(data_start);
 
   // --- 2. removal F on A's reconstructed takes, tested on the held-out frequency ---
-  dynamics::MlpTrainSummary f_summary;
+  learn::MlpTrainSummary f_summary;
   FACEDYN_ASSIGN_OR_RETURN(
       const dynamics::RemovalModel f_model,
       TrainF(a.reconstructed, face, options.removal_targets, options.removal_epochs,
@@ -513,7 +513,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
     FACEDYN_ASSIGN_OR_RETURN(Take decomposed, dynamics::RemoveDynamics(f_model, take, face));
     decomposed_a.push_back(std::move(decomposed));
   }
-  dynamics::MlpTrainSummary h_summary;
+  learn::MlpTrainSummary h_summary;
   FACEDYN_ASSIGN_OR_RETURN(
       const dynamics::SynthesisModel h_model,
       TrainH(decomposed_a, face, options.synthesis_epochs, options.seed, "H", &h_summary));
@@ -573,7 +573,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   result["synthesis"] = synthesis;
 
   // --- 4. retargeting to subject B: B's own F and H, A's walk ---
-  dynamics::MlpTrainSummary fb_summary, hb_summary;
+  learn::MlpTrainSummary fb_summary, hb_summary;
   FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel fb_model,
                            TrainF(b.reconstructed, face_b, options.removal_targets,
                                   options.second_subject_removal_epochs, options.removal_batch,

@@ -39,7 +39,7 @@ std::vector<dynamics::TrainingTake> AsTraining(const std::vector<Take>& takes, c
   return training;
 }
 
-Json SummaryJson(const dynamics::MlpTrainSummary& summary) {
+Json SummaryJson(const learn::MlpTrainSummary& summary) {
   return {{"training_rows", summary.training_rows},
           {"validation_rows", summary.validation_rows},
           {"epochs", summary.train_loss.size()},
@@ -145,7 +145,7 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       }
       FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(train_removal->face));
       FACEDYN_ASSIGN_OR_RETURN(const std::vector<Take> takes, LoadTakes(train_removal->takes));
-      dynamics::MlpTrainSummary summary;
+      learn::MlpTrainSummary summary;
       FACEDYN_ASSIGN_OR_RETURN(
           const dynamics::RemovalModel model,
           dynamics::TrainRemoval(AsTraining(takes, rig), train_removal->options, &summary));
@@ -269,7 +269,7 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
           takes[k] = std::move(removed).value();
         }
       }
-      dynamics::MlpTrainSummary summary;
+      learn::MlpTrainSummary summary;
       FACEDYN_ASSIGN_OR_RETURN(
           const dynamics::SynthesisModel model,
           dynamics::TrainSynthesis(AsTraining(takes, rig), train_synthesis->options, &summary));

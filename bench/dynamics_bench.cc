@@ -56,7 +56,7 @@
 #include "core/json_io.h"
 #include "core/log.h"
 #include "core/progress.h"
-#include "dynamics/mlp.h"
+#include "learn/mlp.h"
 #include "dynamics/propagation.h"
 #include "dynamics/removal_model.h"
 #include "dynamics/synthesis_model.h"
@@ -291,8 +291,8 @@ int main(int argc, char** argv) {
   const double train_macs =
       rows_per_s * 3.0 * training["forward_multiply_adds_per_row"].get<double>();
   const double gemm_square =
-      facedyn::dynamics::MeasureGemmMultiplyAddsPerSecond(1024, 1024, 1024, 2.0);
-  const double gemm_layer = facedyn::dynamics::MeasureGemmMultiplyAddsPerSecond(
+      facedyn::learn::MeasureGemmMultiplyAddsPerSecond(1024, 1024, 1024, 2.0);
+  const double gemm_layer = facedyn::learn::MeasureGemmMultiplyAddsPerSecond(
       options.removal_batch, training["input_size"].get<int>(), training["hidden_units"].get<int>(),
       2.0);
   out["speed"] = {{"training_rows_per_s", rows_per_s},

@@ -8,12 +8,12 @@ namespace {
 constexpr char kPropagation[] = "propagation";
 }  // namespace
 
-Status SaveFeatureModel(const Mlp& mlp, const FeatureSpec& spec, const std::string& kind,
+Status SaveFeatureModel(const learn::Mlp& mlp, const FeatureSpec& spec, const std::string& kind,
                         int format_version, const SamplePropagation* propagation,
                         const std::string& path) {
   Json json = spec.ToJson();
   json["format_version"] = format_version;
-  MlpAttachments attachments;
+  learn::MlpAttachments attachments;
   if (propagation != nullptr) {
     attachments[kPropagation] = propagation->weights();
     json["propagation_method"] = propagation->method();
@@ -21,11 +21,11 @@ Status SaveFeatureModel(const Mlp& mlp, const FeatureSpec& spec, const std::stri
   return mlp.Save(path, kind, std::move(json), attachments);
 }
 
-StatusOr<Mlp> LoadFeatureModel(const std::string& path, const std::string& kind, int format_version,
+StatusOr<learn::Mlp> LoadFeatureModel(const std::string& path, const std::string& kind, int format_version,
                                FeatureSpec* spec, std::optional<SamplePropagation>* propagation) {
   Json json;
-  MlpAttachments attachments;
-  FACEDYN_ASSIGN_OR_RETURN(Mlp mlp, Mlp::Load(path, kind, &json, &attachments));
+  learn::MlpAttachments attachments;
+  FACEDYN_ASSIGN_OR_RETURN(learn::Mlp mlp, learn::Mlp::Load(path, kind, &json, &attachments));
   if (json.value("format_version", 0) != format_version) {
     return DataLossError(path + ": " + kind + " format_version " +
                          json.value("format_version", Json()).dump() +
@@ -48,7 +48,7 @@ StatusOr<Mlp> LoadFeatureModel(const std::string& path, const std::string& kind,
   return mlp;
 }
 
-Status CheckNetworkSizes(const std::string& path, const MlpShape& shape, int input_size,
+Status CheckNetworkSizes(const std::string& path, const learn::MlpShape& shape, int input_size,
                          int output_size) {
   if (shape.input_size != input_size || shape.output_size != output_size) {
     return DataLossError(path + ": network size " + std::to_string(shape.input_size) + " -> " +

@@ -53,7 +53,7 @@ StatusOr<TakeFeatures> ComputeTakeFeatures(const Take& take, const FaceRig& rig,
 }
 
 // Rows are (take, frame, sample) packed into a long: ((take * F_max) + frame) * S + sample.
-class RemovalDataset final : public MlpDataset {
+class RemovalDataset final : public learn::MlpDataset {
  public:
   RemovalDataset(int skull_size, int skin_size, int sample_count, int max_frames)
       : skull_size_(skull_size),
@@ -134,14 +134,14 @@ Status RemovalConfig::Check() const {
 
 StatusOr<RemovalModel> RemovalModel::Create(const RemovalConfig& config, uint64_t seed) {
   FACEDYN_RETURN_IF_ERROR(config.Check());
-  MlpShape shape;
+  learn::MlpShape shape;
   shape.input_size = config.input_size();
   shape.hidden_units = config.hidden_units;
   shape.linear_skip = config.linear_skip;
   shape.output_size = 3;
   RemovalModel model;
   model.config_ = config;
-  FACEDYN_ASSIGN_OR_RETURN(model.mlp_, Mlp::Create(shape, seed));
+  FACEDYN_ASSIGN_OR_RETURN(model.mlp_, learn::Mlp::Create(shape, seed));
   return model;
 }
 
@@ -187,7 +187,7 @@ Status RemovalTrainOptions::Check() const {
 }
 
 StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
-                                    const RemovalTrainOptions& options, MlpTrainSummary* summary) {
+                                    const RemovalTrainOptions& options, learn::MlpTrainSummary* summary) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (takes.empty()) return InvalidArgumentError("train-removal: no training takes");
   for (const TrainingTake& training : takes) {
@@ -289,7 +289,7 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
     }
   }
   FACEDYN_RETURN_IF_ERROR(
-      TrainMlp(data, train_rows, validation_rows, options.train, model.mutable_mlp(), summary));
+      learn::TrainMlp(data, train_rows, validation_rows, options.train, model.mutable_mlp(), summary));
   if (learner) {
     FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, learner->Fit());
     model.set_propagation(std::move(learned));

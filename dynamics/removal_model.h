@@ -24,14 +24,14 @@
 #include "core/status.h"
 #include "core/take.h"
 #include "dynamics/feature_spec.h"
-#include "dynamics/mlp.h"
+#include "learn/mlp.h"
 #include "dynamics/propagation.h"
 
 namespace facedyn::dynamics {
 
 struct RemovalConfig : FeatureSpec {
   int hidden_units = 128;
-  bool linear_skip = false;  // MlpShape::linear_skip
+  bool linear_skip = false;  // learn::MlpShape::linear_skip
 
   // Config for a rig's landmarks and samples at `fps` (other settings default).
   static RemovalConfig ForRig(const FaceRig& rig, double fps);
@@ -59,8 +59,8 @@ class RemovalModel {
     mlp_.SetNormalisation(input_mean, input_std, output_mean, output_std);
   }
   std::vector<float> FlatParameters() const { return mlp_.FlatParameters(); }
-  Mlp* mutable_mlp() { return &mlp_; }
-  const Mlp& mlp() const { return mlp_; }
+  learn::Mlp* mutable_mlp() { return &mlp_; }
+  const learn::Mlp& mlp() const { return mlp_; }
 
   // The learned propagation trained with the network, or null.
   const SamplePropagation* propagation() const { return propagation_ ? &*propagation_ : nullptr; }
@@ -70,7 +70,7 @@ class RemovalModel {
 
  private:
   RemovalConfig config_;
-  Mlp mlp_;
+  learn::Mlp mlp_;
   std::optional<SamplePropagation> propagation_;
 };
 
@@ -109,10 +109,10 @@ StatusOr<RemovalTargets> ParseRemovalTargets(const std::string& name);
 
 struct RemovalTrainOptions {
   // Optimisation: the paper's 250 epochs, batch 10,000 and Adam at 1e-3 (sec. 5.2).
-  MlpTrainOptions train = Defaults();
+  learn::MlpTrainOptions train = Defaults();
   double validation_fraction = 0.1;  // fraction of usable frames held out (blocks), all samples
   int hidden_units = 128;
-  // F plus a linear map of its inputs (MlpShape::linear_skip); false is the paper's network.
+  // F plus a linear map of its inputs (learn::MlpShape::linear_skip); false is the paper's network.
   // On by default: chosen on 6-9 Hz simulated training takes tested on 10 Hz (bench/
   // dynamics_bench --hz 6,7,8,9 --test-hz 10), a frequency split, not the 11 Hz test, under
   // round 1's protocol (onset frames scored, frame-level validation, whose loss also favoured
@@ -135,8 +135,8 @@ struct RemovalTrainOptions {
   // The message names the field.
   Status Check() const;
 
-  static MlpTrainOptions Defaults() {
-    MlpTrainOptions train;
+  static learn::MlpTrainOptions Defaults() {
+    learn::MlpTrainOptions train;
     train.epochs = 250;
     train.batch_size = 10000;
     train.progress_label = "train-removal";
@@ -154,7 +154,7 @@ struct RemovalTrainOptions {
 // Errors: no takes, mismatched takes, exact targets requested for a take without them.
 StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
                                     const RemovalTrainOptions& options,
-                                    MlpTrainSummary* summary = nullptr);
+                                    learn::MlpTrainSummary* summary = nullptr);
 
 struct RemovalSummary {
   double predict_s = 0.0;    // features + network

@@ -52,7 +52,7 @@ Eigen::MatrixXf SampleOffsetsByFrame(const PointCache& offsets,
 }
 
 // Rows are frames: take * F_max + frame.
-class SynthesisDataset final : public MlpDataset {
+class SynthesisDataset final : public learn::MlpDataset {
  public:
   explicit SynthesisDataset(int max_frames) : max_frames_(max_frames) {}
   void Add(Eigen::MatrixXf features, Eigen::MatrixXf targets) {
@@ -106,13 +106,13 @@ Status SynthesisConfig::Check() const {
 
 StatusOr<SynthesisModel> SynthesisModel::Create(const SynthesisConfig& config, uint64_t seed) {
   FACEDYN_RETURN_IF_ERROR(config.Check());
-  MlpShape shape;
+  learn::MlpShape shape;
   shape.input_size = config.input_size();
   shape.hidden_units = config.hidden_units;
   shape.output_size = config.output_size();
   SynthesisModel model;
   model.config_ = config;
-  FACEDYN_ASSIGN_OR_RETURN(model.mlp_, Mlp::Create(shape, seed));
+  FACEDYN_ASSIGN_OR_RETURN(model.mlp_, learn::Mlp::Create(shape, seed));
   return model;
 }
 
@@ -165,7 +165,7 @@ StatusOr<Take> DecomposeExact(const Take& simulated) {
 
 StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decomposed,
                                         const SynthesisTrainOptions& options,
-                                        MlpTrainSummary* summary) {
+                                        learn::MlpTrainSummary* summary) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (decomposed.empty()) return InvalidArgumentError("train-synthesis: no training takes");
   for (const TrainingTake& training : decomposed) {
@@ -251,7 +251,7 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
     validation_rows.push_back(data.RowOf(frame.first, frame.second));
   }
   FACEDYN_RETURN_IF_ERROR(
-      TrainMlp(data, train_rows, validation_rows, options.train, model.mutable_mlp(), summary));
+      learn::TrainMlp(data, train_rows, validation_rows, options.train, model.mutable_mlp(), summary));
   if (learner) {
     FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, learner->Fit());
     model.set_propagation(std::move(learned));

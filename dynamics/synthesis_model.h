@@ -29,7 +29,7 @@
 #include "core/status.h"
 #include "core/take.h"
 #include "dynamics/feature_spec.h"
-#include "dynamics/mlp.h"
+#include "learn/mlp.h"
 #include "dynamics/propagation.h"
 #include "dynamics/removal_model.h"
 
@@ -57,7 +57,7 @@ class SynthesisModel {
   // Raw features (input_size x F, columns = [B(t); S(t)]) -> dY (3S x F, skull frame, mm).
   Eigen::MatrixXf Predict(const Eigen::MatrixXf& features) const { return mlp_.Predict(features); }
   std::vector<float> FlatParameters() const { return mlp_.FlatParameters(); }
-  Mlp* mutable_mlp() { return &mlp_; }
+  learn::Mlp* mutable_mlp() { return &mlp_; }
 
   // The propagation learned from the training offsets (propagation.h), or null.
   const SamplePropagation* propagation() const {
@@ -69,13 +69,13 @@ class SynthesisModel {
 
  private:
   SynthesisConfig config_;
-  Mlp mlp_;
+  learn::Mlp mlp_;
   std::optional<SamplePropagation> propagation_;
 };
 
 struct SynthesisTrainOptions {
   // Optimisation: the paper's 30 epochs, batch 50 and Adam at 1e-3 (sec. 6.2).
-  MlpTrainOptions train = Defaults();
+  learn::MlpTrainOptions train = Defaults();
   double validation_fraction = 0.1;  // fraction of usable frames held out (blocks, with a gap)
   int hidden_units = 256;
   double window_s = 0.08;
@@ -87,8 +87,8 @@ struct SynthesisTrainOptions {
   // train valid; ranges as RemovalTrainOptions; stretch_step_mm in (0, 50]. Names the field.
   Status Check() const;
 
-  static MlpTrainOptions Defaults() {
-    MlpTrainOptions train;
+  static learn::MlpTrainOptions Defaults() {
+    learn::MlpTrainOptions train;
     train.epochs = 30;
     train.batch_size = 50;
     train.progress_label = "train-synthesis";
@@ -107,7 +107,7 @@ StatusOr<Take> DecomposeExact(const Take& simulated);
 // mismatched rigs.
 StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decomposed,
                                         const SynthesisTrainOptions& options,
-                                        MlpTrainSummary* summary = nullptr);
+                                        learn::MlpTrainSummary* summary = nullptr);
 
 struct SynthesisSummary {
   double predict_s = 0.0;

@@ -11,7 +11,7 @@
 #include <utility>
 
 #include "dynamics/baselines.h"
-#include "dynamics/mlp.h"
+#include "learn/mlp.h"
 #include "dynamics/propagation.h"
 #include "dynamics/quasistatic.h"
 #include "dynamics/removal_model.h"
@@ -273,7 +273,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
   struct Trained {
     std::string name;
     dynamics::RemovalModel model;
-    dynamics::MlpTrainSummary summary;
+    learn::MlpTrainSummary summary;
   };
   std::vector<Trained> models;
   auto train_removal = [&](const std::string& name, dynamics::RemovalTargets targets,
@@ -282,7 +282,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
         RemovalOptionsFor(options, targets, options.removal_epochs);
     spdlog::info("training removal network {} ({} takes, {} epochs)", name, training.size(),
                  train_options.train.epochs);
-    dynamics::MlpTrainSummary summary;
+    learn::MlpTrainSummary summary;
     FACEDYN_ASSIGN_OR_RETURN(dynamics::RemovalModel model,
                              dynamics::TrainRemoval(training, train_options, &summary));
     models.push_back({name, std::move(model), std::move(summary)});
@@ -544,7 +544,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     synthesis_options.propagation.prior_weight = options.propagation_prior_weight;
     spdlog::info("training synthesis network ({} takes, {} epochs)", decomposed.size(),
                  synthesis_options.train.epochs);
-    dynamics::MlpTrainSummary synthesis_summary;
+    learn::MlpTrainSummary synthesis_summary;
     FACEDYN_ASSIGN_OR_RETURN(
         const dynamics::SynthesisModel synthesis,
         dynamics::TrainSynthesis(synthesis_training, synthesis_options, &synthesis_summary));

@@ -212,7 +212,7 @@ TEST(TrainRemoval, LeavesOutTheOnsetWithHeldExpressionTargets) {
     RemovalTrainOptions options = QuickOptions(1);
     options.targets = targets;
     options.validation_fraction = 0.0;
-    MlpTrainSummary summary;
+    learn::MlpTrainSummary summary;
     EXPECT_TRUE(TrainRemoval({{&take, &rig}}, options, &summary).ok());
     return summary.training_rows;
   };
@@ -260,7 +260,7 @@ TEST(TrainRemoval, LearnsAKnownSmoothFunctionOfTheFeatures) {
   // each side (training_frames.h), which one second would leave too few training frames for.
   const Take take_a = SyntheticTake(rig, 256, 128.0, 0.0);
   const Take take_b = SyntheticTake(rig, 256, 128.0, 1.3);
-  MlpTrainSummary summary;
+  learn::MlpTrainSummary summary;
   const auto model = TrainRemoval({{&take_a, &rig}, {&take_b, &rig}}, QuickOptions(20), &summary);
   ASSERT_TRUE(model.ok()) << model.status().message();
   ASSERT_EQ(summary.train_loss.size(), 20u);
@@ -322,7 +322,7 @@ TEST(TrainRemoval, PlatformSynchronousWhereKnownMixesTargetsPerTake) {
   auto rows = [&](const Take& take, RemovalTargets targets) {
     RemovalTrainOptions options = QuickOptions(1);
     options.targets = targets;
-    MlpTrainSummary summary;
+    learn::MlpTrainSummary summary;
     EXPECT_TRUE(TrainRemoval({{&take, &rig}}, options, &summary).ok());
     return summary.training_rows + summary.validation_rows;
   };
@@ -395,7 +395,7 @@ TEST(RemoveDynamics, HeldOutPlatformFrequencyBeatsNoRemovalAndTheMovingAverage) 
   options.train.batch_size = 2000;
   options.train.show_progress = false;
   options.targets = RemovalTargets::kPlatformSynchronous;
-  MlpTrainSummary summary;
+  learn::MlpTrainSummary summary;
   const auto model = TrainRemoval({{&take7, &rig}, {&take9, &rig}}, options, &summary);
   ASSERT_TRUE(model.ok()) << model.status().message();
   std::printf("train: %ld rows, %.1f s, %.0f samples/s, loss %.4g -> %.4g, val %.4g\n",

@@ -137,7 +137,7 @@ TEST(TrainSynthesis, LearnsAKnownFunctionOfTheSkullMotion) {
   // The unseen take is this test's measure; a validation split (blocks plus gaps,
   // training_frames.h) would only take frames away from two short training takes.
   options.validation_fraction = 0;
-  MlpTrainSummary summary;
+  learn::MlpTrainSummary summary;
   const auto model = TrainSynthesis({{&a, &rig}, {&b, &rig}}, options, &summary);
   ASSERT_TRUE(model.ok()) << model.status().message();
   EXPECT_LT(summary.train_loss.back(), summary.train_loss.front() / 10);

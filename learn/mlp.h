@@ -1,6 +1,7 @@
-// A normalised multilayer perceptron and its trainer: the shared engine of the removal network F
-// and the synthesis network H of Zoss et al. 2020 (sections 5.2 and 6.2), which differ only in
-// their features, sizes and batch sizes.
+// A normalised multilayer perceptron and its trainer: the shared engine of every network
+// facedyn trains (learn/): today the removal network F and the synthesis network H of Zoss et
+// al. 2020 (sections 5.2 and 6.2, dynamics/), which differ only in their features, sizes and
+// batch sizes; next the rig solver's region networks (solve/, FDLS).
 //
 //   y = MLP((x - input_mean) / input_std) * output_std + output_mean
 //
@@ -36,7 +37,7 @@
 #include "core/json_io.h"
 #include "core/status.h"
 
-namespace facedyn::dynamics {
+namespace facedyn::learn {
 
 struct MlpShape {
   int input_size = 0;
@@ -164,4 +165,4 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
 // returns the median of the repetitions in multiply-adds per second. For throughput ratios.
 double MeasureGemmMultiplyAddsPerSecond(int m, int k, int n, double min_seconds);
 
-}  // namespace facedyn::dynamics
+}  // namespace facedyn::learn

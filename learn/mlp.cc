@@ -1,4 +1,4 @@
-#include "dynamics/mlp.h"
+#include "learn/mlp.h"
 
 #include <ATen/CPUGeneratorImpl.h>
 #include <torch/torch.h>
@@ -14,7 +14,7 @@
 #include "core/check.h"
 #include "core/progress.h"
 
-namespace facedyn::dynamics {
+namespace facedyn::learn {
 
 namespace {
 
@@ -498,4 +498,4 @@ double MeasureGemmMultiplyAddsPerSecond(int m, int k, int n, double min_seconds)
   return rates[rates.size() / 2];
 }
 
-}  // namespace facedyn::dynamics
+}  // namespace facedyn::learn

@@ -1,6 +1,6 @@
-// The shared normalised MLP and its trainer (dynamics/mlp.h).
+// The shared normalised MLP and its trainer (learn/mlp.h).
 
-#include "dynamics/mlp.h"
+#include "learn/mlp.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -10,7 +10,7 @@
 
 #include "tests/support/test_support.h"
 
-namespace facedyn::dynamics {
+namespace facedyn::learn {
 namespace {
 
 using ::testing::HasSubstr;
@@ -333,4 +333,4 @@ TEST(MeasureGemm, GivesAPositiveRate) {
 }
 
 }  // namespace
-}  // namespace facedyn::dynamics
+}  // namespace facedyn::learn

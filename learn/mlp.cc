@@ -27,16 +27,25 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 }
 
 // Linear layers fc1..fcN (N = hidden_layers + 1) with ReLU between, plus normalisation buffers.
+// With the default shape the modules and their initialisation are exactly those of the plain
+// network, so the options cost nothing when off.
 struct NetImpl : torch::nn::Module {
   explicit NetImpl(const MlpShape& shape)
-      : input_mean(register_buffer("input_mean", torch::zeros({shape.input_size}))),
+      : residual(shape.residual),
+        dropout(shape.dropout),
+        main_inputs(shape.input_size - shape.extra_input_size),
+        extra_inputs(shape.extra_input_size),
+        extra_layer(shape.extra_input_layer),
+        input_mean(register_buffer("input_mean", torch::zeros({shape.input_size}))),
         input_std(register_buffer("input_std", torch::ones({shape.input_size}))),
         output_mean(register_buffer("output_mean", torch::zeros({shape.output_size}))),
         output_std(register_buffer("output_std", torch::ones({shape.output_size}))) {
-    int in = shape.input_size;
+    int in = main_inputs;
     for (int k = 0; k <= shape.hidden_layers; ++k) {
       const int out = k < shape.hidden_layers ? shape.hidden_units : shape.output_size;
-      layers.push_back(register_module("fc" + std::to_string(k + 1), torch::nn::Linear(in, out)));
+      // Layer index k is hidden layer k + 1; the extra inputs join hidden layer extra_layer.
+      const int extra = extra_inputs > 0 && k + 1 == extra_layer ? extra_inputs : 0;
+      layers.push_back(register_module("fc" + std::to_string(k + 1), torch::nn::Linear(in + extra, out)));
       in = out;
     }
     if (shape.linear_skip) {
@@ -49,10 +58,26 @@ struct NetImpl : torch::nn::Module {
   }
 
   torch::Tensor ForwardNormalised(const torch::Tensor& input) {
-    torch::Tensor x = input;
+    torch::Tensor x = extra_inputs > 0 ? input.narrow(1, 0, main_inputs) : input;
+    const size_t hidden = layers.size() - 1;
     for (size_t k = 0; k < layers.size(); ++k) {
-      x = layers[k]->forward(x);
-      if (k + 1 < layers.size()) x = torch::relu(x);
+      torch::Tensor in = x;
+      if (extra_inputs > 0 && static_cast<int>(k) + 1 == extra_layer) {
+        in = torch::cat({x, input.narrow(1, main_inputs, extra_inputs)}, 1);
+      }
+      torch::Tensor y = layers[k]->forward(in);
+      if (k < hidden) {
+        y = torch::relu(y);
+        if (residual && k > 0) y = y + x;
+        if (dropout > 0 && is_training()) {
+          // Inverted dropout from the trainer's own generator, so a seed reproduces the run
+          // whatever else drew from LibTorch's global generator.
+          y = dropout_generator ? y * torch::bernoulli(torch::full_like(y, 1.0 - dropout), *dropout_generator) /
+                                          (1.0 - dropout)
+                                : torch::dropout(y, dropout, true);
+        }
+      }
+      x = y;
     }
     if (!skip.is_empty()) x = x + skip->forward(input);
     return x;
@@ -61,6 +86,10 @@ struct NetImpl : torch::nn::Module {
     return ForwardNormalised((raw - input_mean) / input_std) * output_std + output_mean;
   }
 
+  bool residual;
+  double dropout;
+  c10::optional<at::Generator> dropout_generator;  // set by TrainMlp
+  int main_inputs, extra_inputs, extra_layer;
   std::vector<torch::nn::Linear> layers;
   torch::nn::Linear skip{nullptr};
   torch::Tensor input_mean, input_std, output_mean, output_std;
@@ -78,7 +107,11 @@ Json ShapeToJson(const MlpShape& shape) {
           {"hidden_units", shape.hidden_units},
           {"hidden_layers", shape.hidden_layers},
           {"output_size", shape.output_size},
-          {"linear_skip", shape.linear_skip}};
+          {"linear_skip", shape.linear_skip},
+          {"residual", shape.residual},
+          {"dropout", shape.dropout},
+          {"extra_input_size", shape.extra_input_size},
+          {"extra_input_layer", shape.extra_input_layer}};
 }
 
 }  // namespace
@@ -88,11 +121,22 @@ Status MlpShape::Check() const {
   if (hidden_units < 1) return InvalidArgumentError("hidden_units must be >= 1");
   if (hidden_layers < 1) return InvalidArgumentError("hidden_layers must be >= 1");
   if (output_size < 1) return InvalidArgumentError("output_size must be >= 1");
+  if (!(dropout >= 0 && dropout < 1)) return InvalidArgumentError("dropout must be in [0, 1)");
+  if (extra_input_size < 0 || extra_input_size >= input_size) {
+    return InvalidArgumentError("extra_input_size must be in [0, input_size)");
+  }
+  if (extra_input_size == 0 && extra_input_layer != 0) {
+    return InvalidArgumentError("extra_input_layer must be 0 without extra inputs");
+  }
+  if (extra_input_size > 0 && (extra_input_layer < 2 || extra_input_layer > hidden_layers)) {
+    return InvalidArgumentError("extra_input_layer must be in 2..hidden_layers (the first hidden "
+                                "layer already sees every other input)");
+  }
   return Status::Ok();
 }
 
 double MlpShape::ForwardMultiplyAdds() const {
-  double total = static_cast<double>(input_size) * hidden_units;
+  double total = static_cast<double>(input_size) * hidden_units;  // the extra inputs count once
   total += static_cast<double>(hidden_layers - 1) * hidden_units * hidden_units;
   total += static_cast<double>(hidden_units) * output_size;
   if (linear_skip) total += static_cast<double>(input_size) * output_size;
@@ -185,7 +229,12 @@ StatusOr<Mlp> Mlp::Load(const std::string& path, const std::string& expected_kin
       shape.hidden_units = mlp.at("hidden_units").get<int>();
       shape.hidden_layers = mlp.at("hidden_layers").get<int>();
       shape.output_size = mlp.at("output_size").get<int>();
-      shape.linear_skip = mlp.value("linear_skip", false);  // absent in files before it existed
+      // Absent in files written before each option existed.
+      shape.linear_skip = mlp.value("linear_skip", false);
+      shape.residual = mlp.value("residual", false);
+      shape.dropout = mlp.value("dropout", 0.0);
+      shape.extra_input_size = mlp.value("extra_input_size", 0);
+      shape.extra_input_layer = mlp.value("extra_input_layer", 0);
     } catch (const std::exception& e) {
       return DataLossError(path + ": bad mlp shape in the config: " + e.what());
     }
@@ -411,6 +460,7 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
   }
   // Its own generator, so the noise does not depend on what else drew from LibTorch's global one.
   at::Generator noise_generator = at::detail::createCPUGenerator(options.seed);
+  net->dropout_generator = at::detail::createCPUGenerator(options.seed ^ 0x9e3779b97f4a7c15ULL);
   MlpTrainSummary local;
   local.training_rows = static_cast<long>(train_rows.size());
   local.validation_rows = static_cast<long>(validation_rows.size());
@@ -448,6 +498,7 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
     char status[96];
     if (!validation_rows.empty()) {
       torch::NoGradGuard no_grad;
+      net->eval();  // no dropout when validating
       double validation_sum = 0.0;
       const long eval_batch = std::max(batch, 4096L);
       for (size_t begin = 0; begin < validation_rows.size();
@@ -461,6 +512,7 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
                               .item<double>() *
                           static_cast<double>(n);
       }
+      net->train();
       local.validation_loss.push_back(report_scale * validation_sum /
                                       static_cast<double>(validation_rows.size()));
       std::snprintf(status, sizeof(status), "loss %.4g val %.4g", local.train_loss.back(),
@@ -472,6 +524,7 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
   }
   progress.Finish();
   net->eval();
+  net->dropout_generator.reset();
   local.train_s = SecondsSince(start);
   local.rows_per_s = local.train_s > 0 ? static_cast<double>(options.epochs) *
                                              static_cast<double>(order.size()) / local.train_s

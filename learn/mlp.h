@@ -6,7 +6,10 @@
 //   y = MLP((x - input_mean) / input_std) * output_std + output_mean
 //
 // MLP: `hidden_layers` fully connected layers of `hidden_units` with ReLU, then a linear output
-// layer; optionally plus a linear map of the normalised inputs (MlpShape::linear_skip). The
+// layer; optionally plus a linear map of the normalised inputs (MlpShape::linear_skip). Three
+// options from Weta's FDLS (section 4.4: its region networks are residual MLPs trained with
+// dropout, and the mouth's take the solved jaw as an extra input part-way in): residual hidden
+// layers, dropout while training, and inputs that join a later hidden layer. The
 // per-dimension normalisation lives in the model as buffers, so callers always pass raw features
 // and receive raw outputs (mm).
 //
@@ -22,7 +25,8 @@
 // propagation), each as a flat tensor "facedyn_attachment_<name>" in Eigen's column-major order,
 // its rows and columns listed in the config under "attachments".
 //
-// Determinism: training on CPU is reproducible for a seed and a LibTorch thread count
+// Determinism (dropout included: it draws from the trainer's own generator, seeded from
+// MlpTrainOptions::seed): training on CPU is reproducible for a seed and a LibTorch thread count
 // (MlpTrainOptions::num_threads; LibTorch's intra-op parallelism splits work statically, so the
 // same count gives the same summation order). torch::set_num_threads is process-wide.
 #pragma once
@@ -49,7 +53,20 @@ struct MlpShape {
   // every training frequency (removal_model.h RemovalTrainOptions::linear_skip has the
   // figures). False is the paper's network.
   bool linear_skip = false;
-  // All >= 1. The message names the field.
+  // Hidden layers 2..hidden_layers as residual blocks, h_k = relu(fc_k(in_k)) + h_{k-1}, where
+  // in_k is h_{k-1} (plus the extra inputs at extra_input_layer). False: the plain stack.
+  bool residual = false;
+  // Probability of zeroing each hidden activation while training (inverted dropout: the kept
+  // ones are scaled by 1/(1-p)); never when predicting or validating. 0: none.
+  double dropout = 0.0;
+  // The last `extra_input_size` inputs skip the first layers: hidden layer `extra_input_layer`
+  // (2..hidden_layers, counting the first hidden layer as 1) takes them concatenated to the
+  // previous layer's activations, and the first layer sees only the others. The normalisation
+  // covers them like every input. 0: none (and extra_input_layer must be 0).
+  int extra_input_size = 0;
+  int extra_input_layer = 0;
+  // Sizes >= 1, dropout in [0, 1), extra inputs fewer than the inputs and their layer in range.
+  // The message names the field.
   Status Check() const;
   // Multiply-adds of one forward pass of one row (for throughput figures).
   double ForwardMultiplyAdds() const;

@@ -252,6 +252,7 @@ TEST(Cli, ReportRedrawsTheDemoReportFromItsMetrics) {
   std::filesystem::create_directories(moved);
   std::filesystem::copy(DemoDir().Join("demo/metrics.json"), moved + "/metrics.json");
   std::filesystem::copy(DemoDir().Join("demo/renders"), moved + "/renders");
+  std::filesystem::copy(DemoDir().Join("demo/viewers"), moved + "/viewers");  // linked, not inlined
   std::string out;
   ASSERT_EQ(
       RunCommand("cd " + dir.path() + " && " + Facedyn("report --metrics moved/metrics.json 2>&1"),

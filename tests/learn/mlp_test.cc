@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <random>
 
 #include "tests/support/test_support.h"
 
@@ -171,7 +172,8 @@ TEST(MlpTrainOptions, CheckNamesTheField) {
 // The small model (seed 9) trained on every row of `data`, no validation; a failed training
 // fails the calling test. (Each test makes its own dataset: LinearDataset draws from Eigen's
 // global random state.)
-std::vector<long> AllRows(const LinearDataset& data) {
+template <typename Dataset>
+std::vector<long> AllRows(const Dataset& data) {
   std::vector<long> rows(data.inputs_.cols());
   for (long r = 0; r < static_cast<long>(rows.size()); ++r) rows[r] = r;
   return rows;
@@ -276,6 +278,103 @@ TEST(Mlp, LinearSkipStartsAsThePlainNetworkAndRoundTrips) {
   EXPECT_EQ(config["mlp"]["linear_skip"], true);
   EXPECT_EQ(loaded->Predict(inputs), skip.Predict(inputs));
   EXPECT_NE(skip.Predict(inputs), plain.Predict(inputs));  // training changed it
+}
+
+// y = A x + 3 e^2 for three main inputs x and one extra input e (which joins hidden layer 2).
+class ExtraInputDataset final : public MlpDataset {
+ public:
+  // Its own generator: the data must not depend on which tests ran before.
+  explicit ExtraInputDataset(int rows) {
+    std::mt19937 rng(42);
+    std::uniform_real_distribution<float> uniform(-1.0f, 1.0f);
+    inputs_ = Eigen::MatrixXf::NullaryExpr(4, rows, [&] { return 2.0f * uniform(rng); });
+    const Eigen::MatrixXf a = Eigen::MatrixXf::NullaryExpr(2, 3, [&] { return uniform(rng); });
+    targets_ = a * inputs_.topRows(3);
+    targets_.row(0) += 3.0f * inputs_.row(3).cwiseAbs2();
+  }
+  int input_size() const override { return 4; }
+  int output_size() const override { return 2; }
+  void Gather(const long* rows, long n, Eigen::MatrixXf* inputs, Eigen::MatrixXf* targets) const override {
+    inputs->resize(4, n);
+    targets->resize(2, n);
+    for (long r = 0; r < n; ++r) {
+      inputs->col(r) = inputs_.col(rows[r]);
+      targets->col(r) = targets_.col(rows[r]);
+    }
+  }
+  Eigen::MatrixXf inputs_, targets_;
+};
+
+// The FDLS options together: residual hidden layers, dropout, the last input joining layer 2.
+MlpShape FdlsShape() {
+  MlpShape shape = SmallShape();
+  shape.hidden_layers = 3;
+  shape.residual = true;
+  shape.dropout = 0.1;
+  shape.extra_input_size = 1;
+  shape.extra_input_layer = 2;
+  return shape;
+}
+
+TEST(MlpShape, FdlsOptionsAreCheckedByName) {
+  EXPECT_TRUE(FdlsShape().Check().ok());
+  MlpShape shape = FdlsShape();
+  shape.dropout = 1.0;
+  EXPECT_THAT(shape.Check().message(), HasSubstr("dropout"));
+  shape = FdlsShape();
+  shape.extra_input_layer = 1;
+  EXPECT_THAT(shape.Check().message(), HasSubstr("extra_input_layer"));
+  shape.extra_input_layer = 4;  // past the last hidden layer
+  EXPECT_THAT(shape.Check().message(), HasSubstr("extra_input_layer"));
+  shape = FdlsShape();
+  shape.extra_input_size = 4;  // every input
+  EXPECT_THAT(shape.Check().message(), HasSubstr("extra_input_size"));
+  shape = SmallShape();
+  shape.extra_input_layer = 2;
+  EXPECT_THAT(shape.Check().message(), HasSubstr("without extra inputs"));
+}
+
+TEST(Mlp, TheExtraInputJoinsItsLayerAndTheOutputDependsOnIt) {
+  const Mlp model = Mlp::Create(FdlsShape(), 3).value();
+  // fc1 sees the 3 main inputs, fc2 its 32 activations plus the extra one, fc3, the output.
+  const size_t parameters = (3 * 32 + 32) + (33 * 32 + 32) + (32 * 32 + 32) + (32 * 2 + 2);
+  const size_t buffers = 4 + 4 + 2 + 2;
+  EXPECT_EQ(model.FlatParameters().size(), parameters + buffers);
+  Eigen::MatrixXf inputs = Eigen::MatrixXf::Random(4, 8);
+  const Eigen::MatrixXf base = model.Predict(inputs);
+  EXPECT_EQ(model.Predict(inputs), base) << "dropout acted while predicting";
+  inputs.row(3).array() += 1.0f;
+  EXPECT_GT((model.Predict(inputs) - base).cwiseAbs().maxCoeff(), 1e-4f);
+}
+
+TEST(TrainMlp, ResidualDropoutAndExtraInputFitDeterministicallyAndRoundTrip) {
+  const ExtraInputDataset data(2000);
+  std::vector<long> rows = AllRows(data);
+  const std::vector<long> validation(rows.begin(), rows.begin() + 400);
+  const std::vector<long> train(rows.begin() + 400, rows.end());
+  MlpTrainOptions options = QuietOptions(80);
+  options.batch_size = 200;
+  Mlp first = Mlp::Create(FdlsShape(), 11).value();
+  Mlp second = Mlp::Create(FdlsShape(), 11).value();
+  MlpTrainSummary summary, again;
+  ASSERT_TRUE(TrainMlp(data, train, validation, options, &first, &summary).ok());
+  ASSERT_TRUE(TrainMlp(data, train, validation, options, &second, &again).ok());
+  EXPECT_EQ(first.FlatParameters(), second.FlatParameters()) << "dropout is not reproducible";
+  // It learns, the extra input's square included: a linear map of the inputs cannot fit 3 e^2,
+  // whose variance is most of output 0's.
+  EXPECT_LT(summary.validation_loss.back(), 0.1 * summary.validation_loss.front());
+  // Validation runs without dropout, training with it: the clean loss is the lower one.
+  EXPECT_LT(summary.validation_loss.back(), summary.train_loss.back());
+  testing::TempDir dir;
+  ASSERT_TRUE(first.Save(dir.Join("m.pt"), "solve", Json::object()).ok());
+  Json config;
+  const auto loaded = Mlp::Load(dir.Join("m.pt"), "solve", &config);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+  EXPECT_EQ(config["mlp"]["residual"], true);
+  EXPECT_EQ(config["mlp"]["extra_input_layer"], 2);
+  EXPECT_DOUBLE_EQ(config["mlp"]["dropout"].get<double>(), 0.1);
+  const Eigen::MatrixXf inputs = data.inputs_.leftCols(16);
+  EXPECT_EQ(loaded->Predict(inputs), first.Predict(inputs));
 }
 
 TEST(TrainMlp, RefusesMismatchedSizesAndNoRows) {

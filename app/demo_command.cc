@@ -4,7 +4,7 @@
 // (app/capture_demo.h); calibration and reconstruction of the 11 Hz take (app/reconstruct_demo.h);
 // a simulated-data reference study with exact targets (eval/dynamics_study.h); removal,
 // synthesis and retargeting trained on reconstructed takes (app/demo_dynamics.h); renders,
-// metrics.json and the self-contained report.html (app/report.h).
+// metrics.json and the self-contained report.html (report/report.h).
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>

@@ -128,7 +128,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
                             const dynamics::RemovalModel* reference_removal, Json* metrics,
                             DemoDynamicsArtifacts* artifacts);
 
-// Renders of the stage's artifacts coloured by signed dynamic offset (app/face_render.h), PNGs
+// Renders of the stage's artifacts coloured by signed dynamic offset (report/face_render.h), PNGs
 // under <out_dir>/renders: the held-out take at two extremal frames (reconstructed and after
 // removal, each minus the exact quasistatic; resynthesised minus removed), the walk (H's
 // synthesised offsets and the simulated truth's) and the retargeting (B's H, the naive

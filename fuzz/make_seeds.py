@@ -142,7 +142,7 @@ put("sweep_resume", "other_script.jsonl",
     b'{"event":"sweep_start","script_hash":"0123456789abcdef"}\n{"event":"step_done"}\n')
 
 
-# mdd (core/mdd.h): big-endian frame count, point count, F float times, then F*V*3 floats.
+# mdd (export/mdd.h): big-endian frame count, point count, F float times, then F*V*3 floats.
 def mdd(frames, points, times=None, values=None):
     if times is None:
         times = [k / 128.0 for k in range(frames)]

@@ -15,9 +15,8 @@
 #include "core/json_io.h"
 
 namespace facedyn::report {
-namespace {
 
-std::string Escape(const std::string& text) {
+std::string EscapeHtml(const std::string& text) {
   std::string out;
   for (char c : text) {
     switch (c) {
@@ -40,8 +39,6 @@ std::string Escape(const std::string& text) {
   return out;
 }
 
-}  // namespace
-
 std::string SvgBarChart(const std::string& title,
                         const std::vector<std::pair<std::string, double>>& bars,
                         const std::string& unit) {
@@ -55,7 +52,7 @@ std::string SvgBarChart(const std::string& title,
   std::string svg = fmt::format(
       "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" role=\"img\">"
       "<text x=\"4\" y=\"18\" font-size=\"14\" font-weight=\"bold\">{}</text>",
-      label_w + bar_w + 90, height, Escape(title));
+      label_w + bar_w + 90, height, EscapeHtml(title));
   for (size_t k = 0; k < bars.size(); ++k) {
     const int y = top + static_cast<int>(k) * row_h;
     const double value = bars[k].second;
@@ -70,9 +67,9 @@ std::string SvgBarChart(const std::string& title,
         "<text x=\"{}\" y=\"{}\" font-size=\"12\" text-anchor=\"end\">{}</text>"
         "<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\"/>"
         "<text x=\"{}\" y=\"{}\" font-size=\"12\">{} {}</text>",
-        label_w - 6, y + 14, Escape(label), label_w, y + 2, w, row_h - 6,
+        label_w - 6, y + 14, EscapeHtml(label), label_w, y + 2, w, row_h - 6,
         network ? "#c0392b" : "#7f8c8d", label_w + w + 6, y + 14,
-        finite ? fmt::format("{:.3f}", value) : std::string("n/a"), Escape(unit));
+        finite ? fmt::format("{:.3f}", value) : std::string("n/a"), EscapeHtml(unit));
   }
   svg += "</svg>";
   return svg;
@@ -120,7 +117,7 @@ std::string SvgLinePlot(const std::string& title, const std::string& x_label,
   std::string svg = fmt::format(
       "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" role=\"img\">"
       "<text x=\"4\" y=\"18\" font-size=\"14\" font-weight=\"bold\">{}</text>",
-      width, height, Escape(title));
+      width, height, EscapeHtml(title));
   for (const auto& [a, b] : shaded) {
     if (!std::isfinite(a) || !std::isfinite(b) || b <= a) continue;
     svg +=
@@ -145,8 +142,8 @@ std::string SvgLinePlot(const std::string& title, const std::string& x_label,
       "<text x=\"{}\" y=\"{}\" font-size=\"12\" text-anchor=\"middle\">{}</text>"
       "<text x=\"14\" y=\"{}\" font-size=\"12\" text-anchor=\"middle\" "
       "transform=\"rotate(-90 14 {})\">{}</text>",
-      left, top, plot_w, plot_h, left + plot_w / 2, height - 8, Escape(x_label), top + plot_h / 2,
-      top + plot_h / 2, Escape(y_label));
+      left, top, plot_w, plot_h, left + plot_w / 2, height - 8, EscapeHtml(x_label), top + plot_h / 2,
+      top + plot_h / 2, EscapeHtml(y_label));
   int legend_row = 0;
   for (const SvgSeries& line : series) {
     const size_t n = std::min(line.x.size(), line.y.size());
@@ -155,7 +152,7 @@ std::string SvgLinePlot(const std::string& title, const std::string& x_label,
       if (points.empty()) return;
       svg +=
           fmt::format("<polyline fill=\"none\" stroke=\"{}\" stroke-width=\"{}\"{} points=\"{}\"/>",
-                      Escape(line.colour), line.width_px,
+                      EscapeHtml(line.colour), line.width_px,
                       line.dashed ? " stroke-dasharray=\"6 4\"" : "", points);
       points.clear();
     };
@@ -171,9 +168,9 @@ std::string SvgLinePlot(const std::string& title, const std::string& x_label,
     svg += fmt::format(
         "<line x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"{}\" stroke-width=\"{}\"{}/>"
         "<text x=\"{}\" y=\"{}\" font-size=\"12\">{}</text>",
-        left + plot_w + 10, ly, left + plot_w + 34, ly, Escape(line.colour),
+        left + plot_w + 10, ly, left + plot_w + 34, ly, EscapeHtml(line.colour),
         std::max(2.0, line.width_px), line.dashed ? " stroke-dasharray=\"6 4\"" : "",
-        left + plot_w + 40, ly + 4, Escape(line.name));
+        left + plot_w + 40, ly + 4, EscapeHtml(line.name));
   }
   svg += "</svg>";
   return svg;
@@ -213,10 +210,10 @@ std::string FieldTable(const Json& object, const std::vector<std::string>& keys)
   for (const std::string& key : keys) {
     if (!object.is_object() || !object.contains(key)) continue;
     const Json& value = object[key];
-    table += "<tr><td>" + Escape(key) + "</td><td>" +
+    table += "<tr><td>" + EscapeHtml(key) + "</td><td>" +
              (value.is_number_float() ? fmt::format("{:.4g}", value.get<double>())
-              : value.is_string()     ? Escape(value.get<std::string>())
-                                  : Escape(value.dump(-1, ' ', false, kJsonReplaceInvalidUtf8))) +
+              : value.is_string()     ? EscapeHtml(value.get<std::string>())
+                                  : EscapeHtml(value.dump(-1, ' ', false, kJsonReplaceInvalidUtf8))) +
              "</td></tr>";
   }
   return table + "</table>";
@@ -301,10 +298,10 @@ std::string DynamicsSection(const Json& dynamics) {
       "trained on the reconstructed takes with {} targets ({} epochs), "
       "the synthesis network H on those takes decomposed by F ({} epochs). Errors are against the "
       "simulator's exact truth, in mm, over the vertices where the face jiggles.</p>",
-      Escape(Text(setup, "expressions")), Escape(Text(setup, "train_hz")),
-      Escape(Text(setup, "training_takes")), Escape(Text(setup, "seconds_per_take")),
-      Escape(Text(setup, "targets")), Escape(Text(setup, "removal_epochs")),
-      Escape(Text(setup, "synthesis_epochs")));
+      EscapeHtml(Text(setup, "expressions")), EscapeHtml(Text(setup, "train_hz")),
+      EscapeHtml(Text(setup, "training_takes")), EscapeHtml(Text(setup, "seconds_per_take")),
+      EscapeHtml(Text(setup, "targets")), EscapeHtml(Text(setup, "removal_epochs")),
+      EscapeHtml(Text(setup, "synthesis_epochs")));
   const Json& reconstruction = Field(dynamics, "reconstruction");
   if (reconstruction.is_array() && !reconstruction.empty()) {
     html +=
@@ -313,8 +310,8 @@ std::string DynamicsSection(const Json& dynamics) {
     for (const Json& entry : reconstruction) {
       html +=
           fmt::format("<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.3f}</td><td>{:.1f}</td></tr>",
-                      Escape(Text(entry, "subject")), Escape(Text(entry, "take")),
-                      Escape(Text(entry, "frames")), Number(entry, "sample_rms_mm"),
+                      EscapeHtml(Text(entry, "subject")), EscapeHtml(Text(entry, "take")),
+                      EscapeHtml(Text(entry, "frames")), Number(entry, "sample_rms_mm"),
                       Number(entry, "dense_fit_fps"));
     }
     html += "</table></details>";
@@ -380,7 +377,7 @@ std::string DynamicsSection(const Json& dynamics) {
   const Json& retarget = Field(dynamics, "retarget");
   if (retarget.is_object()) {
     html += "<h3>Root-motion retargeting to a second subject (paper Figs. 9-10)</h3><p>" +
-            Escape(Text(retarget, "target")) +
+            EscapeHtml(Text(retarget, "target")) +
             ", with its own F and H trained on its own reconstructed takes, driven by subject A's "
             "walk; compared with subject B simulated walking the same walk.</p>";
     std::vector<std::pair<std::string, double>> bars;
@@ -403,8 +400,8 @@ std::string ReferenceSection(const Json& reference) {
       "simulated platform takes at {} Hz ({} takes, {} epochs) with the simulator's exact "
       "quasistatic as target, which no capture has; mean error over the jiggling vertices "
       "(mm).</p>",
-      Escape(Text(setup, "train_hz")), Escape(Text(setup, "training_takes")),
-      Escape(Text(setup, "removal_epochs")));
+      EscapeHtml(Text(setup, "train_hz")), EscapeHtml(Text(setup, "training_takes")),
+      EscapeHtml(Text(setup, "removal_epochs")));
   for (const Json& entry : Field(reference, "removal")) {
     html += SvgBarChart(Text(entry, "take") + fmt::format(" simulated (mean true offset {:.3f} mm)",
                                                           Number(entry, "mean_dynamic_offset_mm")),
@@ -421,7 +418,7 @@ std::string ReferenceSection(const Json& reference) {
         "<th>relative</th></tr>";
     for (const Json& entry : Field(synthesis, "takes")) {
       html += fmt::format("<tr><td>{}</td><td>{:.3f}</td><td>{:.3f}</td><td>{:.1f}%</td></tr>",
-                          Escape(Text(entry, "take")), Number(entry, "mean_dynamic_offset_mm"),
+                          EscapeHtml(Text(entry, "take")), Number(entry, "mean_dynamic_offset_mm"),
                           Number(entry, "resynthesis_residual_mm"),
                           100 * Number(entry, "relative_to_offset"));
     }
@@ -456,7 +453,7 @@ Status WriteDemoReport(const Json& metrics, const std::string& path, const std::
           "<td>{:.3f}</td><td>{:.1f}</td><td>{}</td></tr>",
           ++index, Number(step, "target_hz"), Number(step, "measured_mean_hz"),
           Number(step, "true_platform_hz"), Number(step, "max_abs_error_hz"),
-          Number(step, "hold_s"), Escape(Text(step, "prompt")));
+          Number(step, "hold_s"), EscapeHtml(Text(step, "prompt")));
     }
     html += "</table>";
   }
@@ -511,14 +508,14 @@ Status WriteDemoReport(const Json& metrics, const std::string& path, const std::
                                     ? Number(image, "range_mm")
                                     : Number(renders, "range_mm");
         html += (last_row.empty() ? "" : "</tr>") +
-                fmt::format("<tr><td>{}{}frame {}<br>&plusmn;{:g} mm</td>", Escape(group),
-                            group.empty() ? "" : "<br>", Escape(Text(image, "frame")), range_mm);
+                fmt::format("<tr><td>{}{}frame {}<br>&plusmn;{:g} mm</td>", EscapeHtml(group),
+                            group.empty() ? "" : "<br>", EscapeHtml(Text(image, "frame")), range_mm);
         last_row = row;
       }
       html += fmt::format(
           "<td><figure style=\"margin:2px\"><img alt=\"{0}\" src=\"data:image/png;base64,{1}\">"
           "<figcaption>{0}</figcaption></figure></td>",
-          Escape(Text(image, "view")), Base64(png));
+          EscapeHtml(Text(image, "view")), Base64(png));
     }
     if (!last_row.empty()) html += "</tr>";
     html += "</table>";
@@ -530,7 +527,7 @@ Status WriteDemoReport(const Json& metrics, const std::string& path, const std::
         std::filesystem::path page(Text(viewer, "path"));
         if (page.is_relative()) page = std::filesystem::absolute(base / page);
         const std::string link = page.lexically_relative(report_dir).generic_string();
-        html += fmt::format("<li><a href=\"{}\">{}</a> ({:.1f} MB){}</li>", Escape(link), Escape(Text(viewer, "title")),
+        html += fmt::format("<li><a href=\"{}\">{}</a> ({:.1f} MB){}</li>", EscapeHtml(link), EscapeHtml(Text(viewer, "title")),
                             Number(viewer, "megabytes"),
                             std::filesystem::exists(page) ? "" : " &mdash; <em>missing</em>");
       }

@@ -12,6 +12,9 @@
 
 namespace facedyn::report {
 
+// `text` with < > & " as HTML entities, for element text and attribute values.
+std::string EscapeHtml(const std::string& text);
+
 // Writes `path` (HTML) from the demo metrics. Renders are embedded from the files the metrics
 // name ("renders" "images" "path"); a relative path is read from `files_dir` (empty: the folder
 // of `path`, which for the demo is where metrics.json and renders/ are). Errors when a render

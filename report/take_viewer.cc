@@ -13,6 +13,7 @@
 #include "core/progress.h"
 #include "dynamics/quasistatic.h"
 #include "report/face_render.h"
+#include "report/report.h"
 #include "report/take_viewer_page.h"
 
 namespace facedyn::report {
@@ -110,20 +111,6 @@ std::string EscapeForScript(const std::string& json) {
   return out;
 }
 
-std::string EscapeHtml(const std::string& text) {
-  std::string out;
-  for (char c : text) {
-    switch (c) {
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '&': out += "&amp;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
-
 Status ReplaceOnce(std::string* page, const std::string& marker, const std::string& value) {
   const size_t at = page->find(marker);
   if (at == std::string::npos) return InternalError("viewer page template lacks " + marker);
@@ -132,6 +119,15 @@ Status ReplaceOnce(std::string* page, const std::string& marker, const std::stri
 }
 
 }  // namespace
+
+const char* ViewerColourName(ViewerColour colour) {
+  switch (colour) {
+    case ViewerColour::kOffset: return "offset";
+    case ViewerColour::kError: return "error";
+    case ViewerColour::kNone: return "none";
+  }
+  return "none";
+}
 
 StatusOr<ViewerColour> ParseViewerColour(const std::string& name) {
   if (name == "offset") return ViewerColour::kOffset;
@@ -280,9 +276,7 @@ StatusOr<ViewerSummary> WriteTakeViewer(const std::vector<ViewerTake>& takes, co
   data["first_frame"] = options.first_frame;
   data["fps"] = takes[0].take.info.fps;
   data["time_s"] = time_s;
-  data["colour"] = {{"mode", options.colour == ViewerColour::kOffset  ? "offset"
-                             : options.colour == ViewerColour::kError ? "error"
-                                                                      : "none"},
+  data["colour"] = {{"mode", ViewerColourName(options.colour)},
                     {"range_mm", range_mm},
                     {"title", title}};
 

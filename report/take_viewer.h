@@ -54,7 +54,8 @@ struct ViewerSummary {
   double colour_range_mm = 0.0;
 };
 
-// "offset" | "none" | "error" (the truth take is given separately).
+// "offset" | "error" | "none", and back (the truth take is given separately).
+const char* ViewerColourName(ViewerColour colour);
 StatusOr<ViewerColour> ParseViewerColour(const std::string& name);
 
 // Writes the page atomically. Errors: no takes; takes whose frame rates differ; a window that

@@ -16,8 +16,25 @@ namespace {
 
 using ::testing::HasSubstr;
 
+// Rows are the columns of fixed input and target matrices (filled by the derived class).
+class ColumnsDataset : public MlpDataset {
+ public:
+  int input_size() const override { return static_cast<int>(inputs_.rows()); }
+  int output_size() const override { return static_cast<int>(targets_.rows()); }
+  void Gather(const long* rows, long n, Eigen::MatrixXf* inputs,
+              Eigen::MatrixXf* targets) const override {
+    inputs->resize(inputs_.rows(), n);
+    targets->resize(targets_.rows(), n);
+    for (long r = 0; r < n; ++r) {
+      inputs->col(r) = inputs_.col(rows[r]);
+      targets->col(r) = targets_.col(rows[r]);
+    }
+  }
+  Eigen::MatrixXf inputs_, targets_;
+};
+
 // y = A x + b with a fixed A, b: rows are columns of a fixed random input matrix.
-class LinearDataset final : public MlpDataset {
+class LinearDataset final : public ColumnsDataset {
  public:
   explicit LinearDataset(int rows) {
     inputs_ = Eigen::MatrixXf::Random(4, rows) * 10.0f;
@@ -25,18 +42,7 @@ class LinearDataset final : public MlpDataset {
     b_ = Eigen::Vector2f(100.0f, -50.0f);
     targets_ = (a_ * inputs_).colwise() + b_;
   }
-  int input_size() const override { return 4; }
-  int output_size() const override { return 2; }
-  void Gather(const long* rows, long n, Eigen::MatrixXf* inputs,
-              Eigen::MatrixXf* targets) const override {
-    inputs->resize(4, n);
-    targets->resize(2, n);
-    for (long r = 0; r < n; ++r) {
-      inputs->col(r) = inputs_.col(rows[r]);
-      targets->col(r) = targets_.col(rows[r]);
-    }
-  }
-  Eigen::MatrixXf inputs_, targets_, a_;
+  Eigen::MatrixXf a_;
   Eigen::Vector2f b_;
 };
 
@@ -172,8 +178,7 @@ TEST(MlpTrainOptions, CheckNamesTheField) {
 // The small model (seed 9) trained on every row of `data`, no validation; a failed training
 // fails the calling test. (Each test makes its own dataset: LinearDataset draws from Eigen's
 // global random state.)
-template <typename Dataset>
-std::vector<long> AllRows(const Dataset& data) {
+std::vector<long> AllRows(const ColumnsDataset& data) {
   std::vector<long> rows(data.inputs_.cols());
   for (long r = 0; r < static_cast<long>(rows.size()); ++r) rows[r] = r;
   return rows;
@@ -281,7 +286,7 @@ TEST(Mlp, LinearSkipStartsAsThePlainNetworkAndRoundTrips) {
 }
 
 // y = A x + 3 e^2 for three main inputs x and one extra input e (which joins hidden layer 2).
-class ExtraInputDataset final : public MlpDataset {
+class ExtraInputDataset final : public ColumnsDataset {
  public:
   // Its own generator: the data must not depend on which tests ran before.
   explicit ExtraInputDataset(int rows) {
@@ -292,17 +297,6 @@ class ExtraInputDataset final : public MlpDataset {
     targets_ = a * inputs_.topRows(3);
     targets_.row(0) += 3.0f * inputs_.row(3).cwiseAbs2();
   }
-  int input_size() const override { return 4; }
-  int output_size() const override { return 2; }
-  void Gather(const long* rows, long n, Eigen::MatrixXf* inputs, Eigen::MatrixXf* targets) const override {
-    inputs->resize(4, n);
-    targets->resize(2, n);
-    for (long r = 0; r < n; ++r) {
-      inputs->col(r) = inputs_.col(rows[r]);
-      targets->col(r) = targets_.col(rows[r]);
-    }
-  }
-  Eigen::MatrixXf inputs_, targets_;
 };
 
 // The FDLS options together: residual hidden layers, dropout, the last input joining layer 2.

@@ -10,6 +10,7 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <cstdint>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -21,6 +22,7 @@
 #include "app/command.h"
 #include "app/demo_dynamics.h"
 #include "eval/dynamics_study.h"
+#include "eval/replicates.h"
 #include "app/reconstruct_demo.h"
 #include "report/report.h"
 #include "app/rig_demo.h"
@@ -41,7 +43,25 @@ struct DemoOptions {
   bool quick = false;
   // F's targets on the reconstructed takes (DemoDynamicsOptions::removal_targets).
   std::string removal_targets = "platform-synchronous-where-known";
+  // Seeds of the dynamics stage: the first is the demo's (renders, viewers, models); each further
+  // seed runs the stage again (its own training takes, test performance and walk, and
+  // initialisation) under <out>/replicates/seed-N, and the report compares methods by mean and
+  // spread over all of them (eval/replicates.h).
+  std::vector<uint64_t> seeds = {1};
 };
+
+// Distinct seeds, at least one. Names the flag.
+Status CheckSeeds(const std::vector<uint64_t>& seeds) {
+  if (seeds.empty()) return InvalidArgumentError("--seeds: at least one seed");
+  for (size_t i = 0; i < seeds.size(); ++i) {
+    for (size_t j = 0; j < i; ++j) {
+      if (seeds[i] == seeds[j]) {
+        return InvalidArgumentError(fmt::format("--seeds: {} is given twice", seeds[i]));
+      }
+    }
+  }
+  return Status::Ok();
+}
 
 // A head-sized surface on a platform oscillating vertically at `platform_hz`, with the
 // small pitch a real platform adds. Rigid: secondary dynamics arrive with sim/ physics.
@@ -99,6 +119,7 @@ Status RunDemo(const DemoOptions& options) {
   // Parsed before any stage runs, so a bad value costs nothing.
   FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalTargets removal_targets,
                            dynamics::ParseRemovalTargets(options.removal_targets));
+  FACEDYN_RETURN_IF_ERROR(CheckSeeds(options.seeds));
   const double fps = 128.0;
   const int frames = options.quick ? 64 : 256;
   spdlog::info("facedyn demo -> {}", options.out_dir);
@@ -214,11 +235,37 @@ Status RunDemo(const DemoOptions& options) {
   Json dynamics_metrics;
   DemoDynamicsOptions dynamics_options = DemoDynamicsOptions::ForDemo(options.quick);
   dynamics_options.removal_targets = removal_targets;
+  dynamics_options.seed = options.seeds.front();
   FACEDYN_RETURN_IF_ERROR(RunDemoDynamicsStage(
       face, cameras, simulated, reconstructed, dynamics_options, options.out_dir,
       &study_artifacts.removal_model, &dynamics_metrics, &artifacts));
-  metrics["dynamics"] = dynamics_metrics;
   clock.Lap("dynamics on reconstructed takes");
+  if (options.seeds.size() > 1) {
+    // Replicates: the whole stage again per seed; only its figures are kept.
+    std::vector<Json> stages = {dynamics_metrics};
+    for (size_t r = 1; r < options.seeds.size(); ++r) {
+      const uint64_t seed = options.seeds[r];
+      std::printf("\nReplicate %zu of %zu: the dynamics stage with seed %llu\n", r + 1,
+                  options.seeds.size(), static_cast<unsigned long long>(seed));
+      std::fflush(stdout);
+      DemoDynamicsOptions replicate = dynamics_options;
+      replicate.seed = seed;
+      Json replicate_metrics;
+      FACEDYN_RETURN_IF_ERROR(RunDemoDynamicsStage(
+          face, cameras, simulated, reconstructed, replicate,
+          JoinPath(options.out_dir, fmt::format("replicates/seed-{}", seed)),
+          &study_artifacts.removal_model, &replicate_metrics, nullptr));
+      stages.push_back(std::move(replicate_metrics));
+    }
+    metrics["dynamics_replicates"] = eval::SummariseDemoReplicates(stages, options.seeds);
+    eval::PrintReplicateSummary(metrics["dynamics_replicates"]);
+    dynamics_metrics["replicates_note"] = fmt::format(
+        "This section is seed {} alone; the Replicates section compares the methods over all "
+        "{} seeds.",
+        options.seeds.front(), options.seeds.size());
+    clock.Lap(fmt::format("dynamics replicates ({} more seeds)", options.seeds.size() - 1));
+  }
+  metrics["dynamics"] = dynamics_metrics;
   FACEDYN_ASSIGN_OR_RETURN(metrics["renders"],
                            RenderDemoDynamics(face, artifacts, options.out_dir));
   clock.Lap("renders");
@@ -253,6 +300,14 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected) {
                    "platform-synchronous-where-known (platform takes fitted at their recorded "
                    "frequency, walks moving-average) or moving-average (the paper's Eq. 5-6)")
       ->check(CLI::IsMember({"platform-synchronous-where-known", "moving-average"}))
+      ->capture_default_str();
+  command
+      ->add_option("--seeds", options->seeds,
+                   "Seeds of the dynamics stage, comma-separated (e.g. 1,2,3): the first is "
+                   "the demo's; each further seed runs the stage again and the report compares "
+                   "methods by mean and spread over all of them (a difference inside the spread "
+                   "is a tie)")
+      ->delimiter(',')
       ->capture_default_str();
   command->callback([options, selected] { *selected = [options] { return RunDemo(*options); }; });
 }

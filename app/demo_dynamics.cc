@@ -211,6 +211,7 @@ Json TrainingJson(const learn::MlpTrainSummary& summary, int epochs) {
           {"final_train_loss", summary.train_loss.empty() ? 0.0 : summary.train_loss.back()},
           {"final_validation_loss",
            summary.validation_loss.empty() ? 0.0 : summary.validation_loss.back()},
+          {"optimizer_steps", summary.optimizer_steps},
           {"train_s", Round4(summary.train_s)},
           {"rows_per_s", std::round(summary.rows_per_s)}};
 }
@@ -219,12 +220,14 @@ Json TrainingJson(const learn::MlpTrainSummary& summary, int epochs) {
 StatusOr<dynamics::RemovalModel> TrainF(const std::vector<Take>& takes, const FaceRig& face,
                                         dynamics::RemovalTargets targets, int epochs, int batch,
                                         uint64_t seed, const std::string& label,
-                                        learn::MlpTrainSummary* summary) {
+                                        learn::MlpTrainSummary* summary,
+                                        long optimizer_steps = 0) {
   std::vector<dynamics::TrainingTake> training;
   for (const Take& take : takes) training.push_back({&take, &face});
   dynamics::RemovalTrainOptions options;
   options.targets = targets;
   options.train.epochs = epochs;
+  options.train.optimizer_steps = optimizer_steps;
   options.train.batch_size = batch;
   options.train.seed = seed;
   options.train.final_learning_rate_fraction = 0.05;
@@ -461,41 +464,46 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
 
   // Paper Fig. 5: F trained on the slowest 1 .. n frequencies.
   if (options.subset_epochs > 0) {
-    Json subsets = Json::array();
+    const size_t n = options.train_hz.size();
     const size_t per_frequency = options.expressions.size();
-    // Every bar, the full set included, trained here with the same options and the same number
-    // of Adam steps (eval::EqualBudgetEpochs): the bars differ only in their frequencies. Round 1
-    // took the last bar from F at removal_epochs and the others at subset_epochs.
-    auto frames_of = [](const std::vector<Take>& takes) {
-      long frames = 0;
-      for (const Take& take : takes) frames += take.frame_count();
-      return frames;
-    };
-    const long full_frames = frames_of(a.reconstructed);
-    for (size_t k = 1; k <= options.train_hz.size(); ++k) {
+    // Every bar, the full set included, is trained here with the same options and exactly the
+    // same number of Adam steps (learn::MlpTrainOptions::optimizer_steps): the full set trains
+    // subset_epochs first, and each subset trains that many steps on its own rows, so the bars
+    // differ only in their frequencies. Round 1 took the last bar from F at removal_epochs and
+    // the others at subset_epochs.
+    std::vector<Json> bars(n);
+    long budget_steps = 0;
+    std::vector<size_t> order = {n};
+    for (size_t k = 1; k < n; ++k) order.push_back(k);
+    for (size_t k : order) {
       std::vector<Take> subset(a.reconstructed.begin(),
                                a.reconstructed.begin() + k * per_frequency);
-      const size_t platform_takes = options.train_hz.size() * per_frequency;
+      const size_t platform_takes = n * per_frequency;
       subset.insert(subset.end(), a.reconstructed.begin() + platform_takes,
                     a.reconstructed.end());
-      const int epochs =
-          eval::EqualBudgetEpochs(options.subset_epochs, full_frames, frames_of(subset));
-      FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel model,
-                               TrainF(subset, face, options.removal_targets, epochs,
-                                      options.removal_batch, options.seed,
-                                      fmt::format("F on {} frequencies", k), nullptr));
+      learn::MlpTrainSummary subset_summary;
+      FACEDYN_ASSIGN_OR_RETURN(
+          const dynamics::RemovalModel model,
+          TrainF(subset, face, options.removal_targets, options.subset_epochs,
+                 options.removal_batch, options.seed, fmt::format("F on {} frequencies", k),
+                 &subset_summary, budget_steps));
+      if (k == n) budget_steps = subset_summary.optimizer_steps;
       FACEDYN_ASSIGN_OR_RETURN(const Take subset_removed,
                                dynamics::RemoveDynamics(model, test_reconstructed, face));
       const double error_mm = eval::MeanDistanceOverVertices(subset_removed.positions, test_truth,
                                                              jiggle, test_scored);
-      subsets.push_back(
-          {{"train_hz",
-            std::vector<double>(options.train_hz.begin(), options.train_hz.begin() + k)},
-           {"training_walk_step_hz", options.training_walk_step_hz},
-           {"epochs", epochs},
-           {"jiggle_mean_mm", Round4(error_mm)},
-           {"relative_to_offset", Round4(test_offset_mm > 0 ? error_mm / test_offset_mm : 0)}});
+      bars[k - 1] = {
+          {"train_hz",
+           std::vector<double>(options.train_hz.begin(), options.train_hz.begin() + k)},
+          {"training_walk_step_hz", options.training_walk_step_hz},
+          {"epochs", subset_summary.epochs},
+          {"training_rows", subset_summary.training_rows},
+          {"optimizer_steps", subset_summary.optimizer_steps},
+          {"jiggle_mean_mm", Round4(error_mm)},
+          {"relative_to_offset", Round4(test_offset_mm > 0 ? error_mm / test_offset_mm : 0)}};
     }
+    Json subsets = Json::array();
+    for (Json& bar : bars) subsets.push_back(std::move(bar));
     result["removal_by_training_frequencies"] = {
         {"take", test_name + " reconstructed"},
         {"mean_dynamic_offset_mm", Round4(test_offset_mm)},

@@ -146,15 +146,18 @@ int main(int argc, char** argv) {
   // ~1.5M rows, 10,000 gives only ~5,800 Adam steps and leaves F under-trained (validation loss
   // 0.0010 against 0.0007 at 2,000, the same epochs); --batch 10000 reproduces the paper's.
   options.removal_batch = 2000;
-  // Three platform amplitudes per training frequency and expression (the 11 Hz test takes stay
-  // at 2 mm). Chosen on a frequency held out of training (--hz 6,7,8,9 --test-hz 10), not on
-  // 11 Hz: F's error there fell from 0.046/0.029/0.026 mm (neutral/smile/jaw_open, one
-  // amplitude) to 0.038/0.025/0.019 mm. 13 epochs over the three times as many rows keep the
-  // number of Adam steps of 40 epochs on one amplitude; --amplitudes 2 --epochs 40 is the
-  // one-amplitude study.
+  // Three platform amplitudes per training frequency and expression (the test takes stay at
+  // 2 mm), first chosen on 10 Hz held out of 6-9 Hz under round 1's protocol, and re-checked on
+  // eval/'s protocol on a validation study that shares no take with a test take (--hz 6,8
+  // --test-hz 10 --speech-hz 8 --seeds 101,102,103, README "Evaluation protocol"): at the same
+  // number of Adam steps (10 epochs on three amplitudes, 30 on one) F_exact's error was lower
+  // with three on every validation take. 13 epochs over the three times as many rows keep the
+  // Adam steps of 40 epochs on one amplitude; --amplitudes 2 --epochs 40 is the one-amplitude
+  // study. The full configuration has not been re-run on the new protocol.
   options.train_amplitudes_mm = {1.5, 2.0, 2.5};
   options.removal_epochs = 13;
   bool amplitudes_given = false;
+  bool epochs_given = false;
   std::vector<uint64_t> seeds;  // --seeds: one whole study per seed, summarised
   bool quick = false;
   int threads = 0;
@@ -173,6 +176,7 @@ int main(int argc, char** argv) {
       threads = static_cast<int>(Integer(next(), arg));
     } else if (arg == "--epochs") {
       options.removal_epochs = static_cast<int>(Integer(next(), arg));
+      epochs_given = true;
     } else if (arg == "--hz") {
       options.train_hz.clear();
       for (const std::string& item : Split(next()))
@@ -257,8 +261,11 @@ int main(int argc, char** argv) {
     options.train_hz = {7, 9};
     options.expressions = {"neutral", "smile"};
     options.seconds = 1.5;
-    if (!amplitudes_given) options.train_amplitudes_mm = {2.0};
-    options.removal_epochs = std::min(options.removal_epochs, 10);
+    // The validated settings (above): three amplitudes and 20 epochs. On the validation study,
+    // 20 epochs tied 10 on the held takes and lowered the speech take's error (0.0168 +- 0.0022
+    // -> 0.0136 +- 0.0019 mm); round 1's quick study used one amplitude and 10 epochs.
+    if (!amplitudes_given) options.train_amplitudes_mm = {1.5, 2.0, 2.5};
+    if (!epochs_given) options.removal_epochs = 20;
     options.synthesis_epochs = 10;
   }
   options.threads = threads;

@@ -133,13 +133,6 @@ Status DynamicsStudyOptions::Check() const {
   return Status::Ok();
 }
 
-int EqualBudgetEpochs(int full_epochs, long full_frames, long subset_frames) {
-  if (subset_frames <= 0 || subset_frames >= full_frames) return full_epochs;
-  return static_cast<int>(std::ceil(static_cast<double>(full_epochs) *
-                                    static_cast<double>(full_frames) /
-                                    static_cast<double>(subset_frames) - 1e-9));
-}
-
 namespace {
 
 // F's training options from the study's: one place, so the main models and Fig. 5's subset
@@ -460,41 +453,44 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
         eval::MeanDistanceOverVertices(probe.take.positions, truth, mask, scored);
     Json subsets = Json::array();
     const size_t per_frequency = options.expressions.size() * options.train_amplitudes_mm.size();
-    for (size_t k = 1; k <= options.train_hz.size(); ++k) {
-      // Every bar, the full set included, is trained here with the same options and the same
-      // number of Adam steps (epochs scaled by n / k for k of n frequencies): the bars differ
-      // only in their training frequencies. (Round 1 took the last bar from the main model,
-      // which also trained on speech takes, so fewer frequencies and less data were confounded.)
-      double error_mm = 0;
-      {
-        const std::vector<dynamics::TrainingTake> subset(held_training.begin(),
-                                                         held_training.begin() + k * per_frequency);
-        const int full_epochs =
-            options.subset_epochs > 0 ? options.subset_epochs : options.removal_epochs;
-        // The subset models propagate with the main model's learned propagation (below), so
-        // they do not learn one of their own; everything else is the main model's options.
-        dynamics::RemovalTrainOptions subset_options = RemovalOptionsFor(
-            options, dynamics::RemovalTargets::kExact,
-            EqualBudgetEpochs(full_epochs, static_cast<long>(options.train_hz.size()),
-                              static_cast<long>(k)));
-        subset_options.learn_propagation = false;
-        spdlog::info("training removal network on {} frequencies (paper Fig. 5)", k);
-        FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel model,
-                                 dynamics::TrainRemoval(subset, subset_options));
-        FACEDYN_ASSIGN_OR_RETURN(const Take removed,
-                                 dynamics::RemoveDynamics(model, probe.take, rig, &propagation));
-        error_mm = eval::MeanDistanceOverVertices(removed.positions, truth, mask, scored);
-      }
-      const int full_epochs =
-          options.subset_epochs > 0 ? options.subset_epochs : options.removal_epochs;
-      subsets.push_back({{"train_hz", std::vector<double>(options.train_hz.begin(),
-                                                          options.train_hz.begin() + k)},
-                         {"epochs", EqualBudgetEpochs(full_epochs,
-                                                      static_cast<long>(options.train_hz.size()),
-                                                      static_cast<long>(k))},
-                         {"jiggle_mean_mm", Round4(error_mm)},
-                         {"relative_to_offset", Round4(offset_mm > 0 ? error_mm / offset_mm : 0)}});
+    // Every bar, the full set included, is trained here with the same options and exactly the
+    // same number of Adam steps (learn::MlpTrainOptions::optimizer_steps: the full set trains
+    // its epochs first, each subset that many steps on its own rows), so the bars differ only
+    // in their training frequencies. (Round 1 took the last bar from the main model, which also
+    // trained on speech takes, so fewer frequencies and less data were confounded.)
+    const size_t n = options.train_hz.size();
+    const int full_epochs =
+        options.subset_epochs > 0 ? options.subset_epochs : options.removal_epochs;
+    std::vector<Json> bars(n);
+    long budget_steps = 0;
+    std::vector<size_t> order = {n};
+    for (size_t k = 1; k < n; ++k) order.push_back(k);
+    for (size_t k : order) {
+      const std::vector<dynamics::TrainingTake> subset(held_training.begin(),
+                                                       held_training.begin() + k * per_frequency);
+      // The subset models propagate with the main model's learned propagation (below), so
+      // they do not learn one of their own; everything else is the main model's options.
+      dynamics::RemovalTrainOptions subset_options =
+          RemovalOptionsFor(options, dynamics::RemovalTargets::kExact, full_epochs);
+      subset_options.train.optimizer_steps = budget_steps;
+      subset_options.learn_propagation = false;
+      spdlog::info("training removal network on {} frequencies (paper Fig. 5)", k);
+      learn::MlpTrainSummary subset_summary;
+      FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel model,
+                               dynamics::TrainRemoval(subset, subset_options, &subset_summary));
+      if (k == n) budget_steps = subset_summary.optimizer_steps;
+      FACEDYN_ASSIGN_OR_RETURN(const Take removed,
+                               dynamics::RemoveDynamics(model, probe.take, rig, &propagation));
+      const double error_mm = eval::MeanDistanceOverVertices(removed.positions, truth, mask, scored);
+      bars[k - 1] = {{"train_hz", std::vector<double>(options.train_hz.begin(),
+                                                      options.train_hz.begin() + k)},
+                     {"epochs", subset_summary.epochs},
+                     {"training_rows", subset_summary.training_rows},
+                     {"optimizer_steps", subset_summary.optimizer_steps},
+                     {"jiggle_mean_mm", Round4(error_mm)},
+                     {"relative_to_offset", Round4(offset_mm > 0 ? error_mm / offset_mm : 0)}};
     }
+    for (Json& bar : bars) subsets.push_back(std::move(bar));
     result["removal_by_training_frequencies"] = {
         {"take", probe.name},
         {"mean_dynamic_offset_mm", Round4(offset_mm)},

@@ -105,12 +105,6 @@ struct DynamicsStudyArtifacts {
   dynamics::RemovalModel removal_model;  // F trained on exact targets
 };
 
-// Paper Fig. 5 with equal budgets: the epochs that give a model trained on `subset_frames`
-// frames the same number of Adam steps as `full_epochs` on `full_frames` (ceil of the ratio, at
-// least full_epochs). Every bar of the figure, the full set included, is trained with it and
-// the same options, so the bars differ only in their training frequencies.
-int EqualBudgetEpochs(int full_epochs, long full_frames, long subset_frames);
-
 StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                                 DynamicsStudyArtifacts* artifacts = nullptr);
 

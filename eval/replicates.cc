@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
+#include <utility>
 
 namespace facedyn::eval {
 
@@ -39,26 +41,28 @@ Json SpreadJson(const Spread& s) {
 
 }  // namespace
 
-Json SummariseRemovalReplicates(const std::vector<Json>& studies) {
+Json SummariseMethodReplicates(const std::vector<Json>& replicates, const std::string& figure,
+                               const std::string& learned_prefix) {
   // take -> method -> values, in first-seen order of takes.
   std::vector<std::string> take_order;
   std::map<std::string, std::map<std::string, std::vector<double>>> values;
   std::map<std::string, std::string> protocol;
-  for (const Json& study : studies) {
-    if (!study.contains("removal") || !study["removal"].is_array()) continue;
-    for (const Json& take : study["removal"]) {
+  for (const Json& entries : replicates) {
+    if (!entries.is_array()) continue;
+    for (const Json& take : entries) {
       if (!take.contains("take") || !take.contains("methods")) continue;
       const std::string name = take["take"].get<std::string>();
       if (values.count(name) == 0) take_order.push_back(name);
       if (take.contains("protocol") && take["protocol"].is_string())
         protocol[name] = take["protocol"].get<std::string>();
       for (const auto& [method, figures] : take["methods"].items()) {
-        if (figures.contains("jiggle_mean_mm")) {
-          values[name][method].push_back(figures["jiggle_mean_mm"].get<double>());
+        if (figures.contains(figure) && figures[figure].is_number()) {
+          values[name][method].push_back(figures[figure].get<double>());
         }
       }
     }
   }
+  auto learned = [&](const std::string& method) { return method.rfind(learned_prefix, 0) == 0; };
   Json takes = Json::array();
   for (const std::string& name : take_order) {
     Json methods = Json::object();
@@ -69,9 +73,9 @@ Json SummariseRemovalReplicates(const std::vector<Json>& studies) {
     }
     Json verdicts = Json::array();
     for (const auto& [method, spread] : spreads) {
-      if (method.rfind("F", 0) != 0) continue;
+      if (!learned(method)) continue;
       for (const auto& [baseline, other] : spreads) {
-        if (baseline.rfind("F", 0) == 0) continue;
+        if (learned(baseline)) continue;
         verdicts.push_back({{"method", method},
                             {"against", baseline},
                             {"error_is", CompareLowerIsBetter(spread, other)}});
@@ -81,9 +85,123 @@ Json SummariseRemovalReplicates(const std::vector<Json>& studies) {
     if (protocol.count(name)) entry["protocol"] = protocol[name];
     takes.push_back(std::move(entry));
   }
+  return takes;
+}
+
+Json SummariseRemovalReplicates(const std::vector<Json>& studies) {
+  std::vector<Json> replicates;
+  for (const Json& study : studies) {
+    if (study.contains("removal") && study["removal"].is_array()) {
+      replicates.push_back(study["removal"]);
+    }
+  }
   return {{"replicates", studies.size()},
           {"rule", "a difference within the larger standard deviation is a tie"},
-          {"removal", takes}};
+          {"removal", SummariseMethodReplicates(replicates, "jiggle_mean_mm", "F")}};
+}
+
+namespace {
+
+// One take entry {"take", "protocol", "methods": {name: {"mm": value}}} from named values.
+Json Entry(const std::string& take, const std::string& protocol,
+           const std::vector<std::pair<std::string, double>>& values) {
+  Json methods = Json::object();
+  for (const auto& [name, mm] : values) methods[name] = {{"mm", mm}};
+  return {{"take", take}, {"protocol", protocol}, {"methods", methods}};
+}
+
+double Number(const Json& json, const char* key) {
+  return json.contains(key) && json[key].is_number() ? json[key].get<double>() : 0.0;
+}
+
+}  // namespace
+
+Json SummariseDemoReplicates(const std::vector<Json>& stages, const std::vector<uint64_t>& seeds) {
+  const std::vector<std::pair<const char*, const char*>> removal_sections = {
+      {"removal", "held-out platform frequency"},
+      {"removal_performance", "held-out performance (speech) at that frequency"},
+      {"removal_walk", "held-out motion (a walk at a new step rate)"}};
+  std::vector<Json> removal, resynthesis, new_motion, retarget;
+  for (const Json& stage : stages) {
+    Json removal_entries = Json::array();
+    for (const auto& [section, protocol] : removal_sections) {
+      if (!stage.contains(section) || !stage[section].contains("methods")) continue;
+      const Json& figures = stage[section];
+      Json methods = Json::object();
+      for (const auto& [method, values] : figures["methods"].items()) {
+        if (values.contains("jiggle_mean_mm")) {
+          methods[method] = {{"mm", values["jiggle_mean_mm"].get<double>()}};
+        }
+      }
+      // What a perfect F would leave on this reconstruction (eval/skull_frame.h).
+      if (figures.contains("exact_offsets_removed_mm")) {
+        methods["lower_reference"] = {{"mm", figures["exact_offsets_removed_mm"].get<double>()}};
+      }
+      // Named by section, not by take: the performance and walk takes differ per seed.
+      removal_entries.push_back({{"take", section}, {"protocol", protocol}, {"methods", methods}});
+    }
+    removal.push_back(std::move(removal_entries));
+    if (stage.contains("synthesis")) {
+      const Json& synthesis = stage["synthesis"];
+      if (synthesis.contains("resynthesis")) {
+        const Json& r = synthesis["resynthesis"];
+        resynthesis.push_back(Json::array(
+            {Entry("held-out take", "remove, then resynthesise with its own head motion (Fig. 7)",
+                   {{"H_resynthesis_residual", Number(r, "resynthesis_residual_mm")},
+                    {"removed_without_synthesis", Number(r, "removed_without_synthesis_mm")}})}));
+      }
+      if (synthesis.contains("walk") && synthesis["walk"].contains("methods")) {
+        Json entries = Json::array();
+        Json methods = Json::object();
+        for (const auto& [method, values] : synthesis["walk"]["methods"].items()) {
+          methods[method] = {{"mm", Number(values, "offset_mean_mm")}};
+        }
+        entries.push_back({{"take", "walk synthesis"},
+                           {"protocol", "new head motion, subject A"},
+                           {"methods", methods}});
+        new_motion.push_back(std::move(entries));
+      }
+    }
+    if (stage.contains("retarget") && stage["retarget"].contains("methods")) {
+      Json methods = Json::object();
+      for (const auto& [method, values] : stage["retarget"]["methods"].items()) {
+        methods[method] = {{"mm", Number(values, "offset_mean_mm")}};
+      }
+      retarget.push_back(Json::array({{{"take", "B walking A's walk"},
+                                       {"protocol", "retargeting between subjects (Figs. 9-10)"},
+                                       {"methods", methods}}}));
+    }
+  }
+  return {{"replicates", stages.size()},
+          {"seeds", seeds},
+          {"rule", "a difference within the larger standard deviation is a tie"},
+          {"removal", SummariseMethodReplicates(removal, "mm", "F")},
+          {"resynthesis", SummariseMethodReplicates(resynthesis, "mm", "H")},
+          {"new_motion_synthesis", SummariseMethodReplicates(new_motion, "mm", "H")},
+          {"retarget", SummariseMethodReplicates(retarget, "mm", "H")}};
+}
+
+void PrintReplicateSummary(const Json& summary) {
+  std::printf("\nReplicates over %s seeds (mean +- sd, mm; %s):\n",
+              summary.value("replicates", Json(0)).dump().c_str(),
+              summary.value("rule", std::string()).c_str());
+  for (const char* section : {"removal", "resynthesis", "new_motion_synthesis", "retarget"}) {
+    if (!summary.contains(section) || !summary[section].is_array()) continue;
+    for (const Json& take : summary[section]) {
+      std::printf("  %s\n", take.value("protocol", take.value("take", std::string())).c_str());
+      std::map<std::string, std::string> verdict;
+      for (const Json& v : take["verdicts"]) {
+        std::string& text = verdict[v["against"].get<std::string>()];
+        text += (text.empty() ? "" : "; ") + v["method"].get<std::string>() + " " +
+                v["error_is"].get<std::string>();
+      }
+      for (const auto& [method, spread] : take["methods"].items()) {
+        std::printf("    %-30s %8.4f +- %.4f  %s\n", method.c_str(),
+                    spread["mean_mm"].get<double>(), spread["sd_mm"].get<double>(),
+                    verdict.count(method) ? verdict[method].c_str() : "");
+      }
+    }
+  }
 }
 
 }  // namespace facedyn::eval

@@ -2,6 +2,7 @@
 // seeds (takes and initialisation), and a difference inside the spread is a tie, never a win.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -28,5 +29,27 @@ std::string CompareLowerIsBetter(const Spread& a, const Spread& b);
 // verdict. Takes or methods
 // missing from some replicate are summarised over the replicates that have them.
 Json SummariseRemovalReplicates(const std::vector<Json>& studies);
+
+// The general form: `replicates[r]` is replicate r's array of entries {"take", optional
+// "protocol", "methods": {name: {figure: mm}}}; entries are matched by take name. Per take,
+// each method's `figure` as a Spread ("mean_mm", "sd_mm", "min_mm", "max_mm", "replicates"),
+// and each learned method (name starting with `learned_prefix`) against every other method that
+// is not learned, as a verdict (CompareLowerIsBetter). Returns the array of take summaries.
+Json SummariseMethodReplicates(const std::vector<Json>& replicates, const std::string& figure,
+                               const std::string& learned_prefix);
+
+// `facedyn demo --seeds`: one demo dynamics stage per seed (app/demo_dynamics.h's JSON: the
+// sections "removal", "removal_performance", "removal_walk", "synthesis" and "retarget"), each
+// with its own training takes, new test performance and walk, and network initialisation.
+// Returns {"replicates", "seeds", "rule", "removal": per protocol (held-out frequency,
+// performance, walk) every method's jiggle_mean_mm plus "lower_reference" (Eq. 7 with the exact
+// offsets in the estimated skull frame) with F's verdicts, "resynthesis": Fig. 7's residual
+// against removal without synthesis, "new_motion_synthesis" and "retarget": each method's
+// offset_mean_mm with H's verdicts}. Sections a stage lacks are left out of its replicate.
+Json SummariseDemoReplicates(const std::vector<Json>& stages, const std::vector<uint64_t>& seeds);
+
+// Prints a replicate summary (SummariseDemoReplicates's JSON) as tables on stdout: per section
+// and protocol, each method's mean and sd, and the learned method's verdicts.
+void PrintReplicateSummary(const Json& summary);
 
 }  // namespace facedyn::eval

@@ -344,6 +344,7 @@ std::vector<float> Mlp::FlatParameters() const {
 Status MlpTrainOptions::Check() const {
   if (epochs < 1) return InvalidArgumentError("epochs must be >= 1");
   if (batch_size < 1) return InvalidArgumentError("batch_size must be >= 1");
+  if (optimizer_steps < 0) return InvalidArgumentError("optimizer_steps must be >= 0");
   if (!(learning_rate > 0)) return InvalidArgumentError("learning_rate must be > 0");
   if (!(final_learning_rate_fraction > 0 && final_learning_rate_fraction <= 1)) {
     return InvalidArgumentError("final_learning_rate_fraction must be in (0, 1]");
@@ -464,21 +465,30 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
   MlpTrainSummary local;
   local.training_rows = static_cast<long>(train_rows.size());
   local.validation_rows = static_cast<long>(validation_rows.size());
-  Progress progress(options.progress_label, options.epochs,
+  // A step budget fixes the epochs (the last one cut short); otherwise whole epochs.
+  const long batches_per_epoch = (static_cast<long>(train_rows.size()) + batch - 1) / batch;
+  const long step_budget = options.optimizer_steps > 0
+                               ? options.optimizer_steps
+                               : static_cast<long>(options.epochs) * batches_per_epoch;
+  const int epochs = static_cast<int>((step_budget + batches_per_epoch - 1) / batches_per_epoch);
+  Progress progress(options.progress_label, epochs,
                     options.show_progress ? ProgressMode::kAuto : ProgressMode::kSilent);
   std::vector<long> order = train_rows;
   std::mt19937_64 rng(options.seed);
   Eigen::MatrixXf inputs, targets;
+  long rows_trained = 0;
   const auto start = std::chrono::steady_clock::now();
-  for (int epoch = 0; epoch < options.epochs; ++epoch) {
+  for (int epoch = 0; epoch < epochs; ++epoch) {
     const double lr =
         options.learning_rate *
         std::pow(options.final_learning_rate_fraction,
-                 options.epochs > 1 ? static_cast<double>(epoch) / (options.epochs - 1) : 0.0);
+                 epochs > 1 ? static_cast<double>(epoch) / (epochs - 1) : 0.0);
     for (auto& group : optimizer->param_groups()) group.options().set_lr(lr);
     std::shuffle(order.begin(), order.end(), rng);
     double loss_sum = 0.0;
-    for (size_t begin = 0; begin < order.size(); begin += static_cast<size_t>(batch)) {
+    long epoch_rows = 0;
+    for (size_t begin = 0; begin < order.size() && local.optimizer_steps < step_budget;
+         begin += static_cast<size_t>(batch)) {
       const long n = static_cast<long>(std::min(order.size() - begin, static_cast<size_t>(batch)));
       data.Gather(order.data() + begin, n, &inputs, &targets);
       normalise(&inputs, &targets);
@@ -492,9 +502,13 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
           weighted_mse(net->ForwardNormalised(batch_inputs), AsRowMajorTensor(targets));
       loss.backward();
       optimizer->step();
+      ++local.optimizer_steps;
       loss_sum += loss.item<double>() * static_cast<double>(n);
+      epoch_rows += n;
     }
-    local.train_loss.push_back(report_scale * loss_sum / static_cast<double>(order.size()));
+    rows_trained += epoch_rows;
+    local.epochs = epoch + 1;
+    local.train_loss.push_back(report_scale * loss_sum / static_cast<double>(epoch_rows));
     char status[96];
     if (!validation_rows.empty()) {
       torch::NoGradGuard no_grad;
@@ -526,9 +540,8 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
   net->eval();
   net->dropout_generator.reset();
   local.train_s = SecondsSince(start);
-  local.rows_per_s = local.train_s > 0 ? static_cast<double>(options.epochs) *
-                                             static_cast<double>(order.size()) / local.train_s
-                                       : 0.0;
+  local.rows_per_s =
+      local.train_s > 0 ? static_cast<double>(rows_trained) / local.train_s : 0.0;
   if (summary != nullptr) *summary = std::move(local);
   return Status::Ok();
 }

@@ -130,6 +130,11 @@ class MlpDataset {
 struct MlpTrainOptions {
   int epochs = 250;
   int batch_size = 10000;
+  // > 0: train for exactly this many Adam steps instead of `epochs` whole epochs; the epochs are
+  // then ceil(steps / batches per epoch) and the last one stops after the budget's last step.
+  // For comparisons that must differ only in their data (paper Fig. 5: every bar the same
+  // number of steps whatever its training rows).
+  long optimizer_steps = 0;
   double learning_rate = 1e-3;  // Adam, at the first epoch
   // Exponential decay of the learning rate to this fraction of it at the last epoch
   // (lr_e = lr * fraction^(e / (epochs - 1))); 1 keeps it constant, as the paper states.
@@ -153,7 +158,7 @@ struct MlpTrainOptions {
   int num_threads = 0;  // LibTorch intra-op threads; 0 keeps the current setting
   bool show_progress = true;
   std::string progress_label = "train";
-  // epochs >= 1, batch_size >= 1, learning_rate > 0, final_learning_rate_fraction in (0, 1],
+  // epochs >= 1, batch_size >= 1, optimizer_steps >= 0, learning_rate > 0, final_learning_rate_fraction in (0, 1],
   // weight_decay >= 0, input_noise_std >= 0, num_threads >= 0. Names the field.
   Status Check() const;
 };
@@ -162,9 +167,12 @@ struct MlpTrainSummary {
   long training_rows = 0;
   long validation_rows = 0;
   // Per epoch, the mean squared error per output dimension: in the outputs' units squared (mm^2)
-  // with loss_in_output_units, else of the normalised outputs.
+  // with loss_in_output_units, else of the normalised outputs (a last epoch cut short by an
+  // optimizer_steps budget: over the rows it reached).
   std::vector<double> train_loss;
   std::vector<double> validation_loss;  // per epoch (empty without validation rows)
+  long optimizer_steps = 0;             // Adam steps taken (mini-batches over all epochs)
+  int epochs = 0;                       // epochs run (the last may be partial, see above)
   double train_s = 0.0;                 // wall time of the optimisation
   double rows_per_s = 0.0;              // training rows through forward + backward per second
 };

@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -294,10 +296,14 @@ std::string DynamicsSection(const Json& dynamics) {
       "<p>Subject A held {} on the platform at {} Hz ({} takes of {} s); every take was "
       "simulated and reconstructed from projected marker centres (the markers' true centres "
       "projected into the 8 simulated cameras with 0.2 px noise; no images were rendered or "
-      "detected). One seed: differences here are not comparisons (see the README). The removal network F was "
+      "detected). {} The removal network F was "
       "trained on the reconstructed takes with {} targets ({} epochs), "
       "the synthesis network H on those takes decomposed by F ({} epochs). Errors are against the "
       "simulator's exact truth, in mm, over the vertices where the face jiggles.</p>",
+      dynamics.contains("replicates_note")
+          ? EscapeHtml(Text(dynamics, "replicates_note"))
+          : "One seed: differences here are not comparisons (facedyn demo --seeds 1,2,3 "
+            "replicates this stage; see the README).",
       EscapeHtml(Text(setup, "expressions")), EscapeHtml(Text(setup, "train_hz")),
       EscapeHtml(Text(setup, "training_takes")), EscapeHtml(Text(setup, "seconds_per_take")),
       EscapeHtml(Text(setup, "targets")), EscapeHtml(Text(setup, "removal_epochs")),
@@ -324,7 +330,7 @@ std::string DynamicsSection(const Json& dynamics) {
             "reference is Eq. 7 with the exact offsets applied in the skull frame the "
             "reconstruction estimated: what a perfect F would leave. The low-pass cutoff is set "
             "by a rule that needs no truth; lowpass_oracle is the best cutoff against the truth, "
-            "which no user could set. One seed: a difference here is not a comparison.</p>" +
+            "which no user could set. These bars are one seed: a difference here is not a comparison.</p>" +
             SvgBarChart(Text(removal, "take") + RemovalChartNote(removal),
                         MethodBars(Field(removal, "methods"), "jiggle_mean_mm"), "mm");
   }
@@ -393,6 +399,47 @@ std::string DynamicsSection(const Json& dynamics) {
 }
 
 // The simulated-data reference (eval/dynamics_study.h): F and H on simulated takes.
+// `facedyn demo --seeds`: each method's mean and spread over the seeds, and the learned
+// method's verdict against each other method under the tie rule (eval/replicates.h).
+std::string ReplicatesSection(const Json& replicates) {
+  std::string html = fmt::format(
+      "<h2 id=\"replicates\">Replicates: the dynamics stage over {} seeds</h2><p>Each seed "
+      "draws its own training takes, test performance and walk, and network initialisation "
+      "(seeds {}). Mean &plusmn; sample standard deviation, mm; {}: a verdict of "
+      "<em>tie</em> is not a win. The 11 Hz held-out take and the simulated-data reference F are "
+      "the same in every seed.</p>",
+      EscapeHtml(Text(replicates, "replicates")), EscapeHtml(Text(replicates, "seeds")),
+      EscapeHtml(Text(replicates, "rule")));
+  const std::vector<std::pair<std::string, std::string>> sections = {
+      {"removal", "Removal (error against the exact quasistatic, jiggling vertices)"},
+      {"resynthesis", "Remove, then resynthesise (Fig. 7)"},
+      {"new_motion_synthesis", "Synthesis for a new head motion (offset error)"},
+      {"retarget", "Retargeting to subject B (offset error)"}};
+  for (const auto& [key, title] : sections) {
+    const Json& takes = Field(replicates, key);
+    if (!takes.is_array() || takes.empty()) continue;
+    html += "<h3>" + EscapeHtml(title) + "</h3>";
+    for (const Json& take : takes) {
+      html += "<p><strong>" + EscapeHtml(Text(take, "protocol")) +
+              "</strong></p><table><tr><th>method</th><th>mean mm</th><th>sd mm</th>"
+              "<th>replicates</th><th>verdict of the learned method</th></tr>";
+      std::map<std::string, std::string> verdict;
+      for (const Json& v : Field(take, "verdicts")) {
+        verdict[Text(v, "against")] += (verdict[Text(v, "against")].empty() ? "" : "; ") +
+                                       Text(v, "method") + " " + Text(v, "error_is");
+      }
+      for (const auto& [method, spread] : Field(take, "methods").items()) {
+        html += fmt::format("<tr><td>{}</td><td>{:.4f}</td><td>{:.4f}</td><td>{}</td><td>{}</td></tr>",
+                            EscapeHtml(method), Number(spread, "mean_mm"), Number(spread, "sd_mm"),
+                            EscapeHtml(Text(spread, "replicates")),
+                            EscapeHtml(verdict.count(method) ? verdict[method] : ""));
+      }
+      html += "</table>";
+    }
+  }
+  return html;
+}
+
 std::string ReferenceSection(const Json& reference) {
   const Json& setup = Field(reference, "setup");
   std::string html = fmt::format(
@@ -533,6 +580,9 @@ Status WriteDemoReport(const Json& metrics, const std::string& path, const std::
       }
       html += "</ul>";
     }
+  }
+  if (metrics.contains("dynamics_replicates")) {
+    html += ReplicatesSection(metrics["dynamics_replicates"]);
   }
   if (metrics.contains("simulated_reference")) {
     html += ReferenceSection(metrics["simulated_reference"]);

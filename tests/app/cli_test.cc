@@ -193,12 +193,18 @@ TEST(Cli, DemoMetricsAndReport) {
   EXPECT_GT(dynamics["removal_walk"]["exact_offsets_removed_mm"].get<double>(), 0.0);
   EXPECT_LT(dynamics["removal_walk"]["exact_offsets_removed_mm"].get<double>(),
             walk_removal["no_removal"]["jiggle_mean_mm"].get<double>());
-  // Fig. 5: every bar, the full set included, with the same number of Adam steps.
-  // The full set trains subset_epochs; a subset of fewer takes trains more epochs.
+  // Fig. 5: every bar, the full set included, with exactly the same number of Adam steps.
+  // The full set trains subset_epochs; a subset of fewer rows trains more epochs.
   const auto& bars = dynamics["removal_by_training_frequencies"]["subsets"];
   ASSERT_GE(bars.size(), 2u);
   EXPECT_EQ(bars.back()["epochs"].get<int>(), dynamics["setup"]["subset_epochs"].get<int>());
   EXPECT_GT(bars.front()["epochs"].get<int>(), bars.back()["epochs"].get<int>());
+  EXPECT_LT(bars.front()["training_rows"].get<long>(), bars.back()["training_rows"].get<long>());
+  EXPECT_GT(bars.back()["optimizer_steps"].get<long>(), 0);
+  for (const auto& bar : bars) {
+    EXPECT_EQ(bar["optimizer_steps"].get<long>(), bars.back()["optimizer_steps"].get<long>())
+        << bar.dump();
+  }
   EXPECT_EQ(dynamics["removal_by_training_frequencies"]["subsets"].size(),
             dynamics["setup"]["train_hz"].size());
   const auto& synthesis = dynamics["synthesis"];
@@ -474,6 +480,18 @@ TEST(Cli, DemoRefusesUnknownRemovalTargets) {
       RunCommand(Facedyn("demo --quick --removal-targets exact --out " + dir.Join("d")), &out), 0);
   EXPECT_THAT(out, HasSubstr("--removal-targets"));
   EXPECT_FALSE(std::filesystem::exists(dir.Join("d/metrics.json")));
+}
+
+// --seeds: a repeated seed or one that is not a number is refused before any stage runs.
+TEST(Cli, DemoRefusesRepeatedOrMalformedSeeds) {
+  TempDir dir;
+  std::string out;
+  EXPECT_NE(RunCommand(Facedyn("demo --quick --seeds 1,2,1 --out " + dir.Join("d")), &out), 0);
+  EXPECT_THAT(out, HasSubstr("--seeds: 1 is given twice"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("d")));
+  EXPECT_NE(RunCommand(Facedyn("demo --quick --seeds 1,x --out " + dir.Join("e")), &out), 0);
+  EXPECT_THAT(out, HasSubstr("--seeds"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("e")));
 }
 
 }  // namespace

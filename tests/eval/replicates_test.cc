@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
+#include <string>
+
 namespace facedyn::eval {
 namespace {
 
@@ -51,6 +54,60 @@ TEST(SummariseRemovalReplicates, MatchesTakesByNameAndJudgesFAgainstBaselines) {
   for (const Json& v : take["verdicts"]) verdict[v["against"]] = v["error_is"];
   EXPECT_EQ(verdict.at("lowpass"), "lower");
   EXPECT_EQ(verdict.at("moving_average"), "tie");  // 0.005 mm inside a 0.01 mm spread
+}
+
+// The demo's stages, one per seed: removal per protocol with the lower reference, Fig. 7's
+// residual, the walk synthesis and the retargeting, each judged for the learned method only.
+TEST(SummariseDemoReplicates, EverySectionPerProtocolWithVerdicts) {
+  std::vector<Json> stages;
+  for (double d : {0.0, 0.01, 0.02}) {
+    Json stage;
+    stage["removal"] = {{"exact_offsets_removed_mm", 0.05 + d},
+                        {"methods",
+                         {{"F", {{"jiggle_mean_mm", 0.10 + d}}},
+                          {"lowpass", {{"jiggle_mean_mm", 0.30 + d}}}}}};
+    stage["removal_walk"] = {{"exact_offsets_removed_mm", 0.04},
+                             {"methods",
+                              {{"F", {{"jiggle_mean_mm", 0.50 + d}}},
+                               {"lowpass", {{"jiggle_mean_mm", 0.20 + d}}}}}};
+    stage["synthesis"] = {
+        {"resynthesis", {{"resynthesis_residual_mm", 0.3 + d}, {"removed_without_synthesis_mm", 1.0}}},
+        {"walk", {{"methods", {{"H", {{"offset_mean_mm", 0.2}}}, {"no_dynamics", {{"offset_mean_mm", 0.21}}}}}}}};
+    stage["retarget"] = {{"methods",
+                          {{"H_B_retarget", {{"offset_mean_mm", 0.40 + 5 * d}}},
+                           {"naive_delta_transfer", {{"offset_mean_mm", 0.30}}},
+                           {"no_dynamics", {{"offset_mean_mm", 0.70}}}}}};
+    stages.push_back(stage);
+  }
+  const Json summary = SummariseDemoReplicates(stages, {1, 2, 3});
+  EXPECT_EQ(summary["replicates"], 3);
+  EXPECT_EQ(summary["seeds"], Json::array({1, 2, 3}));
+  auto verdicts = [](const Json& take) {
+    std::map<std::string, std::string> out;
+    for (const Json& v : take["verdicts"]) out[v["method"].get<std::string>() + " vs " +
+                                               v["against"].get<std::string>()] = v["error_is"];
+    return out;
+  };
+  ASSERT_EQ(summary["removal"].size(), 2u);  // no removal_performance in these stages
+  const Json& frequency = summary["removal"][0];
+  EXPECT_EQ(frequency["take"], "removal");
+  EXPECT_EQ(frequency["protocol"], "held-out platform frequency");
+  EXPECT_NEAR(frequency["methods"]["lower_reference"]["mean_mm"].get<double>(), 0.06, 1e-9);
+  EXPECT_NEAR(frequency["methods"]["F"]["sd_mm"].get<double>(), 0.01, 1e-9);
+  EXPECT_EQ(verdicts(frequency).at("F vs lowpass"), "lower");
+  EXPECT_EQ(verdicts(frequency).at("F vs lower_reference"), "higher");
+  EXPECT_EQ(verdicts(summary["removal"][1]).at("F vs lowpass"), "higher");
+  const Json& resynthesis = summary["resynthesis"][0];
+  EXPECT_NEAR(resynthesis["methods"]["H_resynthesis_residual"]["mean_mm"].get<double>(), 0.31,
+              1e-9);
+  EXPECT_EQ(verdicts(resynthesis).at("H_resynthesis_residual vs removed_without_synthesis"),
+            "lower");
+  // 0.2 against 0.21 with no spread: outside a zero spread, so lower (the rule, not a judgement).
+  EXPECT_EQ(verdicts(summary["new_motion_synthesis"][0]).at("H vs no_dynamics"), "lower");
+  const auto retarget = verdicts(summary["retarget"][0]);
+  EXPECT_EQ(retarget.at("H_B_retarget vs naive_delta_transfer"), "higher");  // 0.45 +- 0.05
+  EXPECT_EQ(retarget.at("H_B_retarget vs no_dynamics"), "lower");
+  EXPECT_EQ(retarget.size(), 2u);  // only the learned method is judged
 }
 
 }  // namespace

@@ -210,6 +210,36 @@ TEST(TrainMlp, DecayingLearningRateIsDeterministicAndDiffersFromConstant) {
   EXPECT_NE(train(1.0), decayed);
 }
 
+// A step budget (paper Fig. 5's equal budgets): exactly that many Adam steps whatever the rows,
+// the last epoch cut short; a budget of whole epochs trains bitwise as `epochs` does.
+TEST(TrainMlp, OptimizerStepBudgetIsExactWhateverTheRows) {
+  const LinearDataset data(500);  // 10 batches of 50 per epoch
+  MlpTrainOptions options = QuietOptions(3);
+  MlpTrainSummary summary;
+  Mlp by_epochs = Mlp::Create(SmallShape(), 9).value();
+  ASSERT_TRUE(TrainMlp(data, AllRows(data), {}, options, &by_epochs, &summary).ok());
+  EXPECT_EQ(summary.optimizer_steps, 30);
+  EXPECT_EQ(summary.epochs, 3);
+
+  options.optimizer_steps = 30;
+  options.epochs = 7;  // ignored under a budget
+  EXPECT_EQ(TrainSmallOnAllRows(data, options).FlatParameters(), by_epochs.FlatParameters());
+
+  // Fewer rows, the same budget: more epochs, the last one partial.
+  std::vector<long> fewer = AllRows(data);
+  fewer.resize(120);  // 3 batches per epoch (50, 50, 20)
+  options.optimizer_steps = 31;
+  Mlp on_fewer = Mlp::Create(SmallShape(), 9).value();
+  ASSERT_TRUE(TrainMlp(data, fewer, {}, options, &on_fewer, &summary).ok());
+  EXPECT_EQ(summary.optimizer_steps, 31);
+  EXPECT_EQ(summary.epochs, 11);  // ceil(31 / 3)
+  ASSERT_EQ(summary.train_loss.size(), 11u);
+  EXPECT_TRUE(std::isfinite(summary.train_loss.back()));
+
+  options.optimizer_steps = -1;
+  EXPECT_THAT(options.Check().message(), HasSubstr("optimizer_steps"));
+}
+
 TEST(MlpTrainOptions, RegularisersDefaultToNoneAndAreChecked) {
   MlpTrainOptions options;
   EXPECT_EQ(options.weight_decay, 0.0);

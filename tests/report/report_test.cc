@@ -163,6 +163,37 @@ TEST(WriteDemoReport, PartialMetricsStillWrite) {
   EXPECT_THAT(testing::ReadBytes(dir.Join("report.html")), HasSubstr("n/a"));
 }
 
+// With --seeds the report has a Replicates section (means, spreads, verdicts) and the one-seed
+// section says it is one seed of several; without, it says it is no comparison.
+TEST(WriteDemoReport, ReplicatesSectionWithVerdicts) {
+  testing::TempDir dir;
+  Json metrics;
+  metrics["dynamics"]["setup"] = Json::object();
+  ASSERT_TRUE(WriteDemoReport(metrics, dir.Join("one.html")).ok());
+  const std::string one = testing::ReadBytes(dir.Join("one.html"));
+  EXPECT_THAT(one, HasSubstr("One seed: differences here are not comparisons"));
+  EXPECT_THAT(one, ::testing::Not(HasSubstr("Replicates:")));
+
+  metrics["dynamics"]["replicates_note"] = "This section is seed 1 alone.";
+  metrics["dynamics_replicates"] = {
+      {"replicates", 3},
+      {"seeds", {1, 2, 3}},
+      {"rule", "a difference within the larger standard deviation is a tie"},
+      {"removal",
+       {{{"take", "removal"},
+         {"protocol", "held-out <frequency>"},
+         {"methods",
+          {{"F", {{"mean_mm", 0.1234}, {"sd_mm", 0.01}, {"replicates", 3}}},
+           {"lowpass", {{"mean_mm", 0.1301}, {"sd_mm", 0.002}, {"replicates", 3}}}}},
+         {"verdicts", {{{"method", "F"}, {"against", "lowpass"}, {"error_is", "tie"}}}}}}}};
+  ASSERT_TRUE(WriteDemoReport(metrics, dir.Join("three.html")).ok());
+  const std::string three = testing::ReadBytes(dir.Join("three.html"));
+  EXPECT_THAT(three, HasSubstr("Replicates: the dynamics stage over 3 seeds"));
+  EXPECT_THAT(three, HasSubstr("This section is seed 1 alone."));
+  EXPECT_THAT(three, HasSubstr("held-out &lt;frequency&gt;"));
+  EXPECT_THAT(three, HasSubstr("<td>lowpass</td><td>0.1301</td><td>0.0020</td><td>3</td><td>F tie</td>"));
+}
+
 TEST(SvgLinePlot, BreaksLinesAtGapsAndEscapes) {
   const std::string svg = SvgLinePlot(
       "f <vs> t", "t (s)", "f (Hz)",

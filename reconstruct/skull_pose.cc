@@ -4,6 +4,7 @@
 #include <cmath>
 #include <set>
 
+#include "core/mesh.h"
 #include "reconstruct/rigid_fit.h"
 
 namespace facedyn::reconstruct {
@@ -42,7 +43,9 @@ SkullPoseEstimator::SkullPoseEstimator(const FaceRig& rig, const SkullPoseOption
   }
   const int n = static_cast<int>(stable_markers_.size());
   rest_in_skull_.resize(3, n);
+  normal_in_skull_.resize(3, n);
   thickness_mm_.resize(n);
+  const Eigen::Matrix3Xd normals = VertexNormals(rig.neutral, rig.neutral.positions_mm);
   // Tissue thickness: distance from the skin point to the skull beneath it. When the skull
   // shares the skin's topology (as FaceRigs from sim/face_anatomy.h do) that is the same
   // surface point on the skull; otherwise the nearest skull vertex.
@@ -51,6 +54,9 @@ SkullPoseEstimator::SkullPoseEstimator(const FaceRig& rig, const SkullPoseOption
     const SurfacePoint& p = rig.markers[stable_markers_[k]].point;
     const Eigen::Vector3d skin = p.Evaluate(rig.neutral.positions_mm);
     rest_in_skull_.col(k) = skin;
+    const Eigen::Vector3d normal = p.Evaluate(normals);
+    normal_in_skull_.col(k) =
+        normal.norm() > 1e-12 ? Eigen::Vector3d(normal.normalized()) : Eigen::Vector3d::UnitZ();
     double thickness = 5.0;
     if (paired) {
       thickness = (skin - p.Evaluate(rig.skull.positions_mm)).norm();
@@ -116,6 +122,28 @@ SkullPoseResult SkullPoseEstimator::Estimate(const Eigen::Matrix3Xd& markers_in_
     const bool settled = next.IsApprox(pose, 1e-10);
     pose = next;
     if (settled && iteration > 2) break;
+  }
+  if (options_.translation_from_normals) {
+    // T <- T (I, v): skull_from_world x_i moves by -v, so the normal residual against the rest
+    // position (a tangential deflection has no normal part; d above has one, so it is not used)
+    // e_i = n_i . (T^-1 dst_i - rest_i) becomes e_i - n_i . v; weighted least squares in v.
+    for (int iteration = 0; iteration < 3; ++iteration) {
+      const Rigid3 skull_from_world = pose.Inverse();
+      Eigen::Matrix3d normal_matrix = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+      for (int i = 0; i < n; ++i) {
+        const Eigen::Vector3d normal = normal_in_skull_.col(used[i]);
+        const double e =
+            normal.dot(skull_from_world * Eigen::Vector3d(dst.col(i)) - src.col(i));
+        normal_matrix += weights[i] * normal * normal.transpose();
+        rhs += weights[i] * normal * e;
+      }
+      // Directions no normal covers keep their translation (a small ridge).
+      normal_matrix += 1e-9 * normal_matrix.trace() * Eigen::Matrix3d::Identity();
+      const Eigen::Vector3d v = normal_matrix.ldlt().solve(rhs);
+      pose = pose * Rigid3::FromTranslation(v);
+      if (v.norm() < 1e-9) break;
+    }
   }
   double sq = 0.0;
   for (int i = 0; i < n; ++i) {

@@ -1,0 +1,208 @@
+// skull_pose_bench: how much of the stable markers' jiggle leaks into the estimated skull pose
+// (issue 20), per platform frequency and head motion, printed as JSON.
+//
+// Every take is simulated (sim/performance.h: the procedural face, neutral, default tissue), its
+// markers are read off the simulated skin (the positions a perfect reconstruction would
+// triangulate), Gaussian noise of --noise-mm per axis is added, and the skull pose is estimated
+// per frame by reconstruct/skull_pose.h with each of the variants below. The error against the
+// simulator's world_from_skull is reported at the skull origin (mm) and as a rotation angle
+// (degrees), RMS and max over the frames after the motion's fade-in (--skip-s). The simulator
+// is the truth here only: no variant reads it.
+//
+// Variants (SkullPoseOptions): "rigid" (a plain robust rigid fit, equal weights, no
+// deflection), "deflection" (thickness weights and one deflection d per frame moving every
+// marker along it: the estimator before translation_from_normals), and
+// "deflection_translation_from_normals" (the default: then the translation re-fitted to the
+// markers' normal components only).
+//
+// Also per take, a diagnostic of the truth: the share of the stable markers' true dynamic offset
+// (skull frame) that is normal to the skin, and its RMS.
+//
+//   skull_pose_bench [--noise-mm S] [--seconds S] [--skip-s S] [--seed N]
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "bench/bench_flags.h"
+#include "core/json_io.h"
+#include "core/log.h"
+#include "core/mesh.h"
+#include "reconstruct/skull_pose.h"
+#include "sim/performance.h"
+#include "sim/procedural_face.h"
+
+namespace {
+
+using facedyn::Json;
+
+struct TakeSpec {
+  std::string name;
+  facedyn::sim::MotionOptions motion;
+};
+
+std::vector<TakeSpec> Specs(uint64_t seed) {
+  std::vector<TakeSpec> specs;
+  for (double hz : {6.0, 8.5, 11.0}) {
+    facedyn::sim::MotionOptions motion;
+    motion.kind = facedyn::sim::MotionKind::kPlatform;
+    motion.platform_hz = hz;
+    motion.seed = seed;
+    specs.push_back({fmt::format("platform {:g} Hz", hz), motion});
+  }
+  for (auto kind : {facedyn::sim::MotionKind::kWalk, facedyn::sim::MotionKind::kRun}) {
+    facedyn::sim::MotionOptions motion;
+    motion.kind = kind;
+    motion.seed = seed;
+    specs.push_back({std::string(facedyn::sim::MotionKindName(kind)) + " in place", motion});
+  }
+  for (auto& spec : specs) {
+    // In place: forward speed changes nothing for the tissue (dynamics_study.h).
+    spec.motion.walk_speed_mm_per_s = 0;
+    spec.motion.run_speed_mm_per_s = 0;
+  }
+  return specs;
+}
+
+struct PoseError {
+  double origin_rms_mm = 0, origin_max_mm = 0, rotation_rms_deg = 0, rotation_max_deg = 0;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace facedyn;
+  double noise_mm = 0.0, seconds = 2.0, skip_s = 0.5;
+  uint64_t seed = 1;
+  for (int k = 1; k < argc; ++k) {
+    const std::string arg = argv[k];
+    auto next = [&]() -> const char* {
+      if (k + 1 >= argc) {
+        std::fprintf(stderr, "skull_pose_bench: %s needs a value\n", arg.c_str());
+        std::exit(2);
+      }
+      return argv[++k];
+    };
+    if (arg == "--noise-mm") {
+      noise_mm = bench::FlagNumber("skull_pose_bench", arg, next());
+    } else if (arg == "--seconds") {
+      seconds = bench::FlagNumber("skull_pose_bench", arg, next());
+    } else if (arg == "--skip-s") {
+      skip_s = bench::FlagNumber("skull_pose_bench", arg, next());
+    } else if (arg == "--seed") {
+      seed = static_cast<uint64_t>(bench::FlagInteger("skull_pose_bench", arg, next()));
+    } else {
+      std::fprintf(stderr,
+                   "usage: skull_pose_bench [--noise-mm S] [--seconds S] [--skip-s S] [--seed N]\n");
+      return 2;
+    }
+  }
+  if (!(noise_mm >= 0) || !(seconds >= 1) || !(skip_s >= 0) || skip_s >= seconds) {
+    std::fprintf(stderr, "skull_pose_bench: need --noise-mm >= 0, --seconds >= 1, 0 <= --skip-s < --seconds\n");
+    return 2;
+  }
+  InitLogging(Verbosity::kQuiet);
+  const FaceRig face = sim::MakeProceduralFace(sim::ProceduralFaceOptions()).value();
+  struct Variant {
+    std::string name;
+    reconstruct::SkullPoseOptions options;
+  };
+  std::vector<Variant> variants(3);
+  variants[0].name = "rigid";
+  variants[0].options.thickness_prior = false;
+  variants[0].options.deflection_model = false;
+  variants[0].options.translation_from_normals = false;
+  variants[1].name = "deflection";
+  variants[1].options.translation_from_normals = false;
+  variants[2].name = "deflection_translation_from_normals";  // the default
+  std::vector<reconstruct::SkullPoseEstimator> estimators;
+  for (const Variant& v : variants) estimators.emplace_back(face, v.options);
+  const std::vector<int>& stable = estimators.front().stable_markers();
+  const Eigen::Matrix3Xd normals = VertexNormals(face.neutral, face.neutral.positions_mm);
+
+  Json takes = Json::array();
+  std::mt19937_64 rng(seed * 7919 + 17);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  for (const TakeSpec& spec : Specs(seed)) {
+    sim::PerformanceOptions perform;
+    perform.expression = "neutral";
+    perform.motion = spec.motion;
+    perform.seconds = seconds;
+    perform.seed = seed;
+    auto simulated = sim::SimulatePerformance(face, perform);
+    if (!simulated.ok()) {
+      std::fprintf(stderr, "skull_pose_bench: %s: %s\n", spec.name.c_str(),
+                   simulated.status().message().c_str());
+      return 1;
+    }
+    const Take& take = *simulated;
+    const int first = static_cast<int>(std::lround(skip_s * take.info.fps));
+    const int markers = static_cast<int>(face.markers.size());
+    std::vector<reconstruct::MarkerState> states(markers, reconstruct::MarkerState::kObserved);
+    std::vector<double> confidence(markers, 1.0);
+    std::vector<PoseError> errors(variants.size());
+    double normal_sq = 0, offset_sq = 0;
+    long offset_n = 0;
+    const PointCache& offsets = take.channels.at("dynamic_offset");
+    for (int f = first; f < take.frame_count(); ++f) {
+      const Eigen::Matrix3Xd positions = take.FramePositions(f);
+      Eigen::Matrix3Xd in_world(3, markers);
+      for (int m = 0; m < markers; ++m) {
+        in_world.col(m) = face.markers[m].point.Evaluate(positions) +
+                          noise_mm * Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+      }
+      const Rigid3& truth = take.world_from_skull[f];
+      std::vector<Rigid3> estimates;
+      for (size_t v = 0; v < variants.size(); ++v) {
+        // The initial pose is only the fallback of a frame with too few markers (never here).
+        estimates.push_back(
+            estimators[v].Estimate(in_world, states, confidence, Rigid3()).world_from_skull);
+      }
+      for (size_t v = 0; v < estimates.size(); ++v) {
+        const Rigid3 d = truth.Inverse() * estimates[v];
+        const double t = d.translation().norm(), r = d.AngleRad() * 180.0 / M_PI;
+        errors[v].origin_rms_mm += t * t;
+        errors[v].rotation_rms_deg += r * r;
+        errors[v].origin_max_mm = std::max(errors[v].origin_max_mm, t);
+        errors[v].rotation_max_deg = std::max(errors[v].rotation_max_deg, r);
+      }
+      const Eigen::Matrix3Xf frame_offsets = offsets.Frame(f);
+      for (int m : stable) {
+        const Eigen::Vector3d offset = face.markers[m].point.Evaluate(frame_offsets);
+        const Eigen::Vector3d normal = face.markers[m].point.Evaluate(normals).normalized();
+        normal_sq += std::pow(offset.dot(normal), 2);
+        offset_sq += offset.squaredNorm();
+        ++offset_n;
+      }
+    }
+    const int frames = take.frame_count() - first;
+    Json by_variant = Json::object();
+    for (size_t v = 0; v < errors.size(); ++v) {
+      by_variant[variants[v].name] = {
+          {"origin_rms_mm", std::sqrt(errors[v].origin_rms_mm / frames)},
+          {"origin_max_mm", errors[v].origin_max_mm},
+          {"rotation_rms_deg", std::sqrt(errors[v].rotation_rms_deg / frames)},
+          {"rotation_max_deg", errors[v].rotation_max_deg}};
+    }
+    takes.push_back({{"take", spec.name},
+                     {"frames_scored", frames},
+                     {"stable_marker_offset_rms_mm", std::sqrt(offset_sq / offset_n)},
+                     {"stable_marker_offset_normal_share", offset_sq > 0 ? normal_sq / offset_sq : 0},
+                     {"pose_error", by_variant}});
+    std::fprintf(stderr, "%s done\n", spec.name.c_str());
+  }
+  const Json out = {{"bench", "skull_pose"},
+                    {"face", "procedural, neutral, default tissue"},
+                    {"stable_markers", stable.size()},
+                    {"noise_mm", noise_mm},
+                    {"seconds", seconds},
+                    {"skip_s", skip_s},
+                    {"seed", seed},
+                    {"takes", takes}};
+  std::printf("%s\n", out.dump(2).c_str());
+  return 0;
+}

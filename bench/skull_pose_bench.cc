@@ -10,10 +10,10 @@
 // is the truth here only: no variant reads it.
 //
 // Variants (SkullPoseOptions): "rigid" (a plain robust rigid fit, equal weights, no
-// deflection), "deflection" (thickness weights and one deflection d per frame moving every
-// marker along it: the estimator before translation_from_normals), and
-// "deflection_translation_from_normals" (the default: then the translation re-fitted to the
-// markers' normal components only).
+// deflection); "deflection_wP" (prior weights (t_min / t)^P and one deflection d per frame
+// moving every marker along it; w2 is round 1's estimator); "..._normals" (then the
+// translation re-fitted to the markers' normal components only). The default is
+// deflection_w4_normals.
 //
 // Also per take, a diagnostic of the truth: the share of the stable markers' true dynamic offset
 // (skull frame) that is normal to the skin, and its RMS.
@@ -111,14 +111,23 @@ int main(int argc, char** argv) {
     std::string name;
     reconstruct::SkullPoseOptions options;
   };
-  std::vector<Variant> variants(3);
-  variants[0].name = "rigid";
-  variants[0].options.thickness_prior = false;
-  variants[0].options.deflection_model = false;
-  variants[0].options.translation_from_normals = false;
-  variants[1].name = "deflection";
-  variants[1].options.translation_from_normals = false;
-  variants[2].name = "deflection_translation_from_normals";  // the default
+  std::vector<Variant> variants;
+  auto add = [&](const std::string& name, double power, bool deflection, bool normals) {
+    Variant v;
+    v.name = name;
+    v.options.thickness_prior = power > 0;
+    v.options.thickness_weight_power = power > 0 ? power : 2.0;
+    v.options.deflection_model = deflection;
+    v.options.translation_from_normals = normals;
+    variants.push_back(v);
+  };
+  add("rigid", 0, false, false);
+  add("deflection_w2", 2, true, false);  // the estimator of round 1
+  add("deflection_w2_normals", 2, true, true);
+  add("deflection_w4", 4, true, false);
+  add("deflection_w4_normals", 4, true, true);  // the default
+  add("deflection_w6_normals", 6, true, true);
+  add("deflection_w8_normals", 8, true, true);
   std::vector<reconstruct::SkullPoseEstimator> estimators;
   for (const Variant& v : variants) estimators.emplace_back(face, v.options);
   const std::vector<int>& stable = estimators.front().stable_markers();

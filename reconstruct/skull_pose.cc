@@ -68,7 +68,8 @@ SkullPoseEstimator::SkullPoseEstimator(const FaceRig& rig, const SkullPoseOption
   }
   const double thinnest = thickness_mm_.minCoeff();
   prior_weights_ = options.thickness_prior
-                       ? Eigen::VectorXd((thinnest / thickness_mm_.array()).square())
+                       ? Eigen::VectorXd((thinnest / thickness_mm_.array())
+                                             .pow(options.thickness_weight_power))
                        : Eigen::VectorXd::Ones(n);
 }
 

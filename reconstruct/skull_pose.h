@@ -4,9 +4,8 @@
 //
 // Why it is shaped this way: even the stable regions jiggle (~0.3-1 mm peak at 11 Hz in the
 // simulator, growing with tissue thickness), and that motion is coherent across the region,
-// so no outlier test removes it and a plain rigid fit passes it into the pose (0.27-0.30 mm
-// RMS at the skull origin on a noise-free simulated 11 Hz take). Two anatomical priors keep it
-// out:
+// so no outlier test removes it and a plain rigid fit passes it into the pose (0.29 mm RMS at
+// the skull origin on a noise-free simulated 11 Hz take). Three anatomical priors keep it out:
 //  (a) an inertial deflection model: a soft layer of thickness t bonded to bone and loaded by
 //      a body force (its own inertia) deflects at the surface in proportion to t^2, so the
 //      stable markers' skull-frame positions are modelled as rest_i + (t_i / 5 mm)^2 d(t) with
@@ -14,10 +13,14 @@
 //      least squares (d given T is linear; T given d is a weighted Kabsch). Thickness varies
 //      (about 4.5-8 mm over forehead, nose bridge and temples), which makes d separable from
 //      the pose's translation;
-//  (b) weights: a marker's prior weight is (t_min / t)^2, so thin tissue counts more, times its
-//      tracking confidence, times a robust Huber weight (discounting a frown or a mislabelled
-//      point). Bridged markers enter at their (lower) confidence, missing ones not.
-// On the noise-free take above (a)+(b) leave 0.15 mm RMS. Thickness is the skin-to-skull
+//  (b) weights: a marker's prior weight is (t_min / t)^4, the inverse variance of a jiggle
+//      that grows as t^2, times its tracking confidence, times a robust Huber weight
+//      (discounting a frown or a mislabelled point). Bridged markers enter at their (lower)
+//      confidence, missing ones not;
+//  (c) the jiggle slides the skin along itself (2-4% of its energy along the normal), so the
+//      translation is re-fitted to the markers' normal components (translation_from_normals).
+// On the noise-free take above (a)-(c) leave 0.048 mm and 0.020 degrees RMS
+// (bench/skull_pose_bench; README, "Skull pose"). Thickness is the skin-to-skull
 // distance under each marker (the same surface point on the skull when the skull shares the
 // skin's topology, as sim/face_anatomy.h rigs do; otherwise the nearest skull vertex).
 #pragma once
@@ -36,6 +39,10 @@ struct SkullPoseOptions {
   double huber_mm = 0.25;
   int iterations = 8;
   bool thickness_prior = true;
+  // The prior weight is (t_min / t)^thickness_weight_power. 4: the inverse variance of a
+  // marker whose jiggle grows as t^2 (the deflection model's law), as jaw_pose.h weights;
+  // bench/skull_pose_bench measures 2, 4, 6 and 8 (README, "Skull pose").
+  double thickness_weight_power = 4.0;
   bool deflection_model = true;
   // After the fit above, re-fit the pose's translation (rotation kept) to the stable markers'
   // components along their skin normals only (point-to-plane, Gauss-Newton, the same weights):
@@ -43,8 +50,8 @@ struct SkullPoseOptions {
   // stage), so the normal components see the skull's translation with little leak; rotation is
   // not refitted because the stable regions are close to a sphere, whose rotations about its
   // centre no normal sees. bench/skull_pose_bench, noise-free markers of the simulated
-  // neutral face: origin error RMS 0.143 -> 0.075 mm at 11 Hz, 0.090 -> 0.042 at 6 Hz,
-  // 0.341 -> 0.094 on a run in place (rotation unchanged; README, "Skull pose").
+  // neutral face, weight power 2: origin error RMS 0.143 -> 0.075 mm at 11 Hz, 0.090 -> 0.042
+  // at 6 Hz, 0.341 -> 0.094 on a run in place (rotation unchanged; README, "Skull pose").
   bool translation_from_normals = true;
   int min_markers = 4;
   Status Check() const;

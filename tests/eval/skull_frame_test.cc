@@ -47,7 +47,7 @@ TEST(SkullFrameMeanDistance, FixedOffsetIsFreeJitterIsNot) {
   std::vector<Rigid3> jittering;
   for (int t = 0; t < frames; ++t) {
     jittering.push_back(true_poses[t] *
-                        Rigid3::FromAxisAngle(Eigen::Vector3d::UnitY(), t % 2 ? 1e-3 : -1e-3, {}));
+                        Rigid3::FromAxisAngle(Eigen::Vector3d::UnitY(), t % 2 ? 1e-3 : -1e-3));
   }
   const double jitter_mm =
       SkullFrameMeanDistance(truth, jittering, truth, true_poses, all, range);

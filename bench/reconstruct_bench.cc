@@ -14,9 +14,12 @@
 //  - calibration: the 13 OpenCV photographs in ../shared/assets/opencv-calib against
 //    cv::calibrateCamera on the same corners (when present), and a synthetic 4-camera rig.
 //
-//   reconstruct_bench [--shared DIR] [--frames N] [--seconds S]
+//   reconstruct_bench [--shared DIR] [--frames N] [--seconds S] [--stage NAME]
+//
+// --stage detection|pipeline|jaw|calibration runs one part only (for profiling); default all.
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -77,6 +80,9 @@ Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int 
   detection.min_diameter_px = 3.0;
   detection.max_diameter_px = 16.0;
   double detect_s = 0.0, triangulate_s = 0.0, sq2d = 0.0, sq3d = 0.0;
+  double candidates_ms = 0.0, fit_ms = 0.0, occlusion_ms = 0.0, read_s = 0.0;
+  long candidates = 0, iterations = 0, evaluations = 0, occlusion_fits = 0, refitted = 0,
+       pixel_evaluations = 0, occlusion_iterations = 0;
   int n2d = 0, n3d = 0, detections = 0, points = 0, visible = 0;
   for (int k = 0; k < frames; ++k) {
     const int f = (k * 7) % take.frame_count();
@@ -86,9 +92,38 @@ Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int 
     std::vector<cv::Mat> images;
     for (const Camera& camera : cameras)
       images.push_back(RenderMarkers(rig, camera, markers, normals, &rng));
+    // The floor: what merely reading every pixel of the 8 images once costs (a sum per image,
+    // on the same threads), so the detection rate can be read against the memory bandwidth.
     auto start = Clock::now();
+    {
+      std::vector<double> sums(images.size());
+      std::atomic<size_t> next{0};
+      auto work = [&] {
+        for (size_t i = next++; i < images.size(); i = next++) sums[i] = cv::sum(images[i])[0];
+      };
+      std::vector<std::thread> pool;
+      for (int t = 1; t < threads; ++t) pool.emplace_back(work);
+      work();
+      for (std::thread& thread : pool) thread.join();
+      if (sums[0] < 0) std::abort();  // keeps the sums live
+    }
+    read_s += Seconds(start);
+    start = Clock::now();
     std::vector<std::vector<ImageObservation>> observed(cameras.size());
-    const auto found_all = DetectMarkersInImages(images, detection, threads);
+    std::vector<MarkerDetectionSummary> summaries;
+    const auto found_all = DetectMarkersInImages(images, detection, threads, &summaries);
+    for (const MarkerDetectionSummary& summary : summaries) {
+      candidates_ms += summary.candidates_ms;
+      fit_ms += summary.fit_ms;
+      occlusion_ms += summary.occlusion_ms;
+      candidates += summary.candidates;
+      iterations += summary.fit_iterations;
+      evaluations += summary.fit_evaluations;
+      pixel_evaluations += summary.fit_pixel_evaluations;
+      occlusion_fits += summary.occlusion_fits;
+      occlusion_iterations += summary.occlusion_iterations;
+      refitted += summary.refitted_for_occlusion;
+    }
     for (size_t c = 0; c < cameras.size(); ++c) {
       const auto& found = found_all[c];
       if (!found.ok()) continue;
@@ -134,7 +169,26 @@ Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int 
   out["threads"] = threads;
   out["image_size"] = {1280, 1024};
   out["frames"] = frames;
+  out["read_images_ms_per_frame"] = 1e3 * read_s / frames;
+  out["read_images_fps"] = frames / read_s;
   out["detect_ms_per_frame"] = 1e3 * detect_s / frames;
+  out["detect_fps"] = frames / detect_s;
+  // Per image, summed over the threads (CPU time of each stage, not wall time of the frame).
+  out["per_image_ms"] = {{"candidates", candidates_ms / (frames * cameras.size())},
+                         {"fits", fit_ms / (frames * cameras.size())},
+                         {"occlusion_and_merge", occlusion_ms / (frames * cameras.size())}};
+  out["candidates_per_image"] = static_cast<double>(candidates) / (frames * cameras.size());
+  out["iterations_per_fit"] = static_cast<double>(iterations) / std::max(1L, candidates);
+  out["evaluations_per_fit"] = static_cast<double>(evaluations) / std::max(1L, candidates);
+  out["window_pixels_per_evaluation"] =
+      static_cast<double>(pixel_evaluations) / std::max(1L, evaluations);
+  out["fit_ns_per_pixel_evaluation"] = 1e6 * fit_ms / std::max(1L, pixel_evaluations);
+  out["occlusion_fits_per_image"] =
+      static_cast<double>(occlusion_fits) / (frames * cameras.size());
+  out["iterations_per_occlusion_fit"] =
+      static_cast<double>(occlusion_iterations) / std::max(1L, occlusion_fits);
+  out["occlusion_refits_kept_per_image"] =
+      static_cast<double>(refitted) / (frames * cameras.size());
   out["triangulate_ms_per_frame"] = 1e3 * triangulate_s / frames;
   out["detect_triangulate_fps"] = frames / (detect_s + triangulate_s);
   out["visible_markers_per_frame"] = static_cast<double>(visible) / frames;
@@ -438,6 +492,7 @@ int main(int argc, char** argv) {
   std::string shared = std::string(FACEDYN_SOURCE_DIR) + "/../shared";
   int frames = 10;
   double seconds = 1.5;
+  std::string stage = "all";
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--shared" && i + 1 < argc) {
@@ -448,8 +503,20 @@ int main(int argc, char** argv) {
     } else if (arg == "--seconds" && i + 1 < argc) {
       seconds = std::max(
           0.75, facedyn::bench::FlagNumber("reconstruct_bench", "--seconds", argv[++i]));
+    } else if (arg == "--stage" && i + 1 < argc) {
+      stage = argv[++i];
+      if (stage != "all" && stage != "detection" && stage != "pipeline" && stage != "jaw" &&
+          stage != "calibration") {
+        std::fprintf(stderr,
+                     "reconstruct_bench: --stage must be all, detection, pipeline, jaw or "
+                     "calibration, not '%s'\n",
+                     stage.c_str());
+        return 2;
+      }
     } else {
-      std::fprintf(stderr, "usage: reconstruct_bench [--shared DIR] [--frames N] [--seconds S]\n");
+      std::fprintf(stderr,
+                   "usage: reconstruct_bench [--shared DIR] [--frames N] [--seconds S] "
+                   "[--stage all|detection|pipeline|jaw|calibration]\n");
       return 2;
     }
   }
@@ -473,13 +540,18 @@ int main(int argc, char** argv) {
   }
   Json out;
   out["machine"] = {{"hardware_threads", std::thread::hardware_concurrency()}};
-  out["detection_triangulation_1_thread"] = BenchDetection(*rig, *take, frames, 1);
-  out["detection_triangulation"] =
-      BenchDetection(*rig, *take, frames, static_cast<int>(std::thread::hardware_concurrency()));
-  out["pipeline_11hz_smile"] = BenchPipeline(*rig, *take);
-  out["jaw"] = {{"jaw_open_11hz", BenchJaw(*rig, "jaw_open", seconds)},
-                {"speech_11hz", BenchJaw(*rig, "speech", std::max(seconds, 2.0))}};
-  out["calibration"] = BenchCalibration(shared);
+  const auto wanted = [&](const char* name) { return stage == "all" || stage == name; };
+  if (wanted("detection")) {
+    out["detection_triangulation_1_thread"] = BenchDetection(*rig, *take, frames, 1);
+    out["detection_triangulation"] = BenchDetection(
+        *rig, *take, frames, static_cast<int>(std::thread::hardware_concurrency()));
+  }
+  if (wanted("pipeline")) out["pipeline_11hz_smile"] = BenchPipeline(*rig, *take);
+  if (wanted("jaw")) {
+    out["jaw"] = {{"jaw_open_11hz", BenchJaw(*rig, "jaw_open", seconds)},
+                  {"speech_11hz", BenchJaw(*rig, "speech", std::max(seconds, 2.0))}};
+  }
+  if (wanted("calibration")) out["calibration"] = BenchCalibration(shared);
   std::printf("%s\n", out.dump(2).c_str());
   return 0;
 }

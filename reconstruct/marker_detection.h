@@ -68,6 +68,17 @@ struct MarkerDetectionSummary {
   int rejected_contrast = 0;
   int rejected_quality = 0;
   int duplicates = 0;
+  int fit_iterations = 0;   // of the first fits, summed over candidates
+  int fit_evaluations = 0;  // model evaluations over a window in those fits
+  long fit_pixel_evaluations = 0;  // pixels x evaluations in those fits
+  int occlusion_fits = 0;   // fits tried for suspected occlusion (several starts per suspect)
+  int occlusion_iterations = 0;  // summed over those fits
+  int refitted_for_occlusion = 0;  // detections whose occlusion refit was kept
+  // CPU time of each stage in this call (the calling thread's), milliseconds, for
+  // reconstruct_bench's profile.
+  double candidates_ms = 0.0;  // band-pass and local maxima
+  double fit_ms = 0.0;         // the blurred-ellipse fits
+  double occlusion_ms = 0.0;   // the occlusion refits and the duplicate merge
 };
 
 // Detects markers in an 8-bit grayscale image. InvalidArgument for an empty or non-8-bit image
@@ -77,9 +88,11 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
                                                      MarkerDetectionSummary* summary = nullptr);
 
 // DetectMarkers on several images (one per camera) on up to `threads` threads (0 = the
-// machine's hardware threads); results in image order.
+// machine's hardware threads); results in image order. `summaries`, when given, receives one
+// summary per image (empty images: all zero).
 std::vector<StatusOr<std::vector<MarkerDetection>>> DetectMarkersInImages(
-    const std::vector<cv::Mat>& images, const MarkerDetectionOptions& options, int threads = 0);
+    const std::vector<cv::Mat>& images, const MarkerDetectionOptions& options, int threads = 0,
+    std::vector<MarkerDetectionSummary>* summaries = nullptr);
 
 // The blurred-ellipse model and its gradient with respect to
 // p = (x0, y0, l11, l12, l22, w, a, b), at pixel (x, y). Exposed for the gradient test.

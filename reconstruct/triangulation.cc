@@ -71,7 +71,12 @@ bool TriangulateLinear(const std::vector<Camera>& cameras,
                        const std::vector<ImageObservation>& observations,
                        Eigen::Vector3d* point_in_world) {
   if (observations.size() < 2) return false;
-  Eigen::MatrixXd a(2 * observations.size(), 4);
+  // The homogeneous point is the null vector of the stacked 2N x 4 system A; it is taken as the
+  // eigenvector of the 4x4 A^T A with the smallest eigenvalue, which is what an SVD of A gives
+  // (V's last column) at a fraction of the cost: correspondence triangulates every epipolar
+  // hypothesis, and the dynamic-size SVD was the largest part of its time. The rows are in
+  // normalised coordinates, so A^T A stays well conditioned.
+  Eigen::Matrix4d ata = Eigen::Matrix4d::Zero();
   for (size_t i = 0; i < observations.size(); ++i) {
     const Camera& camera = cameras[observations[i].camera];
     const Eigen::Vector2d n = camera.Undistort(observations[i].pixel);
@@ -79,11 +84,14 @@ bool TriangulateLinear(const std::vector<Camera>& cameras,
     pose.leftCols<3>() = camera.cam_from_world.RotationMatrix();
     pose.col(3) = camera.cam_from_world.translation();
     const double w = std::max(1e-3, observations[i].weight);
-    a.row(2 * i) = w * (n.x() * pose.row(2) - pose.row(0));
-    a.row(2 * i + 1) = w * (n.y() * pose.row(2) - pose.row(1));
+    Eigen::Matrix<double, 2, 4> rows;
+    rows.row(0) = w * (n.x() * pose.row(2) - pose.row(0));
+    rows.row(1) = w * (n.y() * pose.row(2) - pose.row(1));
+    ata.noalias() += rows.transpose() * rows;
   }
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(a, Eigen::ComputeFullV);
-  const Eigen::Vector4d x = svd.matrixV().col(3);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eigen(ata);
+  if (eigen.info() != Eigen::Success) return false;
+  const Eigen::Vector4d x = eigen.eigenvectors().col(0);  // eigenvalues in increasing order
   if (std::abs(x[3]) < 1e-12) return false;
   *point_in_world = x.head<3>() / x[3];
   for (const ImageObservation& o : observations) {
@@ -200,6 +208,21 @@ std::vector<TriangulatedPoint> TriangulateDetections(
 
   std::vector<TriangulatedPoint> points;
   std::vector<TriangulatedPoint> hypotheses;
+  // member_of[c][i]: the hypotheses that already contain detection i of camera c. A marker
+  // seen by k cameras is found from each of its k(k-1)/2 camera pairs; once one pair's
+  // hypothesis holds both detections of another pair, that pair would triangulate, verify and
+  // refine the same point again (most of correspondence's time on an 8-camera rig), so it is
+  // skipped.
+  std::vector<std::vector<std::vector<int>>> member_of(n);
+  for (int c = 0; c < n; ++c) member_of[c].resize(detections[c].size());
+  const auto already_hypothesised = [&](int a, int i, int b, int j) {
+    for (int h : member_of[a][i]) {
+      if (std::find(member_of[b][j].begin(), member_of[b][j].end(), h) != member_of[b][j].end()) {
+        return true;
+      }
+    }
+    return false;
+  };
   for (const Pair& pair : pairs) {
     const Camera& ca = cameras[pair.a];
     const Camera& cb = cameras[pair.b];
@@ -218,6 +241,10 @@ std::vector<TriangulatedPoint> TriangulateDetections(
       for (int j = 0; j < static_cast<int>(detections[pair.b].size()); ++j) {
         const Eigen::Vector3d xb(normalized[pair.b][j].x(), normalized[pair.b][j].y(), 1.0);
         if (std::abs(xb.dot(line)) / line_norm * focal_b > options.epipolar_px) continue;
+        if (already_hypothesised(pair.a, i, pair.b, j)) {
+          ++summary.repeated_pairs;
+          continue;
+        }
         std::vector<ImageObservation> observations = {detections[pair.a][i], detections[pair.b][j]};
         observations[0].camera = pair.a;
         observations[0].detection = i;
@@ -246,6 +273,9 @@ std::vector<TriangulatedPoint> TriangulateDetections(
                          &point) ||
             point.rms_px > options.max_rms_px) {
           continue;
+        }
+        for (const ImageObservation& o : point.observations) {
+          member_of[o.camera][o.detection].push_back(static_cast<int>(hypotheses.size()));
         }
         hypotheses.push_back(std::move(point));
       }

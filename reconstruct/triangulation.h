@@ -1,20 +1,21 @@
 // Multi-view correspondence and triangulation of marker detections.
 //
 // Triangulation of one point from N >= 2 views: linear (DLT on undistorted normalised
-// coordinates, rows weighted by the detection quality), then Gauss-Newton on the reprojection
-// error in pixels through the full lens model, dropping views whose residual exceeds
-// `reprojection_px` and re-solving.
+// coordinates, rows weighted by the detection quality; the null vector from the 4x4 normal
+// matrix), then Gauss-Newton on the reprojection error in pixels through the full lens model,
+// dropping views whose residual exceeds `reprojection_px` and re-solving.
 //
 // Correspondence (which detections in which cameras are the same marker) uses the epipolar
 // constraint and verification in further views: for every camera pair whose viewing
 // directions differ by less than 75 degrees, every pair of detections within `epipolar_px` of
 // each other's epipolar line is triangulated and projected into every other camera; the
-// nearest detection within 2 `reprojection_px` of the projection supports it. Hypotheses with
-// at least `min_views` views are refined, then accepted globally best-first (most views, then
-// lowest RMS) while none of their detections is taken; one that lost views to a better one is
-// re-refined on the rest and tried again. Global order matters: a 3-view coincidence must not
-// take the detections of a 6-view point. Two views alone cannot tell a true match from an
-// accidental epipolar coincidence, so min_views defaults to 3.
+// nearest detection within 2 `reprojection_px` of the projection supports it. A pair whose two
+// detections are already in one hypothesis is not tried again (it would find the same point).
+// Hypotheses with at least `min_views` views are refined, then accepted globally best-first
+// (most views, then lowest RMS) while none of their detections is taken; one that lost views
+// to a better one is re-refined on the rest and tried again. Global order matters: a 3-view
+// coincidence must not take the detections of a 6-view point. Two views alone cannot tell a
+// true match from an accidental epipolar coincidence, so min_views defaults to 3.
 #pragma once
 
 #include <Eigen/Core>
@@ -78,6 +79,7 @@ struct CorrespondenceOptions {
 struct TriangulationSummary {
   int detections = 0;
   int hypotheses = 0;
+  int repeated_pairs = 0;  // epipolar pairs skipped: both detections already in one hypothesis
   int points = 0;
   int unused_detections = 0;
 };

@@ -156,9 +156,12 @@ StatusOr<Eigen::MatrixXd> FitWeightsToMarkers(const Puppet& puppet, const Eigen:
   ceres::Solver::Options solver_options;
   solver_options.max_num_iterations = options.max_iterations;
   solver_options.num_threads = options.num_threads;
-  solver_options.function_tolerance = 1e-14;
-  solver_options.gradient_tolerance = 1e-14;
-  solver_options.parameter_tolerance = 1e-12;
+  // Tight enough that clean puppet markers give the weights back to ~1e-9 (marker_fit_test),
+  // loose enough that noisy markers, whose optimum sits on the bounds, end on a criterion
+  // rather than the iteration limit.
+  solver_options.function_tolerance = 1e-12;
+  solver_options.gradient_tolerance = 1e-10;
+  solver_options.parameter_tolerance = 1e-10;
   solver_options.logging_type = ceres::SILENT;
 
   auto add_bounds = [&](ceres::Problem* problem, double* block) {

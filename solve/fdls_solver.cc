@@ -8,6 +8,9 @@
 #include <numeric>
 #include <random>
 
+#include "core/file_util.h"
+#include "core/json_io.h"
+
 namespace facedyn::solve {
 namespace {
 
@@ -194,6 +197,174 @@ double FdlsSolver::ForwardMultiplyAdds() const {
   double total = jaw_.mlp.shape().ForwardMultiplyAdds();
   for (const Network& network : regions_) total += network.mlp.shape().ForwardMultiplyAdds();
   return total;
+}
+
+namespace {
+
+constexpr int kSolverFormatVersion = 1;
+constexpr const char* kNetworkKind = "fdls_region";
+
+Json MatrixJson(const Eigen::MatrixXd& m) {
+  return Json{{"rows", m.rows()}, {"cols", m.cols()},
+              {"data", std::vector<double>(m.data(), m.data() + m.size())}};
+}
+
+StatusOr<Eigen::MatrixXd> MatrixFromJson(const Json& j, const std::string& where) {
+  if (!j.is_object() || !j.contains("rows") || !j.contains("cols") || !j.contains("data") ||
+      !j["rows"].is_number_integer() || !j["cols"].is_number_integer() || !j["data"].is_array()) {
+    return DataLossError(where + ": expected {rows, cols, data}");
+  }
+  const long rows = j["rows"].get<long>(), cols = j["cols"].get<long>();
+  if (rows < 0 || cols < 0 || static_cast<long>(j["data"].size()) != rows * cols) {
+    return DataLossError(fmt::format("{}: {} x {} with {} values", where, rows, cols, j["data"].size()));
+  }
+  Eigen::MatrixXd m(rows, cols);
+  for (long i = 0; i < rows * cols; ++i) {
+    if (!j["data"][static_cast<size_t>(i)].is_number()) return DataLossError(where + ": a value is not a number");
+    m.data()[i] = j["data"][static_cast<size_t>(i)].get<double>();
+  }
+  return m;
+}
+
+Json RegionJson(const ResolvedRegion& region) {
+  return Json{{"name", region.spec.name},
+              {"rig_regions", region.spec.rig_regions},
+              {"channels", region.spec.channels},
+              {"features", region.spec.features.ToString()},
+              {"jaw_conditioned", region.spec.jaw_conditioned},
+              {"marker_indices", region.markers},
+              {"channel_indices", region.channels}};
+}
+
+}  // namespace
+
+Status FdlsSolver::Save(const std::string& dir) const {
+  FACEDYN_RETURN_IF_ERROR(MakeDirectories(dir));
+  Json regions = Json::array();
+  auto save_network = [&](const Network& network) -> Status {
+    regions.push_back(RegionJson(network.region));
+    return network.mlp.Save(dir + "/" + network.region.spec.name + ".pt", kNetworkKind,
+                            Json{{"region", network.region.spec.name}});
+  };
+  FACEDYN_RETURN_IF_ERROR(save_network(jaw_));
+  for (const Network& network : regions_) FACEDYN_RETURN_IF_ERROR(save_network(network));
+  Json pairs = Json::array();
+  for (const auto& [a, b] : puppet_.symmetric_pairs) pairs.push_back({a, b});
+  const Json root = {
+      {"format", "facedyn_fdls_solver"},
+      {"version", kSolverFormatVersion},
+      {"units", "mm"},
+      {"puppet",
+       {{"rig_name", puppet_.rig_name},
+        {"channel_names", puppet_.channel_names},
+        {"marker_names", puppet_.marker_names},
+        {"marker_vertices", puppet_.marker_vertices},
+        {"neutral_markers_in_skull", MatrixJson(puppet_.neutral_markers_in_skull)},
+        {"marker_basis_mm", MatrixJson(puppet_.marker_basis_mm)},
+        {"lower_bounds", MatrixJson(puppet_.lower_bounds)},
+        {"upper_bounds", MatrixJson(puppet_.upper_bounds)},
+        {"symmetric_pairs", pairs}}},
+      {"regions", regions}};  // the jaw first
+  return WriteJsonFile(dir + "/solver.json", root);
+}
+
+StatusOr<FdlsSolver> FdlsSolver::Load(const std::string& dir) {
+  const std::string path = dir + "/solver.json";
+  FACEDYN_ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path));
+  const Json root = Json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (root.is_discarded() || !root.is_object()) return DataLossError(path + ": not a JSON object");
+  if (root.value("format", "") != "facedyn_fdls_solver" || root.value("version", 0) != kSolverFormatVersion) {
+    return DataLossError(fmt::format("{}: not an FDLS solver of format version {}", path, kSolverFormatVersion));
+  }
+  if (!root.contains("puppet") || !root.contains("regions") || !root["regions"].is_array() ||
+      root["regions"].empty()) {
+    return DataLossError(path + ": missing 'puppet' or 'regions'");
+  }
+  FdlsSolver solver;
+  Puppet& puppet = solver.puppet_;
+  try {
+    const Json& p = root["puppet"];
+    puppet.rig_name = p.at("rig_name").get<std::string>();
+    puppet.channel_names = p.at("channel_names").get<std::vector<std::string>>();
+    puppet.marker_names = p.at("marker_names").get<std::vector<std::string>>();
+    puppet.marker_vertices = p.at("marker_vertices").get<std::vector<int>>();
+    for (const Json& pair : p.at("symmetric_pairs")) {
+      puppet.symmetric_pairs.emplace_back(pair.at(0).get<int>(), pair.at(1).get<int>());
+    }
+  } catch (const Json::exception& e) {
+    return DataLossError(path + ": puppet: " + e.what());
+  }
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd neutral,
+                           MatrixFromJson(root["puppet"].value("neutral_markers_in_skull", Json()), path + ": neutral_markers_in_skull"));
+  FACEDYN_ASSIGN_OR_RETURN(puppet.marker_basis_mm,
+                           MatrixFromJson(root["puppet"].value("marker_basis_mm", Json()), path + ": marker_basis_mm"));
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd lower,
+                           MatrixFromJson(root["puppet"].value("lower_bounds", Json()), path + ": lower_bounds"));
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd upper,
+                           MatrixFromJson(root["puppet"].value("upper_bounds", Json()), path + ": upper_bounds"));
+  const int m_count = puppet.marker_count(), c_count = puppet.channel_count();
+  if (neutral.rows() != 3 || neutral.cols() != m_count || puppet.marker_basis_mm.rows() != 3 * m_count ||
+      puppet.marker_basis_mm.cols() != c_count || lower.size() != c_count || upper.size() != c_count ||
+      static_cast<int>(puppet.marker_vertices.size()) != m_count) {
+    return DataLossError(fmt::format("{}: puppet sizes disagree with its {} markers and {} channels", path, m_count, c_count));
+  }
+  puppet.neutral_markers_in_skull = neutral;
+  puppet.lower_bounds = Eigen::Map<const Eigen::VectorXd>(lower.data(), c_count);
+  puppet.upper_bounds = Eigen::Map<const Eigen::VectorXd>(upper.data(), c_count);
+
+  const int jaw_size = [&] {
+    try {
+      return static_cast<int>(root["regions"][0].at("channel_indices").size());
+    } catch (const Json::exception&) {
+      return 0;
+    }
+  }();
+  for (size_t r = 0; r < root["regions"].size(); ++r) {
+    const Json& j = root["regions"][r];
+    const std::string where = fmt::format("{}: regions[{}]", path, r);
+    ResolvedRegion region;
+    try {
+      region.spec.name = j.at("name").get<std::string>();
+      region.spec.rig_regions = j.at("rig_regions").get<std::vector<std::string>>();
+      region.spec.channels = j.at("channels").get<std::vector<std::string>>();
+      region.spec.jaw_conditioned = j.at("jaw_conditioned").get<bool>();
+      region.markers = j.at("marker_indices").get<std::vector<int>>();
+      region.channels = j.at("channel_indices").get<std::vector<int>>();
+      StatusOr<FeatureSet> set = FeatureSet::Parse(j.at("features").get<std::string>());
+      if (!set.ok()) return DataLossError(where + ": " + set.status().message());
+      region.spec.features = set.value();
+    } catch (const Json::exception& e) {
+      return DataLossError(where + ": " + e.what());
+    }
+    for (int m : region.markers) {
+      if (m < 0 || m >= m_count) return DataLossError(fmt::format("{}: marker index {} out of range", where, m));
+    }
+    for (int c : region.channels) {
+      if (c < 0 || c >= c_count) return DataLossError(fmt::format("{}: channel index {} out of range", where, c));
+    }
+    if (region.markers.size() < 2 || region.channels.empty() || (r == 0 && region.spec.jaw_conditioned)) {
+      return DataLossError(where + ": needs 2 markers, a channel, and the first (jaw) region unconditioned");
+    }
+    Json config;
+    FACEDYN_ASSIGN_OR_RETURN(learn::Mlp mlp,
+                             learn::Mlp::Load(dir + "/" + region.spec.name + ".pt", kNetworkKind, &config));
+    const int expected_inputs = FeatureSize(static_cast<int>(region.markers.size()), region.spec.features) +
+                                (region.spec.jaw_conditioned ? jaw_size : 0);
+    if (mlp.shape().input_size != expected_inputs ||
+        mlp.shape().output_size != static_cast<int>(region.channels.size()) ||
+        mlp.shape().extra_input_size != (region.spec.jaw_conditioned ? jaw_size : 0)) {
+      return DataLossError(fmt::format("{}/{}.pt: a {} -> {} network for a region of {} inputs and {} channels",
+                                       dir, region.spec.name, mlp.shape().input_size, mlp.shape().output_size,
+                                       expected_inputs, region.channels.size()));
+    }
+    Network network{std::move(region), std::move(mlp)};
+    if (r == 0) {
+      solver.jaw_ = std::move(network);
+    } else {
+      solver.regions_.push_back(std::move(network));
+    }
+  }
+  return solver;
 }
 
 }  // namespace facedyn::solve

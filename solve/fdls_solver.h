@@ -58,7 +58,18 @@ class FdlsSolver {
   // weights (C x N) within the puppet's bounds. Error: wrong number of rows.
   StatusOr<Eigen::MatrixXd> Solve(const Eigen::MatrixXd& markers_in_skull) const;
 
+  // A folder: solver.json (the puppet: channel and marker names, neutral markers, B, bounds;
+  // the regions: markers, channels, features, conditioning) and one LibTorch archive per
+  // network (<region>.pt, learn::Mlp's format, kind "fdls_region"). Written file by file; a
+  // failure part-way leaves a folder that Load rejects (solver.json is written last).
+  Status Save(const std::string& dir) const;
+  // Errors name the folder and the file: missing, not JSON, sizes that disagree, a network
+  // whose shape does not match its region.
+  static StatusOr<FdlsSolver> Load(const std::string& dir);
+
   const Puppet& puppet() const { return puppet_; }
+  // Channel indices of the jaw network's outputs.
+  const std::vector<int>& jaw_channels() const { return jaw_.region.channels; }
   // Multiply-adds of one frame through every network (for throughput figures).
   double ForwardMultiplyAdds() const;
 

@@ -179,6 +179,24 @@ TEST(FdlsSolver, TrainedSolverReproducesThePuppetsOwnFrames) {
 
   // A wrong marker count is named, not a crash.
   EXPECT_FALSE(solver.value().Solve(markers.topRows(9)).ok());
+
+  // Save / Load gives the same solve; truncated or missing files are named.
+  facedyn::testing::TempDir dir;
+  ASSERT_TRUE(solver.value().Save(dir.Join("s")).ok());
+  StatusOr<FdlsSolver> loaded = FdlsSolver::Load(dir.Join("s"));
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  EXPECT_EQ(loaded.value().Solve(markers).value(), solved);
+  EXPECT_EQ(loaded.value().puppet().marker_basis_mm, puppet.marker_basis_mm);
+  const std::string json = facedyn::testing::ReadBytes(dir.Join("s/solver.json"));
+  facedyn::testing::WriteBytes(dir.Join("s/solver.json"), json.substr(0, json.size() / 2));
+  loaded = FdlsSolver::Load(dir.Join("s"));
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_NE(loaded.status().message().find("solver.json"), std::string::npos) << loaded.status().message();
+  facedyn::testing::WriteBytes(dir.Join("s/solver.json"), json);
+  facedyn::testing::WriteBytes(dir.Join("s/mouth.pt"), "not an archive");
+  loaded = FdlsSolver::Load(dir.Join("s"));
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_NE(loaded.status().message().find("mouth.pt"), std::string::npos) << loaded.status().message();
 }
 
 }  // namespace

@@ -16,7 +16,11 @@ std::string MirrorName(const std::string& name) {
     const std::string suffix(side);
     if (name.size() > suffix.size() &&
         name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
-      return name.substr(0, name.size() - suffix.size()) + other;
+      const std::string stem = name.substr(0, name.size() - suffix.size());
+      // ARKit's jawLeft/jawRight and mouthLeft/mouthRight move the whole jaw or mouth sideways:
+      // opposite directions of one motion, not one shape split in halves, so never posed together.
+      if (stem == "jaw" || stem == "mouth") return "";
+      return stem + other;
     }
   }
   return "";

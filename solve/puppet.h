@@ -32,8 +32,9 @@ struct Puppet {
   Eigen::MatrixXd marker_basis_mm;            // 3M x C: column c = marker deltas of channel c
   Eigen::VectorXd lower_bounds;               // C, weight bounds (0 for a rig's shapes)
   Eigen::VectorXd upper_bounds;               // C (1)
-  // Left/right channel pairs found by name (suffixes _L/_R, Left/Right), for the symmetric and
-  // asymmetric training poses (FDLS 4.1). Empty for the procedural face (no split channels).
+  // Left/right channel pairs found by name (suffixes _L/_R, Left/Right; not ARKit's sideways
+  // jawLeft/jawRight and mouthLeft/mouthRight), for the symmetric and asymmetric training poses
+  // (FDLS 4.1). Empty for the procedural face (no split channels).
   std::vector<std::pair<int, int>> symmetric_pairs;
 
   int channel_count() const { return static_cast<int>(channel_names.size()); }

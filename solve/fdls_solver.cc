@@ -193,6 +193,26 @@ StatusOr<Eigen::MatrixXd> FdlsSolver::Solve(const Eigen::MatrixXd& markers_in_sk
   return weights;
 }
 
+StatusOr<Eigen::MatrixXd> FdlsSolver::Solve(
+    const Eigen::MatrixXd& markers_in_skull,
+    const Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic>& present) const {
+  if (present.rows() != puppet_.marker_count() || present.cols() != markers_in_skull.cols() ||
+      markers_in_skull.rows() != 3 * puppet_.marker_count()) {
+    return InvalidArgumentError(fmt::format(
+        "FDLS solve: {} x {} markers and {} x {} presence flags for {} markers",
+        markers_in_skull.rows(), markers_in_skull.cols(), present.rows(), present.cols(),
+        puppet_.marker_count()));
+  }
+  Eigen::MatrixXd filled = markers_in_skull;
+  for (Eigen::Index f = 0; f < filled.cols(); ++f) {
+    const Eigen::Array<bool, Eigen::Dynamic, 1> frame = present.col(f);
+    if (frame.all()) continue;
+    if (!frame.any()) return InvalidArgumentError(fmt::format("FDLS solve: frame {} has no marker", f));
+    FillMissingMarkers(puppet_, frame, filled.col(f));
+  }
+  return Solve(filled);
+}
+
 double FdlsSolver::ForwardMultiplyAdds() const {
   double total = jaw_.mlp.shape().ForwardMultiplyAdds();
   for (const Network& network : regions_) total += network.mlp.shape().ForwardMultiplyAdds();

@@ -57,6 +57,11 @@ class FdlsSolver {
   // Stacked markers (3M x N, skull frame, mm, every marker present: see FillMissingMarkers) ->
   // weights (C x N) within the puppet's bounds. Error: wrong number of rows.
   StatusOr<Eigen::MatrixXd> Solve(const Eigen::MatrixXd& markers_in_skull) const;
+  // The same with missing markers (present: M x N, false where missing), each refilled from its
+  // nearest present neighbours (FillMissingMarkers, as the training dropout refills them).
+  // Errors: sizes, a frame without any marker.
+  StatusOr<Eigen::MatrixXd> Solve(const Eigen::MatrixXd& markers_in_skull,
+                                  const Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic>& present) const;
 
   // A folder: solver.json (the puppet: channel and marker names, neutral markers, B, bounds;
   // the regions: markers, channels, features, conditioning) and one LibTorch archive per

@@ -146,6 +146,7 @@ TEST(FdlsSolver, TrainedSolverReproducesThePuppetsOwnFrames) {
   data_options.rom_clips = 40;
   data_options.augment_copies = 1;
   data_options.jaw_channels = config.jaw.channels;
+  data_options.dropout = 0.1;  // the copies lose a tenth of their markers, refilled as a solve refills them
   const Eigen::MatrixXd weights = MakeTrainingWeights(puppet, data_options).value();
   const TrainingSet data = MakeTrainingSet(puppet, weights, data_options).value();
   FdlsTrainOptions train;
@@ -176,6 +177,25 @@ TEST(FdlsSolver, TrainedSolverReproducesThePuppetsOwnFrames) {
   EXPECT_LT(marker_rmse, 0.2);
   EXPECT_GE(solved.minCoeff(), 0.0);
   EXPECT_LE(solved.maxCoeff(), 1.0);
+
+  // A tenth of the markers lost in every frame (refilled from neighbours): still close.
+  Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic> present =
+      Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic>::Constant(puppet.marker_count(), truth.cols(), true);
+  for (Eigen::Index f = 0; f < truth.cols(); ++f) {
+    for (int m = static_cast<int>(f % 10); m < puppet.marker_count(); m += 10) present(m, f) = false;
+  }
+  Eigen::MatrixXd holes = markers;
+  for (Eigen::Index f = 0; f < truth.cols(); ++f) {
+    for (int m = 0; m < puppet.marker_count(); ++m) {
+      if (!present(m, f)) holes.block<3, 1>(3 * m, f).setConstant(-1e4);
+    }
+  }
+  const Eigen::MatrixXd solved_holes = solver.value().Solve(holes, present).value();
+  const double holes_rmse = std::sqrt((solved_holes - truth).squaredNorm() / truth.size());
+  std::printf("held-out weight RMSE with 10%% of the markers missing %.4f\n", holes_rmse);
+  EXPECT_LT(holes_rmse, 0.05);
+  present.col(3).setConstant(false);
+  EXPECT_FALSE(solver.value().Solve(holes, present).ok());
 
   // A wrong marker count is named, not a crash.
   EXPECT_FALSE(solver.value().Solve(markers.topRows(9)).ok());

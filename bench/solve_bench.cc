@@ -54,7 +54,9 @@ using facedyn::Json;
 using namespace facedyn::solve;
 using Clock = std::chrono::steady_clock;
 
-double Seconds(Clock::time_point a) { return std::chrono::duration<double>(Clock::now() - a).count(); }
+double Seconds(Clock::time_point a) {
+  return std::chrono::duration<double>(Clock::now() - a).count();
+}
 
 template <typename T>
 T Check(facedyn::StatusOr<T> value, const char* what) {
@@ -70,7 +72,8 @@ std::vector<std::string> Split(const std::string& list) {
   size_t start = 0;
   while (start <= list.size()) {
     const size_t comma = list.find(',', start);
-    items.push_back(list.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    items.push_back(
+        list.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
     if (comma == std::string::npos) break;
     start = comma + 1;
   }
@@ -164,14 +167,18 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
     data_options.rom_clips = 20;
     data_options.augment_copies = 1;
   }
-  const Eigen::MatrixXd train_weights = Check(MakeTrainingWeights(puppet, data_options), "training weights");
-  const TrainingSet data = Check(MakeTrainingSet(puppet, train_weights, data_options), "training set");
+  const Eigen::MatrixXd train_weights =
+      Check(MakeTrainingWeights(puppet, data_options), "training weights");
+  const TrainingSet data =
+      Check(MakeTrainingSet(puppet, train_weights, data_options), "training set");
   FdlsTrainOptions train_options;
   train_options.seed = seed;
-  train_options.num_threads = 1;  // training on one thread: deterministic and no spin-waits on a shared machine
+  train_options.num_threads =
+      1;  // training on one thread: deterministic and no spin-waits on a shared machine
   std::vector<RegionTrainSummary> summaries;
   auto start = Clock::now();
-  const FdlsSolver solver = Check(FdlsSolver::Train(puppet, config, data, train_options, &summaries), "training");
+  const FdlsSolver solver =
+      Check(FdlsSolver::Train(puppet, config, data, train_options, &summaries), "training");
   const double train_s = Seconds(start);
   Json training = {{"tuples", data.sample_count()},
                    {"poses", train_weights.cols()},
@@ -191,34 +198,49 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
   // The held-out performance: jaw and mouth channels fast, the rest slow.
   std::vector<int> fast = config.jaw.channels;
   for (const ResolvedRegion& region : config.regions) {
-    if (region.spec.name == "mouth") fast.insert(fast.end(), region.channels.begin(), region.channels.end());
+    if (region.spec.name == "mouth")
+      fast.insert(fast.end(), region.channels.begin(), region.channels.end());
   }
   const int frames = static_cast<int>(std::lround(settings.seconds * settings.fps));
   const Eigen::MatrixXd truth = SpeechLikeWeights(puppet, fast, frames, settings.fps, 1000 + seed);
-  const Eigen::MatrixXd clean = (puppet.marker_basis_mm * truth).colwise() + puppet.StackedNeutral();
+  const Eigen::MatrixXd clean =
+      (puppet.marker_basis_mm * truth).colwise() + puppet.StackedNeutral();
   Eigen::MatrixXd noisy = clean;
   std::mt19937_64 rng(2000 + seed);
   std::normal_distribution<double> normal(0.0, settings.noise_mm);
   for (Eigen::Index i = 0; i < noisy.size(); ++i) noisy.data()[i] += normal(rng);
 
   at::set_num_threads(settings.threads);
-  Json test = {{"frames", frames}, {"fps", settings.fps}, {"seed", 1000 + seed}, {"noise_mm", settings.noise_mm}};
-  for (const auto& [name, markers] : {std::pair<const char*, const Eigen::MatrixXd*>{"clean", &clean}, {"noisy", &noisy}}) {
+  Json test = {{"frames", frames},
+               {"fps", settings.fps},
+               {"seed", 1000 + seed},
+               {"noise_mm", settings.noise_mm}};
+  for (const auto& [name, markers] :
+       {std::pair<const char*, const Eigen::MatrixXd*>{"clean", &clean}, {"noisy", &noisy}}) {
     Eigen::MatrixXd network;
-    const double network_fps = FramesPerSecond(frames, [&] { network = Check(solver.Solve(*markers), "solve"); });
+    const double network_fps =
+        FramesPerSecond(frames, [&] { network = Check(solver.Solve(*markers), "solve"); });
     Eigen::MatrixXd qp;
     MarkerFitSummary qp_summary;
-    const double qp_fps = FramesPerSecond(frames, [&] { qp = Check(SolveMarkersQp(puppet, *markers, nullptr, &qp_summary), "qp"); });
+    const double qp_fps = FramesPerSecond(
+        frames, [&] { qp = Check(SolveMarkersQp(puppet, *markers, nullptr, &qp_summary), "qp"); });
     Eigen::MatrixXd tuned;
     MarkerFitSummary tune_summary;
     const double tune_fps = FramesPerSecond(frames, [&] {
-      tuned = Check(FitWeightsToMarkers(puppet, *markers, network, nullptr, MarkerFitOptions{}, &tune_summary), "finetune");
+      tuned = Check(FitWeightsToMarkers(puppet, *markers, network, nullptr, MarkerFitOptions{},
+                                        &tune_summary),
+                    "finetune");
     });
-    Json entry = {{"network", ToJson(Score(puppet, config.jaw.channels, network, truth, *markers), network_fps)},
-                  {"qp_baseline", ToJson(Score(puppet, config.jaw.channels, qp, truth, *markers), qp_fps)},
-                  {"network_finetuned", ToJson(Score(puppet, config.jaw.channels, tuned, truth, *markers), tune_fps)}};
-    entry["qp_baseline"]["iterations_per_frame"] = static_cast<double>(qp_summary.iterations) / frames;
-    entry["network_finetuned"]["iterations_per_frame"] = static_cast<double>(tune_summary.iterations) / frames;
+    Json entry = {
+        {"network",
+         ToJson(Score(puppet, config.jaw.channels, network, truth, *markers), network_fps)},
+        {"qp_baseline", ToJson(Score(puppet, config.jaw.channels, qp, truth, *markers), qp_fps)},
+        {"network_finetuned",
+         ToJson(Score(puppet, config.jaw.channels, tuned, truth, *markers), tune_fps)}};
+    entry["qp_baseline"]["iterations_per_frame"] =
+        static_cast<double>(qp_summary.iterations) / frames;
+    entry["network_finetuned"]["iterations_per_frame"] =
+        static_cast<double>(tune_summary.iterations) / frames;
     entry["network_finetuned"]["converged"] = tune_summary.converged;
     test[name] = entry;
   }
@@ -231,34 +253,41 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
       subset.weights.col(static_cast<Eigen::Index>(i)) = data.weights.col(kept[i]);
       subset.markers.col(static_cast<Eigen::Index>(i)) = data.markers.col(kept[i]);
     }
-    const FdlsSolver salient = Check(FdlsSolver::Train(puppet, config, subset, train_options, nullptr), "salient training");
+    const FdlsSolver salient = Check(
+        FdlsSolver::Train(puppet, config, subset, train_options, nullptr), "salient training");
     const Eigen::MatrixXd solved = Check(salient.Solve(clean), "salient solve");
-    test["salient"] = {{"threshold", settings.salient},
-                       {"scale_mm", 1.0},
-                       {"tuples_kept", kept.size()},
-                       {"tuples_all", data.sample_count()},
-                       {"clean_network", ToJson(Score(puppet, config.jaw.channels, solved, truth, clean), 0.0)}};
+    test["salient"] = {
+        {"threshold", settings.salient},
+        {"scale_mm", 1.0},
+        {"tuples_kept", kept.size()},
+        {"tuples_all", data.sample_count()},
+        {"clean_network", ToJson(Score(puppet, config.jaw.channels, solved, truth, clean), 0.0)}};
     test["salient"]["clean_network"].erase("frames_per_s");
   }
   // Anchor alignment (4.4.2): the shot's face 3% larger (sim::ScaledFaceRig about the skull
   // origin) and its mask 2 mm off; the anchor is the frame whose network solve has the least
   // total weight (no truth is read to pick it), its weights taken as the neutral's (0).
   {
-    const facedyn::FaceRig bigger =
-        Check(facedyn::sim::ScaledFaceRig(rig, Eigen::Vector3d::Constant(1.03), rig.name + "_x1.03"), "scaled rig");
+    const facedyn::FaceRig bigger = Check(
+        facedyn::sim::ScaledFaceRig(rig, Eigen::Vector3d::Constant(1.03), rig.name + "_x1.03"),
+        "scaled rig");
     const Puppet shot = Check(MakePuppet(bigger), "scaled puppet");
     const Eigen::Vector3d shift_mm = Eigen::Vector3d(1.0, 1.0, 0.5).normalized() * 2.0;
     Eigen::MatrixXd shifted = (shot.marker_basis_mm * truth).colwise() + shot.StackedNeutral();
-    for (int m = 0; m < puppet.marker_count(); ++m) shifted.middleRows<3>(3 * m).colwise() += shift_mm;
+    for (int m = 0; m < puppet.marker_count(); ++m)
+      shifted.middleRows<3>(3 * m).colwise() += shift_mm;
     const Eigen::MatrixXd before = Check(solver.Solve(shifted), "solve shifted");
     // Frames after the first second only: the curves start at exactly neutral, which a shot
     // does not, and the anchor is meant to be neutral-ish.
-    const Eigen::Index skip = std::min<Eigen::Index>(static_cast<Eigen::Index>(settings.fps), frames - 1);
+    const Eigen::Index skip =
+        std::min<Eigen::Index>(static_cast<Eigen::Index>(settings.fps), frames - 1);
     Eigen::Index anchor = 0;
     before.rightCols(frames - skip).colwise().sum().minCoeff(&anchor);
     anchor += skip;
-    const Eigen::VectorXd offsets = Check(
-        AnchorOffsets(puppet, shifted, static_cast<int>(anchor), Eigen::VectorXd::Zero(puppet.channel_count())), "anchor");
+    const Eigen::VectorXd offsets =
+        Check(AnchorOffsets(puppet, shifted, static_cast<int>(anchor),
+                            Eigen::VectorXd::Zero(puppet.channel_count())),
+              "anchor");
     const Eigen::MatrixXd aligned = Check(AlignToAnchor(shifted, offsets), "align");
     const Eigen::MatrixXd after = Check(solver.Solve(aligned), "solve aligned");
     const Eigen::MatrixXd clean_solve = Check(solver.Solve(clean), "solve clean");
@@ -286,7 +315,8 @@ Json MeanSd(const std::vector<double>& values) {
   double mean = 0.0;
   for (double v : values) mean += v / static_cast<double>(values.size());
   double var = 0.0;
-  for (double v : values) var += (v - mean) * (v - mean) / static_cast<double>(std::max<size_t>(1, values.size() - 1));
+  for (double v : values)
+    var += (v - mean) * (v - mean) / static_cast<double>(std::max<size_t>(1, values.size() - 1));
   return Json{{"mean", mean}, {"sd", std::sqrt(var)}, {"n", values.size()}};
 }
 
@@ -295,9 +325,11 @@ Json Replicates(const std::vector<Json>& studies) {
   Json out;
   for (const char* set : {"clean", "noisy"}) {
     for (const char* method : {"network", "qp_baseline", "network_finetuned"}) {
-      for (const char* figure : {"weight_rmse", "jaw_weight_rmse", "marker_rmse_mm", "frames_per_s"}) {
+      for (const char* figure :
+           {"weight_rmse", "jaw_weight_rmse", "marker_rmse_mm", "frames_per_s"}) {
         std::vector<double> values;
-        for (const Json& s : studies) values.push_back(s["test"][set][method][figure].get<double>());
+        for (const Json& s : studies)
+          values.push_back(s["test"][set][method][figure].get<double>());
         out[set][method][figure] = MeanSd(values);
       }
     }
@@ -305,7 +337,8 @@ Json Replicates(const std::vector<Json>& studies) {
   for (const char* figure : {"network_weight_rmse_shifted", "network_weight_rmse_aligned",
                              "fraction_of_added_error_removed"}) {
     std::vector<double> values;
-    for (const Json& s : studies) values.push_back(s["test"]["anchor_alignment"][figure].get<double>());
+    for (const Json& s : studies)
+      values.push_back(s["test"]["anchor_alignment"][figure].get<double>());
     out["anchor_alignment"][figure] = MeanSd(values);
   }
   return out;
@@ -333,7 +366,8 @@ int main(int argc, char** argv) {
     } else if (arg == "--seeds") {
       seeds.clear();
       for (const std::string& item : Split(next())) {
-        seeds.push_back(static_cast<uint64_t>(facedyn::bench::FlagInteger("solve_bench", arg, item.c_str())));
+        seeds.push_back(
+            static_cast<uint64_t>(facedyn::bench::FlagInteger("solve_bench", arg, item.c_str())));
       }
     } else if (arg == "--epochs") {
       settings.epochs = static_cast<int>(facedyn::bench::FlagInteger("solve_bench", arg, next()));
@@ -349,8 +383,9 @@ int main(int argc, char** argv) {
     } else if (arg == "--threads") {
       settings.threads = static_cast<int>(facedyn::bench::FlagInteger("solve_bench", arg, next()));
     } else if (arg == "--help" || arg == "-h") {
-      std::printf("solve_bench [--quick] [--seed N] [--seeds 1,2,3] [--epochs N] [--seconds S] [--fps N]\n"
-                  "            [--noise-mm S] [--salient T] [--threads N]\n");
+      std::printf(
+          "solve_bench [--quick] [--seed N] [--seeds 1,2,3] [--epochs N] [--seconds S] [--fps N]\n"
+          "            [--noise-mm S] [--salient T] [--threads N]\n");
       return 0;
     } else {
       std::fprintf(stderr, "solve_bench: unknown flag '%s' (--help lists them)\n", arg.c_str());
@@ -358,17 +393,21 @@ int main(int argc, char** argv) {
     }
   }
   if (settings.quick && !epochs_given) settings.epochs = 10;
-  if (settings.epochs < 1 || settings.threads < 1 || !(settings.seconds > 0) || !(settings.fps > 0) ||
-      settings.noise_mm < 0 || settings.salient < 0 || settings.salient > 1 || seeds.empty()) {
-    std::fprintf(stderr, "solve_bench: --epochs and --threads >= 1, --seconds and --fps > 0, --noise-mm >= 0, "
-                         "--salient in [0, 1], at least one seed\n");
+  if (settings.epochs < 1 || settings.threads < 1 || !(settings.seconds > 0) ||
+      !(settings.fps > 0) || settings.noise_mm < 0 || settings.salient < 0 ||
+      settings.salient > 1 || seeds.empty()) {
+    std::fprintf(
+        stderr,
+        "solve_bench: --epochs and --threads >= 1, --seconds and --fps > 0, --noise-mm >= 0, "
+        "--salient in [0, 1], at least one seed\n");
     return 2;
   }
   if (settings.seconds * settings.fps < 2) {
     std::fprintf(stderr, "solve_bench: --seconds x --fps gives fewer than 2 frames\n");
     return 2;
   }
-  const facedyn::FaceRig rig = Check(facedyn::sim::MakeProceduralFace(facedyn::sim::ProceduralFaceOptions{}), "procedural face");
+  const facedyn::FaceRig rig = Check(
+      facedyn::sim::MakeProceduralFace(facedyn::sim::ProceduralFaceOptions{}), "procedural face");
   const Puppet puppet = Check(MakePuppet(rig), "puppet");
   const SolveConfig config = Check(ProceduralSolveConfig(), "solve config");
   const ResolvedConfig resolved = Check(ResolveSolveConfig(config, rig, puppet), "solve config");

@@ -21,7 +21,8 @@ StatusOr<Eigen::VectorXd> AnchorOffsets(const Puppet& puppet, const Eigen::Matri
                                         int anchor_frame, const Eigen::VectorXd& anchor_weights);
 
 // markers_t - alpha_t o for every frame (alpha: N, or empty for all ones).
-StatusOr<Eigen::MatrixXd> AlignToAnchor(const Eigen::MatrixXd& markers, const Eigen::VectorXd& offsets,
+StatusOr<Eigen::MatrixXd> AlignToAnchor(const Eigen::MatrixXd& markers,
+                                        const Eigen::VectorXd& offsets,
                                         const Eigen::VectorXd& alpha = Eigen::VectorXd());
 
 }  // namespace facedyn::solve

@@ -38,7 +38,8 @@ class DenseDataset final : public learn::MlpDataset {
 
 Eigen::MatrixXd Rows(const Eigen::MatrixXd& matrix, const std::vector<int>& rows) {
   Eigen::MatrixXd out(rows.size(), matrix.cols());
-  for (size_t r = 0; r < rows.size(); ++r) out.row(static_cast<Eigen::Index>(r)) = matrix.row(rows[r]);
+  for (size_t r = 0; r < rows.size(); ++r)
+    out.row(static_cast<Eigen::Index>(r)) = matrix.row(rows[r]);
   return out;
 }
 
@@ -47,21 +48,25 @@ Eigen::MatrixXd Rows(const Eigen::MatrixXd& matrix, const std::vector<int>& rows
 Status FdlsTrainOptions::Check() const {
   if (num_threads < 0) return InvalidArgumentError(fmt::format("num_threads: {} < 0", num_threads));
   if (!(validation_fraction >= 0.0 && validation_fraction < 0.9)) {
-    return InvalidArgumentError(fmt::format("validation_fraction: {} is not in [0, 0.9)", validation_fraction));
+    return InvalidArgumentError(
+        fmt::format("validation_fraction: {} is not in [0, 0.9)", validation_fraction));
   }
   return Status::Ok();
 }
 
 Eigen::MatrixXf FdlsSolver::RegionInputs(const Puppet& puppet, const ResolvedRegion& region,
-                                         const Eigen::MatrixXd& markers, const Eigen::MatrixXd* jaw) {
+                                         const Eigen::MatrixXd& markers,
+                                         const Eigen::MatrixXd* jaw) {
   const int n_markers = static_cast<int>(region.markers.size());
   const int features = FeatureSize(n_markers, region.spec.features);
   const int extra = jaw != nullptr ? static_cast<int>(jaw->rows()) : 0;
   Eigen::MatrixXf inputs(features + extra, markers.cols());
   Eigen::Matrix3Xd neutral(3, n_markers), frame(3, n_markers);
-  for (int i = 0; i < n_markers; ++i) neutral.col(i) = puppet.neutral_markers_in_skull.col(region.markers[i]);
+  for (int i = 0; i < n_markers; ++i)
+    neutral.col(i) = puppet.neutral_markers_in_skull.col(region.markers[i]);
   for (Eigen::Index f = 0; f < markers.cols(); ++f) {
-    for (int i = 0; i < n_markers; ++i) frame.col(i) = markers.col(f).segment<3>(3 * region.markers[i]);
+    for (int i = 0; i < n_markers; ++i)
+      frame.col(i) = markers.col(f).segment<3>(3 * region.markers[i]);
     ComputeGraphFeatures(frame, neutral, region.spec.features, inputs.col(f).data());
     if (extra > 0) inputs.col(f).tail(extra) = jaw->col(f).cast<float>();
   }
@@ -86,7 +91,8 @@ StatusOr<FdlsSolver::Network> FdlsSolver::TrainNetwork(
     shape.extra_input_size = jaw_inputs;
     shape.extra_input_layer = shape.hidden_layers;
   }
-  FACEDYN_RETURN_IF_ERROR(shape.Check().WithContext("network of region '" + region.spec.name + "'"));
+  FACEDYN_RETURN_IF_ERROR(
+      shape.Check().WithContext("network of region '" + region.spec.name + "'"));
   FACEDYN_ASSIGN_OR_RETURN(learn::Mlp mlp, learn::Mlp::Create(shape, options.seed));
 
   const long n = inputs.cols();
@@ -110,8 +116,9 @@ StatusOr<FdlsSolver::Network> FdlsSolver::TrainNetwork(
   train.progress_label = "solve " + region.spec.name;
   DenseDataset data(&inputs, &targets);
   learn::MlpTrainSummary trained;
-  FACEDYN_RETURN_IF_ERROR(learn::TrainMlp(data, train_rows, validation_rows, train, &mlp, &trained)
-                              .WithContext("training the network of region '" + region.spec.name + "'"));
+  FACEDYN_RETURN_IF_ERROR(
+      learn::TrainMlp(data, train_rows, validation_rows, train, &mlp, &trained)
+          .WithContext("training the network of region '" + region.spec.name + "'"));
   if (summary != nullptr) {
     summary->region = region.spec.name;
     summary->markers = static_cast<int>(region.markers.size());
@@ -130,12 +137,14 @@ StatusOr<FdlsSolver> FdlsSolver::Train(const Puppet& puppet, const ResolvedConfi
                                        const TrainingSet& data, const FdlsTrainOptions& options,
                                        std::vector<RegionTrainSummary>* summaries) {
   FACEDYN_RETURN_IF_ERROR(options.Check().WithContext("FDLS training options"));
-  if (data.markers.rows() != 3 * puppet.marker_count() || data.weights.rows() != puppet.channel_count() ||
-      data.markers.cols() != data.weights.cols() || data.markers.cols() < 2) {
-    return InvalidArgumentError(fmt::format(
-        "FDLS training: {} x {} markers and {} x {} weights for a puppet of {} markers and {} channels",
-        data.markers.rows(), data.markers.cols(), data.weights.rows(), data.weights.cols(),
-        puppet.marker_count(), puppet.channel_count()));
+  if (data.markers.rows() != 3 * puppet.marker_count() ||
+      data.weights.rows() != puppet.channel_count() || data.markers.cols() != data.weights.cols() ||
+      data.markers.cols() < 2) {
+    return InvalidArgumentError(
+        fmt::format("FDLS training: {} x {} markers and {} x {} weights for a puppet of {} markers "
+                    "and {} channels",
+                    data.markers.rows(), data.markers.cols(), data.weights.rows(),
+                    data.weights.cols(), puppet.marker_count(), puppet.channel_count()));
   }
   FdlsSolver solver;
   solver.puppet_ = puppet;
@@ -143,8 +152,8 @@ StatusOr<FdlsSolver> FdlsSolver::Train(const Puppet& puppet, const ResolvedConfi
   RegionTrainSummary summary;
   {
     const Eigen::MatrixXf inputs = RegionInputs(puppet, config.jaw, data.markers, nullptr);
-    FACEDYN_ASSIGN_OR_RETURN(solver.jaw_, TrainNetwork(puppet, config.jaw, config.network, inputs, 0,
-                                                       data.weights, options, &summary));
+    FACEDYN_ASSIGN_OR_RETURN(solver.jaw_, TrainNetwork(puppet, config.jaw, config.network, inputs,
+                                                       0, data.weights, options, &summary));
     if (summaries != nullptr) summaries->push_back(summary);
   }
   // Eq. (4): the conditioned networks see the ground-truth jaw while training.
@@ -166,11 +175,12 @@ StatusOr<FdlsSolver> FdlsSolver::Train(const Puppet& puppet, const ResolvedConfi
 
 StatusOr<Eigen::MatrixXd> FdlsSolver::Solve(const Eigen::MatrixXd& markers_in_skull) const {
   if (markers_in_skull.rows() != 3 * puppet_.marker_count()) {
-    return InvalidArgumentError(fmt::format("FDLS solve: {} marker rows, the solver's puppet has {} markers ({} rows)",
-                                            markers_in_skull.rows(), puppet_.marker_count(),
-                                            3 * puppet_.marker_count()));
+    return InvalidArgumentError(
+        fmt::format("FDLS solve: {} marker rows, the solver's puppet has {} markers ({} rows)",
+                    markers_in_skull.rows(), puppet_.marker_count(), 3 * puppet_.marker_count()));
   }
-  if (!markers_in_skull.allFinite()) return InvalidArgumentError("FDLS solve: a marker coordinate is not finite");
+  if (!markers_in_skull.allFinite())
+    return InvalidArgumentError("FDLS solve: a marker coordinate is not finite");
   const Eigen::Index n = markers_in_skull.cols();
   Eigen::MatrixXd weights = Eigen::MatrixXd::Zero(puppet_.channel_count(), n);
   auto clamp_into = [&](const ResolvedRegion& region, const Eigen::MatrixXf& predicted) {
@@ -182,7 +192,8 @@ StatusOr<Eigen::MatrixXd> FdlsSolver::Solve(const Eigen::MatrixXd& markers_in_sk
                            .cwiseMin(puppet_.upper_bounds[c]);
     }
   };
-  clamp_into(jaw_.region, jaw_.mlp.Predict(RegionInputs(puppet_, jaw_.region, markers_in_skull, nullptr)));
+  clamp_into(jaw_.region,
+             jaw_.mlp.Predict(RegionInputs(puppet_, jaw_.region, markers_in_skull, nullptr)));
   const Eigen::MatrixXd solved_jaw = Rows(weights, jaw_.region.channels);
   for (const Network& network : regions_) {
     const bool conditioned = network.region.spec.jaw_conditioned;
@@ -198,16 +209,17 @@ StatusOr<Eigen::MatrixXd> FdlsSolver::Solve(
     const Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic>& present) const {
   if (present.rows() != puppet_.marker_count() || present.cols() != markers_in_skull.cols() ||
       markers_in_skull.rows() != 3 * puppet_.marker_count()) {
-    return InvalidArgumentError(fmt::format(
-        "FDLS solve: {} x {} markers and {} x {} presence flags for {} markers",
-        markers_in_skull.rows(), markers_in_skull.cols(), present.rows(), present.cols(),
-        puppet_.marker_count()));
+    return InvalidArgumentError(
+        fmt::format("FDLS solve: {} x {} markers and {} x {} presence flags for {} markers",
+                    markers_in_skull.rows(), markers_in_skull.cols(), present.rows(),
+                    present.cols(), puppet_.marker_count()));
   }
   Eigen::MatrixXd filled = markers_in_skull;
   for (Eigen::Index f = 0; f < filled.cols(); ++f) {
     const Eigen::Array<bool, Eigen::Dynamic, 1> frame = present.col(f);
     if (frame.all()) continue;
-    if (!frame.any()) return InvalidArgumentError(fmt::format("FDLS solve: frame {} has no marker", f));
+    if (!frame.any())
+      return InvalidArgumentError(fmt::format("FDLS solve: frame {} has no marker", f));
     FillMissingMarkers(puppet_, frame, filled.col(f));
   }
   return Solve(filled);
@@ -225,7 +237,8 @@ constexpr int kSolverFormatVersion = 1;
 constexpr const char* kNetworkKind = "fdls_region";
 
 Json MatrixJson(const Eigen::MatrixXd& m) {
-  return Json{{"rows", m.rows()}, {"cols", m.cols()},
+  return Json{{"rows", m.rows()},
+              {"cols", m.cols()},
               {"data", std::vector<double>(m.data(), m.data() + m.size())}};
 }
 
@@ -236,11 +249,13 @@ StatusOr<Eigen::MatrixXd> MatrixFromJson(const Json& j, const std::string& where
   }
   const long rows = j["rows"].get<long>(), cols = j["cols"].get<long>();
   if (rows < 0 || cols < 0 || static_cast<long>(j["data"].size()) != rows * cols) {
-    return DataLossError(fmt::format("{}: {} x {} with {} values", where, rows, cols, j["data"].size()));
+    return DataLossError(
+        fmt::format("{}: {} x {} with {} values", where, rows, cols, j["data"].size()));
   }
   Eigen::MatrixXd m(rows, cols);
   for (long i = 0; i < rows * cols; ++i) {
-    if (!j["data"][static_cast<size_t>(i)].is_number()) return DataLossError(where + ": a value is not a number");
+    if (!j["data"][static_cast<size_t>(i)].is_number())
+      return DataLossError(where + ": a value is not a number");
     m.data()[i] = j["data"][static_cast<size_t>(i)].get<double>();
   }
   return m;
@@ -270,21 +285,20 @@ Status FdlsSolver::Save(const std::string& dir) const {
   for (const Network& network : regions_) FACEDYN_RETURN_IF_ERROR(save_network(network));
   Json pairs = Json::array();
   for (const auto& [a, b] : puppet_.symmetric_pairs) pairs.push_back({a, b});
-  const Json root = {
-      {"format", "facedyn_fdls_solver"},
-      {"version", kSolverFormatVersion},
-      {"units", "mm"},
-      {"puppet",
-       {{"rig_name", puppet_.rig_name},
-        {"channel_names", puppet_.channel_names},
-        {"marker_names", puppet_.marker_names},
-        {"marker_vertices", puppet_.marker_vertices},
-        {"neutral_markers_in_skull", MatrixJson(puppet_.neutral_markers_in_skull)},
-        {"marker_basis_mm", MatrixJson(puppet_.marker_basis_mm)},
-        {"lower_bounds", MatrixJson(puppet_.lower_bounds)},
-        {"upper_bounds", MatrixJson(puppet_.upper_bounds)},
-        {"symmetric_pairs", pairs}}},
-      {"regions", regions}};  // the jaw first
+  const Json root = {{"format", "facedyn_fdls_solver"},
+                     {"version", kSolverFormatVersion},
+                     {"units", "mm"},
+                     {"puppet",
+                      {{"rig_name", puppet_.rig_name},
+                       {"channel_names", puppet_.channel_names},
+                       {"marker_names", puppet_.marker_names},
+                       {"marker_vertices", puppet_.marker_vertices},
+                       {"neutral_markers_in_skull", MatrixJson(puppet_.neutral_markers_in_skull)},
+                       {"marker_basis_mm", MatrixJson(puppet_.marker_basis_mm)},
+                       {"lower_bounds", MatrixJson(puppet_.lower_bounds)},
+                       {"upper_bounds", MatrixJson(puppet_.upper_bounds)},
+                       {"symmetric_pairs", pairs}}},
+                     {"regions", regions}};  // the jaw first
   return WriteJsonFile(dir + "/solver.json", root);
 }
 
@@ -293,8 +307,10 @@ StatusOr<FdlsSolver> FdlsSolver::Load(const std::string& dir) {
   FACEDYN_ASSIGN_OR_RETURN(const std::string text, ReadFileToString(path));
   const Json root = Json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (root.is_discarded() || !root.is_object()) return DataLossError(path + ": not a JSON object");
-  if (root.value("format", "") != "facedyn_fdls_solver" || root.value("version", 0) != kSolverFormatVersion) {
-    return DataLossError(fmt::format("{}: not an FDLS solver of format version {}", path, kSolverFormatVersion));
+  if (root.value("format", "") != "facedyn_fdls_solver" ||
+      root.value("version", 0) != kSolverFormatVersion) {
+    return DataLossError(
+        fmt::format("{}: not an FDLS solver of format version {}", path, kSolverFormatVersion));
   }
   if (!root.contains("puppet") || !root.contains("regions") || !root["regions"].is_array() ||
       root["regions"].empty()) {
@@ -315,18 +331,24 @@ StatusOr<FdlsSolver> FdlsSolver::Load(const std::string& dir) {
     return DataLossError(path + ": puppet: " + e.what());
   }
   FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd neutral,
-                           MatrixFromJson(root["puppet"].value("neutral_markers_in_skull", Json()), path + ": neutral_markers_in_skull"));
-  FACEDYN_ASSIGN_OR_RETURN(puppet.marker_basis_mm,
-                           MatrixFromJson(root["puppet"].value("marker_basis_mm", Json()), path + ": marker_basis_mm"));
-  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd lower,
-                           MatrixFromJson(root["puppet"].value("lower_bounds", Json()), path + ": lower_bounds"));
-  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd upper,
-                           MatrixFromJson(root["puppet"].value("upper_bounds", Json()), path + ": upper_bounds"));
+                           MatrixFromJson(root["puppet"].value("neutral_markers_in_skull", Json()),
+                                          path + ": neutral_markers_in_skull"));
+  FACEDYN_ASSIGN_OR_RETURN(
+      puppet.marker_basis_mm,
+      MatrixFromJson(root["puppet"].value("marker_basis_mm", Json()), path + ": marker_basis_mm"));
+  FACEDYN_ASSIGN_OR_RETURN(
+      const Eigen::MatrixXd lower,
+      MatrixFromJson(root["puppet"].value("lower_bounds", Json()), path + ": lower_bounds"));
+  FACEDYN_ASSIGN_OR_RETURN(
+      const Eigen::MatrixXd upper,
+      MatrixFromJson(root["puppet"].value("upper_bounds", Json()), path + ": upper_bounds"));
   const int m_count = puppet.marker_count(), c_count = puppet.channel_count();
-  if (neutral.rows() != 3 || neutral.cols() != m_count || puppet.marker_basis_mm.rows() != 3 * m_count ||
-      puppet.marker_basis_mm.cols() != c_count || lower.size() != c_count || upper.size() != c_count ||
+  if (neutral.rows() != 3 || neutral.cols() != m_count ||
+      puppet.marker_basis_mm.rows() != 3 * m_count || puppet.marker_basis_mm.cols() != c_count ||
+      lower.size() != c_count || upper.size() != c_count ||
       static_cast<int>(puppet.marker_vertices.size()) != m_count) {
-    return DataLossError(fmt::format("{}: puppet sizes disagree with its {} markers and {} channels", path, m_count, c_count));
+    return DataLossError(fmt::format(
+        "{}: puppet sizes disagree with its {} markers and {} channels", path, m_count, c_count));
   }
   puppet.neutral_markers_in_skull = neutral;
   puppet.lower_bounds = Eigen::Map<const Eigen::VectorXd>(lower.data(), c_count);
@@ -357,25 +379,31 @@ StatusOr<FdlsSolver> FdlsSolver::Load(const std::string& dir) {
       return DataLossError(where + ": " + e.what());
     }
     for (int m : region.markers) {
-      if (m < 0 || m >= m_count) return DataLossError(fmt::format("{}: marker index {} out of range", where, m));
+      if (m < 0 || m >= m_count)
+        return DataLossError(fmt::format("{}: marker index {} out of range", where, m));
     }
     for (int c : region.channels) {
-      if (c < 0 || c >= c_count) return DataLossError(fmt::format("{}: channel index {} out of range", where, c));
+      if (c < 0 || c >= c_count)
+        return DataLossError(fmt::format("{}: channel index {} out of range", where, c));
     }
-    if (region.markers.size() < 2 || region.channels.empty() || (r == 0 && region.spec.jaw_conditioned)) {
-      return DataLossError(where + ": needs 2 markers, a channel, and the first (jaw) region unconditioned");
+    if (region.markers.size() < 2 || region.channels.empty() ||
+        (r == 0 && region.spec.jaw_conditioned)) {
+      return DataLossError(
+          where + ": needs 2 markers, a channel, and the first (jaw) region unconditioned");
     }
     Json config;
-    FACEDYN_ASSIGN_OR_RETURN(learn::Mlp mlp,
-                             learn::Mlp::Load(dir + "/" + region.spec.name + ".pt", kNetworkKind, &config));
-    const int expected_inputs = FeatureSize(static_cast<int>(region.markers.size()), region.spec.features) +
-                                (region.spec.jaw_conditioned ? jaw_size : 0);
+    FACEDYN_ASSIGN_OR_RETURN(learn::Mlp mlp, learn::Mlp::Load(dir + "/" + region.spec.name + ".pt",
+                                                              kNetworkKind, &config));
+    const int expected_inputs =
+        FeatureSize(static_cast<int>(region.markers.size()), region.spec.features) +
+        (region.spec.jaw_conditioned ? jaw_size : 0);
     if (mlp.shape().input_size != expected_inputs ||
         mlp.shape().output_size != static_cast<int>(region.channels.size()) ||
         mlp.shape().extra_input_size != (region.spec.jaw_conditioned ? jaw_size : 0)) {
-      return DataLossError(fmt::format("{}/{}.pt: a {} -> {} network for a region of {} inputs and {} channels",
-                                       dir, region.spec.name, mlp.shape().input_size, mlp.shape().output_size,
-                                       expected_inputs, region.channels.size()));
+      return DataLossError(
+          fmt::format("{}/{}.pt: a {} -> {} network for a region of {} inputs and {} channels", dir,
+                      region.spec.name, mlp.shape().input_size, mlp.shape().output_size,
+                      expected_inputs, region.channels.size()));
     }
     Network network{std::move(region), std::move(mlp)};
     if (r == 0) {

@@ -38,8 +38,8 @@ struct FdlsTrainOptions {
 struct RegionTrainSummary {
   std::string region;
   int markers = 0;
-  int inputs = 0;   // features (+ jaw channels when conditioned)
-  int outputs = 0;  // channels
+  int inputs = 0;                // features (+ jaw channels when conditioned)
+  int outputs = 0;               // channels
   double train_rmse = 0.0;       // weight RMSE on its training tuples, last epoch
   double validation_rmse = 0.0;  // on the held-out tuples (0 without any)
   double train_s = 0.0;
@@ -60,8 +60,9 @@ class FdlsSolver {
   // The same with missing markers (present: M x N, false where missing), each refilled from its
   // nearest present neighbours (FillMissingMarkers, as the training dropout refills them).
   // Errors: sizes, a frame without any marker.
-  StatusOr<Eigen::MatrixXd> Solve(const Eigen::MatrixXd& markers_in_skull,
-                                  const Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic>& present) const;
+  StatusOr<Eigen::MatrixXd> Solve(
+      const Eigen::MatrixXd& markers_in_skull,
+      const Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic>& present) const;
 
   // A folder: solver.json (the puppet: channel and marker names, neutral markers, B, bounds;
   // the regions: markers, channels, features, conditioning) and one LibTorch archive per
@@ -89,7 +90,8 @@ class FdlsSolver {
   static StatusOr<Network> TrainNetwork(const Puppet& puppet, const ResolvedRegion& region,
                                         const NetworkSpec& spec, const Eigen::MatrixXf& inputs,
                                         int jaw_inputs, const Eigen::MatrixXd& weights,
-                                        const FdlsTrainOptions& options, RegionTrainSummary* summary);
+                                        const FdlsTrainOptions& options,
+                                        RegionTrainSummary* summary);
 
   Puppet puppet_;
   Network jaw_;

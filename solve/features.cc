@@ -56,7 +56,8 @@ void ComputeGraphFeatures(const Eigen::Ref<const Eigen::Matrix3Xd>& markers_in_s
         const double length = d.norm();
         if (set.distance) distance[k] = static_cast<float>(length);
         if (set.direction) {
-          const Eigen::Vector3d u = length > 0.0 ? Eigen::Vector3d(d / length) : Eigen::Vector3d::Zero();
+          const Eigen::Vector3d u =
+              length > 0.0 ? Eigen::Vector3d(d / length) : Eigen::Vector3d::Zero();
           direction[3 * k + 0] = static_cast<float>(u.x());
           direction[3 * k + 1] = static_cast<float>(u.y());
           direction[3 * k + 2] = static_cast<float>(u.z());

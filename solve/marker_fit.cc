@@ -19,7 +19,8 @@ class LinearMarkerCost final : public ceres::CostFunction {
     set_num_residuals(static_cast<int>(a_.rows()));
     mutable_parameter_block_sizes()->push_back(static_cast<int>(a_.cols()));
   }
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
     const Eigen::Map<const Eigen::VectorXd> w(parameters[0], a_.cols());
     Eigen::Map<Eigen::VectorXd>(residuals, a_.rows()) = a_ * w - b_;
     if (jacobians != nullptr && jacobians[0] != nullptr) {
@@ -42,12 +43,14 @@ class SmoothnessCost final : public ceres::CostFunction {
     mutable_parameter_block_sizes()->push_back(size);
     mutable_parameter_block_sizes()->push_back(size);
   }
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
     for (int i = 0; i < size_; ++i) residuals[i] = scale_ * (parameters[1][i] - parameters[0][i]);
     for (int block = 0; block < 2; ++block) {
       if (jacobians == nullptr || jacobians[block] == nullptr) continue;
       std::fill(jacobians[block], jacobians[block] + size_ * size_, 0.0);
-      for (int i = 0; i < size_; ++i) jacobians[block][i * size_ + i] = block == 0 ? -scale_ : scale_;
+      for (int i = 0; i < size_; ++i)
+        jacobians[block][i * size_ + i] = block == 0 ? -scale_ : scale_;
     }
     return true;
   }
@@ -63,21 +66,25 @@ Status MarkerFitOptions::Check(int channel_count) const {
   std::set<int> seen;
   for (int c : free_channels) {
     if (c < 0 || c >= channel_count) {
-      return InvalidArgumentError(fmt::format("free_channels: {} is not a channel index (0..{})", c, channel_count - 1));
+      return InvalidArgumentError(
+          fmt::format("free_channels: {} is not a channel index (0..{})", c, channel_count - 1));
     }
-    if (!seen.insert(c).second) return InvalidArgumentError(fmt::format("free_channels: {} appears twice", c));
+    if (!seen.insert(c).second)
+      return InvalidArgumentError(fmt::format("free_channels: {} appears twice", c));
   }
   if (!(smoothness >= 0.0) || !std::isfinite(smoothness)) {
     return InvalidArgumentError(fmt::format("smoothness: {} is not >= 0", smoothness));
   }
-  if (max_iterations < 1) return InvalidArgumentError(fmt::format("max_iterations: {} < 1", max_iterations));
+  if (max_iterations < 1)
+    return InvalidArgumentError(fmt::format("max_iterations: {} < 1", max_iterations));
   if (num_threads < 1) return InvalidArgumentError(fmt::format("num_threads: {} < 1", num_threads));
   return Status::Ok();
 }
 
-double MarkerRmseMm(const Puppet& puppet, const Eigen::MatrixXd& weights, const Eigen::MatrixXd& markers,
-                    const MarkerPresence* present) {
-  const Eigen::MatrixXd predicted = (puppet.marker_basis_mm * weights).colwise() + puppet.StackedNeutral();
+double MarkerRmseMm(const Puppet& puppet, const Eigen::MatrixXd& weights,
+                    const Eigen::MatrixXd& markers, const MarkerPresence* present) {
+  const Eigen::MatrixXd predicted =
+      (puppet.marker_basis_mm * weights).colwise() + puppet.StackedNeutral();
   double sum = 0.0;
   long count = 0;
   for (Eigen::Index f = 0; f < markers.cols(); ++f) {
@@ -102,14 +109,17 @@ StatusOr<Eigen::MatrixXd> FitWeightsToMarkers(const Puppet& puppet, const Eigen:
   const Eigen::Index n = markers.cols();
   if (markers.rows() != 3 * m_count || initial.rows() != c_count || initial.cols() != n || n == 0) {
     return InvalidArgumentError(fmt::format(
-        "marker fit: {} x {} markers and {} x {} initial weights for a puppet of {} markers and {} channels",
+        "marker fit: {} x {} markers and {} x {} initial weights for a puppet of {} markers and {} "
+        "channels",
         markers.rows(), markers.cols(), initial.rows(), initial.cols(), m_count, c_count));
   }
   if (present != nullptr && (present->rows() != m_count || present->cols() != n)) {
-    return InvalidArgumentError(fmt::format("marker fit: presence flags are {} x {}, expected {} x {}",
-                                            present->rows(), present->cols(), m_count, n));
+    return InvalidArgumentError(
+        fmt::format("marker fit: presence flags are {} x {}, expected {} x {}", present->rows(),
+                    present->cols(), m_count, n));
   }
-  if (!markers.allFinite()) return InvalidArgumentError("marker fit: a marker coordinate is not finite");
+  if (!markers.allFinite())
+    return InvalidArgumentError("marker fit: a marker coordinate is not finite");
 
   std::vector<int> free = options.free_channels;
   if (free.empty()) {
@@ -121,7 +131,8 @@ StatusOr<Eigen::MatrixXd> FitWeightsToMarkers(const Puppet& puppet, const Eigen:
 
   Eigen::MatrixXd weights = initial;
   for (int c = 0; c < c_count; ++c) {
-    weights.row(c) = weights.row(c).cwiseMax(puppet.lower_bounds[c]).cwiseMin(puppet.upper_bounds[c]);
+    weights.row(c) =
+        weights.row(c).cwiseMax(puppet.lower_bounds[c]).cwiseMin(puppet.upper_bounds[c]);
   }
   MarkerFitSummary local;
   local.initial_rmse_mm = MarkerRmseMm(puppet, weights, markers, present);
@@ -138,7 +149,8 @@ StatusOr<Eigen::MatrixXd> FitWeightsToMarkers(const Puppet& puppet, const Eigen:
         for (int a = 0; a < 3; ++a) rows.push_back(3 * m + a);
       }
     }
-    if (rows.empty()) return InvalidArgumentError(fmt::format("marker fit: frame {} has no marker", f));
+    if (rows.empty())
+      return InvalidArgumentError(fmt::format("marker fit: frame {} has no marker", f));
     Eigen::MatrixXd a(rows.size(), k);
     Eigen::VectorXd b(rows.size());
     for (size_t r = 0; r < rows.size(); ++r) {
@@ -148,7 +160,8 @@ StatusOr<Eigen::MatrixXd> FitWeightsToMarkers(const Puppet& puppet, const Eigen:
         if (!is_free[c]) frozen += puppet.marker_basis_mm(row, c) * weights(c, f);
       }
       b[static_cast<Eigen::Index>(r)] = markers(row, f) - neutral[row] - frozen;
-      for (int i = 0; i < k; ++i) a(static_cast<Eigen::Index>(r), i) = puppet.marker_basis_mm(row, free[i]);
+      for (int i = 0; i < k; ++i)
+        a(static_cast<Eigen::Index>(r), i) = puppet.marker_basis_mm(row, free[i]);
     }
     return new LinearMarkerCost(std::move(a), std::move(b));
   };
@@ -212,10 +225,13 @@ StatusOr<Eigen::MatrixXd> FitWeightsToMarkers(const Puppet& puppet, const Eigen:
   }
   for (int i = 0; i < k; ++i) {
     // Ceres keeps iterates inside the bounds; the clamp only removes last-bit round-off.
-    weights.row(free[i]) = free_weights.row(i).cwiseMax(puppet.lower_bounds[free[i]]).cwiseMin(puppet.upper_bounds[free[i]]);
+    weights.row(free[i]) = free_weights.row(i)
+                               .cwiseMax(puppet.lower_bounds[free[i]])
+                               .cwiseMin(puppet.upper_bounds[free[i]]);
   }
   local.final_rmse_mm = MarkerRmseMm(puppet, weights, markers, present);
-  local.solve_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+  local.solve_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
   if (summary != nullptr) *summary = local;
   return weights;
 }

@@ -35,7 +35,7 @@ struct MarkerFitOptions {
 };
 
 struct MarkerFitSummary {
-  bool converged = true;         // every Ceres problem ended on a convergence criterion
+  bool converged = true;  // every Ceres problem ended on a convergence criterion
   int problems = 0;
   int iterations = 0;            // summed over problems
   double initial_rmse_mm = 0.0;  // marker RMSE of the start

@@ -48,7 +48,8 @@ Eigen::VectorXd Puppet::StackedNeutral() const {
 }
 
 Eigen::VectorXd Puppet::StackedMarkers(const Eigen::VectorXd& weights) const {
-  FACEDYN_CHECK(weights.size() == channel_count(), "Puppet::StackedMarkers: one weight per channel");
+  FACEDYN_CHECK(weights.size() == channel_count(),
+                "Puppet::StackedMarkers: one weight per channel");
   return StackedNeutral() + marker_basis_mm * weights;
 }
 

@@ -36,7 +36,8 @@ std::vector<int> FarthestSubset(const Eigen::Matrix3Xd& points, const std::vecto
     size_t best = 0;
     double best_distance = -1.0;
     for (size_t i = 0; i < candidates.size(); ++i) {
-      nearest[i] = std::min(nearest[i], (points.col(candidates[i]) - points.col(chosen.back())).norm());
+      nearest[i] =
+          std::min(nearest[i], (points.col(candidates[i]) - points.col(chosen.back())).norm());
       if (nearest[i] > best_distance) {
         best_distance = nearest[i];
         best = i;
@@ -62,9 +63,11 @@ StatusOr<SolveConfig> ParseSolveConfig(const ConfigNode& root) {
   }
   FACEDYN_ASSIGN_OR_RETURN(const ConfigNode jaw, root.Child("jaw"));
   FACEDYN_ASSIGN_OR_RETURN(config.jaw, ParseRegion(jaw, "jaw"));
-  if (config.jaw.jaw_conditioned) return jaw.Error("jaw_conditioned", "the jaw cannot be conditioned on itself");
+  if (config.jaw.jaw_conditioned)
+    return jaw.Error("jaw_conditioned", "the jaw cannot be conditioned on itself");
   FACEDYN_ASSIGN_OR_RETURN(const ConfigNode regions, root.Child("regions"));
-  if (!regions.IsSequence() || regions.size() == 0) return regions.Error("expected a non-empty list");
+  if (!regions.IsSequence() || regions.size() == 0)
+    return regions.Error("expected a non-empty list");
   for (size_t i = 0; i < regions.size(); ++i) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode node, regions.At(i));
     FACEDYN_ASSIGN_OR_RETURN(const std::string name, node.Get<std::string>("name"));
@@ -132,8 +135,9 @@ network:
 }
 
 StatusOr<SolveConfig> ProceduralSolveConfig() {
-  FACEDYN_ASSIGN_OR_RETURN(const ConfigNode root,
-                           ConfigNode::Parse(ProceduralSolveConfigYaml(), "<embedded procedural solve config>"));
+  FACEDYN_ASSIGN_OR_RETURN(
+      const ConfigNode root,
+      ConfigNode::Parse(ProceduralSolveConfigYaml(), "<embedded procedural solve config>"));
   return ParseSolveConfig(root);
 }
 
@@ -151,7 +155,8 @@ StatusOr<ResolvedConfig> ResolveSolveConfig(const SolveConfig& config, const Fac
   std::vector<int> always;
   for (const std::string& name : config.always_include) {
     if (!rig.regions.count(name)) {
-      return InvalidArgumentError(fmt::format("{}: always_include names the region '{}', which the rig does not have", where, name));
+      return InvalidArgumentError(fmt::format(
+          "{}: always_include names the region '{}', which the rig does not have", where, name));
     }
     const std::vector<int>& markers = region_markers[name];
     if (markers.empty()) continue;
@@ -175,28 +180,35 @@ StatusOr<ResolvedConfig> ResolveSolveConfig(const SolveConfig& config, const Fac
     std::set<int> markers;
     for (const std::string& name : spec.rig_regions) {
       if (!rig.regions.count(name)) {
-        return InvalidArgumentError(fmt::format("{}: region '{}' uses the rig region '{}', which the rig does not have", where, spec.name, name));
+        return InvalidArgumentError(
+            fmt::format("{}: region '{}' uses the rig region '{}', which the rig does not have",
+                        where, spec.name, name));
       }
       for (int m : region_markers[name]) markers.insert(m);
     }
-    std::vector<int> subset =
-        FarthestSubset(puppet.neutral_markers_in_skull, std::vector<int>(markers.begin(), markers.end()),
-                       config.max_markers_per_region);
+    std::vector<int> subset = FarthestSubset(puppet.neutral_markers_in_skull,
+                                             std::vector<int>(markers.begin(), markers.end()),
+                                             config.max_markers_per_region);
     for (int m : always) {
       if (!std::count(subset.begin(), subset.end(), m)) subset.push_back(m);
     }
     std::sort(subset.begin(), subset.end());
     if (subset.size() < 2) {
-      return InvalidArgumentError(fmt::format("{}: region '{}' has {} markers, at least 2 needed", where, spec.name, subset.size()));
+      return InvalidArgumentError(fmt::format("{}: region '{}' has {} markers, at least 2 needed",
+                                              where, spec.name, subset.size()));
     }
     resolved.markers = subset;
     for (const std::string& channel : spec.channels) {
       const int c = puppet.ChannelIndex(channel);
       if (c < 0) {
-        return InvalidArgumentError(fmt::format("{}: region '{}' names the channel '{}', which the rig does not have", where, spec.name, channel));
+        return InvalidArgumentError(
+            fmt::format("{}: region '{}' names the channel '{}', which the rig does not have",
+                        where, spec.name, channel));
       }
       if (!owner[c].empty()) {
-        return InvalidArgumentError(fmt::format("{}: channel '{}' is in region '{}' and in region '{}'", where, channel, owner[c], spec.name));
+        return InvalidArgumentError(
+            fmt::format("{}: channel '{}' is in region '{}' and in region '{}'", where, channel,
+                        owner[c], spec.name));
       }
       owner[c] = spec.name;
       resolved.channels.push_back(c);
@@ -211,7 +223,8 @@ StatusOr<ResolvedConfig> ResolveSolveConfig(const SolveConfig& config, const Fac
   }
   for (int c = 0; c < puppet.channel_count(); ++c) {
     if (owner[c].empty()) {
-      return InvalidArgumentError(fmt::format("{}: the rig's channel '{}' is in no region", where, puppet.channel_names[c]));
+      return InvalidArgumentError(fmt::format("{}: the rig's channel '{}' is in no region", where,
+                                              puppet.channel_names[c]));
     }
   }
   resolved.network = config.network;

@@ -46,7 +46,7 @@ struct NetworkSpec {
   int residual_blocks = 2;  // hidden layers after the first, each residual (FDLS Fig. 4)
   double dropout = 0.01;    // supplementary table: 0.01 for most regions
   int epochs = 60;
-  int batch_size = 64;      // supplementary table
+  int batch_size = 64;  // supplementary table
   double learning_rate = 1e-3;
   double weight_decay = 1e-5;  // the table's l2, as decoupled decay
 };

@@ -20,21 +20,23 @@
 namespace facedyn::solve {
 
 // Weights C x N of the puppet's channels over times (N) as a track (columns = channel names).
-StatusOr<BlendshapeWeightsTrack> WeightsToTrack(const Puppet& puppet, const std::vector<double>& time_s,
+StatusOr<BlendshapeWeightsTrack> WeightsToTrack(const Puppet& puppet,
+                                                const std::vector<double>& time_s,
                                                 const Eigen::MatrixXd& weights);
 // A track onto the puppet's channels (C x N): a column the puppet has no channel for is an
 // error naming `source`, the column and the channels the puppet has; channels without a column
 // are 0. `source` is the file the track came from, for messages.
-StatusOr<Eigen::MatrixXd> WeightsFromTrack(const Puppet& puppet, const BlendshapeWeightsTrack& track,
+StatusOr<Eigen::MatrixXd> WeightsFromTrack(const Puppet& puppet,
+                                           const BlendshapeWeightsTrack& track,
                                            const std::string& source);
-Status WriteWeightsCsv(const std::string& path, const Puppet& puppet, const std::vector<double>& time_s,
-                       const Eigen::MatrixXd& weights);
+Status WriteWeightsCsv(const std::string& path, const Puppet& puppet,
+                       const std::vector<double>& time_s, const Eigen::MatrixXd& weights);
 // Reads `path` onto the puppet's channels; times into *time_s.
 StatusOr<Eigen::MatrixXd> ReadWeightsCsv(const std::string& path, const Puppet& puppet,
                                          std::vector<double>* time_s);
 
 struct MarkerFrames {
-  std::vector<double> time_s;  // N
+  std::vector<double> time_s;        // N
   Eigen::MatrixXd markers_in_skull;  // 3M x N in the puppet's marker order, mm (0 where missing)
   MarkerPresence present;            // M x N
 };

@@ -11,13 +11,20 @@ namespace facedyn::solve {
 Status TrainingDataOptions::Check() const {
   if (sweep_steps < 1) return InvalidArgumentError(fmt::format("sweep_steps: {} < 1", sweep_steps));
   if (rom_clips < 0) return InvalidArgumentError(fmt::format("rom_clips: {} < 0", rom_clips));
-  if (rom_clip_frames < 2) return InvalidArgumentError(fmt::format("rom_clip_frames: {} < 2", rom_clip_frames));
-  if (random_combos < 0) return InvalidArgumentError(fmt::format("random_combos: {} < 0", random_combos));
-  if (max_active_channels < 1) return InvalidArgumentError(fmt::format("max_active_channels: {} < 1", max_active_channels));
-  if (augment_copies < 0) return InvalidArgumentError(fmt::format("augment_copies: {} < 0", augment_copies));
-  if (!(noise_mm >= 0.0) || !std::isfinite(noise_mm)) return InvalidArgumentError(fmt::format("noise_mm: {} is not >= 0", noise_mm));
-  if (!(mask_shift_mm >= 0.0) || !std::isfinite(mask_shift_mm)) return InvalidArgumentError(fmt::format("mask_shift_mm: {} is not >= 0", mask_shift_mm));
-  if (!(dropout >= 0.0 && dropout < 1.0)) return InvalidArgumentError(fmt::format("dropout: {} is not in [0, 1)", dropout));
+  if (rom_clip_frames < 2)
+    return InvalidArgumentError(fmt::format("rom_clip_frames: {} < 2", rom_clip_frames));
+  if (random_combos < 0)
+    return InvalidArgumentError(fmt::format("random_combos: {} < 0", random_combos));
+  if (max_active_channels < 1)
+    return InvalidArgumentError(fmt::format("max_active_channels: {} < 1", max_active_channels));
+  if (augment_copies < 0)
+    return InvalidArgumentError(fmt::format("augment_copies: {} < 0", augment_copies));
+  if (!(noise_mm >= 0.0) || !std::isfinite(noise_mm))
+    return InvalidArgumentError(fmt::format("noise_mm: {} is not >= 0", noise_mm));
+  if (!(mask_shift_mm >= 0.0) || !std::isfinite(mask_shift_mm))
+    return InvalidArgumentError(fmt::format("mask_shift_mm: {} is not >= 0", mask_shift_mm));
+  if (!(dropout >= 0.0 && dropout < 1.0))
+    return InvalidArgumentError(fmt::format("dropout: {} is not in [0, 1)", dropout));
   return Status::Ok();
 }
 
@@ -45,11 +52,13 @@ Eigen::VectorXd RandomSparsePose(const Puppet& puppet, const TrainingDataOptions
 
 }  // namespace
 
-StatusOr<Eigen::MatrixXd> MakeTrainingWeights(const Puppet& puppet, const TrainingDataOptions& options) {
+StatusOr<Eigen::MatrixXd> MakeTrainingWeights(const Puppet& puppet,
+                                              const TrainingDataOptions& options) {
   FACEDYN_RETURN_IF_ERROR(options.Check().WithContext("training data options"));
   for (int c : options.jaw_channels) {
     if (c < 0 || c >= puppet.channel_count()) {
-      return InvalidArgumentError(fmt::format("training data options: jaw channel {} is not a channel of the puppet", c));
+      return InvalidArgumentError(
+          fmt::format("training data options: jaw channel {} is not a channel of the puppet", c));
     }
   }
   std::mt19937_64 rng(options.seed);
@@ -60,7 +69,8 @@ StatusOr<Eigen::MatrixXd> MakeTrainingWeights(const Puppet& puppet, const Traini
   for (int c = 0; c < c_count; ++c) {
     for (int k = 1; k <= options.sweep_steps; ++k) {
       Eigen::VectorXd w = Eigen::VectorXd::Zero(c_count);
-      w[c] = puppet.lower_bounds[c] + (puppet.upper_bounds[c] - puppet.lower_bounds[c]) * k / options.sweep_steps;
+      w[c] = puppet.lower_bounds[c] +
+             (puppet.upper_bounds[c] - puppet.lower_bounds[c]) * k / options.sweep_steps;
       poses.push_back(w);
     }
   }
@@ -70,8 +80,10 @@ StatusOr<Eigen::MatrixXd> MakeTrainingWeights(const Puppet& puppet, const Traini
       const double a = static_cast<double>(k) / options.sweep_steps;
       for (const auto& [wl, wr] : {std::pair<double, double>{a, a}, {a, 0.5 * a}, {0.5 * a, a}}) {
         Eigen::VectorXd w = Eigen::VectorXd::Zero(c_count);
-        w[left] = puppet.lower_bounds[left] + wl * (puppet.upper_bounds[left] - puppet.lower_bounds[left]);
-        w[right] = puppet.lower_bounds[right] + wr * (puppet.upper_bounds[right] - puppet.lower_bounds[right]);
+        w[left] = puppet.lower_bounds[left] +
+                  wl * (puppet.upper_bounds[left] - puppet.lower_bounds[left]);
+        w[right] = puppet.lower_bounds[right] +
+                   wr * (puppet.upper_bounds[right] - puppet.lower_bounds[right]);
         poses.push_back(w);
       }
     }
@@ -86,7 +98,8 @@ StatusOr<Eigen::MatrixXd> MakeTrainingWeights(const Puppet& puppet, const Traini
     }
     key = next;
   }
-  for (int k = 0; k < options.random_combos; ++k) poses.push_back(RandomSparsePose(puppet, options, rng));
+  for (int k = 0; k < options.random_combos; ++k)
+    poses.push_back(RandomSparsePose(puppet, options, rng));
   Eigen::MatrixXd weights(c_count, static_cast<Eigen::Index>(poses.size()));
   for (size_t i = 0; i < poses.size(); ++i) weights.col(static_cast<Eigen::Index>(i)) = poses[i];
   return weights;
@@ -119,8 +132,9 @@ StatusOr<TrainingSet> MakeTrainingSet(const Puppet& puppet, const Eigen::MatrixX
                                       const TrainingDataOptions& options) {
   FACEDYN_RETURN_IF_ERROR(options.Check().WithContext("training data options"));
   if (weights.rows() != puppet.channel_count() || weights.cols() == 0) {
-    return InvalidArgumentError(fmt::format("training set: {} x {} weights for a puppet with {} channels",
-                                            weights.rows(), weights.cols(), puppet.channel_count()));
+    return InvalidArgumentError(
+        fmt::format("training set: {} x {} weights for a puppet with {} channels", weights.rows(),
+                    weights.cols(), puppet.channel_count()));
   }
   const Eigen::Index n = weights.cols();
   const int copies = 1 + options.augment_copies;
@@ -128,7 +142,8 @@ StatusOr<TrainingSet> MakeTrainingSet(const Puppet& puppet, const Eigen::MatrixX
   TrainingSet set;
   set.weights.resize(weights.rows(), n * copies);
   set.markers.resize(3 * m_count, n * copies);
-  const Eigen::MatrixXd clean = (puppet.marker_basis_mm * weights).colwise() + puppet.StackedNeutral();
+  const Eigen::MatrixXd clean =
+      (puppet.marker_basis_mm * weights).colwise() + puppet.StackedNeutral();
   std::mt19937_64 rng(options.seed ^ 0x9e3779b97f4a7c15ULL);
   std::normal_distribution<double> normal(0.0, 1.0);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -159,7 +174,8 @@ StatusOr<TrainingSet> MakeTrainingSet(const Puppet& puppet, const Eigen::MatrixX
   return set;
 }
 
-std::vector<int> SelectSalientSamples(const Eigen::MatrixXd& markers, double threshold, double scale_mm) {
+std::vector<int> SelectSalientSamples(const Eigen::MatrixXd& markers, double threshold,
+                                      double scale_mm) {
   std::vector<int> kept;
   if (markers.cols() == 0) return kept;
   kept.push_back(0);

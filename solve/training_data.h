@@ -23,16 +23,16 @@ namespace facedyn::solve {
 
 struct TrainingDataOptions {
   uint64_t seed = 1;
-  int sweep_steps = 10;          // poses per single-channel sweep (weights k/steps, k = 1..steps)
-  int rom_clips = 60;            // range-of-motion clips between random sparse poses
-  int rom_clip_frames = 12;      // frames per clip
-  int random_combos = 2000;      // random sparse combinations
-  int max_active_channels = 4;   // channels active in one random combination (1..)
-  int augment_copies = 2;        // augmented copies of every pose (0: clean poses only)
-  double noise_mm = 0.05;        // sd of the per-marker Gaussian noise of the copies
-  double mask_shift_mm = 0.3;    // radius of the rigid mask shift of the copies
-  double dropout = 0.0;          // probability that a copy loses a marker (refilled)
-  std::vector<int> jaw_channels; // joined to random combinations with probability 1/2
+  int sweep_steps = 10;           // poses per single-channel sweep (weights k/steps, k = 1..steps)
+  int rom_clips = 60;             // range-of-motion clips between random sparse poses
+  int rom_clip_frames = 12;       // frames per clip
+  int random_combos = 2000;       // random sparse combinations
+  int max_active_channels = 4;    // channels active in one random combination (1..)
+  int augment_copies = 2;         // augmented copies of every pose (0: clean poses only)
+  double noise_mm = 0.05;         // sd of the per-marker Gaussian noise of the copies
+  double mask_shift_mm = 0.3;     // radius of the rigid mask shift of the copies
+  double dropout = 0.0;           // probability that a copy loses a marker (refilled)
+  std::vector<int> jaw_channels;  // joined to random combinations with probability 1/2
   // Sizes and probabilities in range; the message names the field.
   Status Check() const;
 };
@@ -44,7 +44,8 @@ struct TrainingSet {
 };
 
 // The clean training poses (C x N) of section 4.1.
-StatusOr<Eigen::MatrixXd> MakeTrainingWeights(const Puppet& puppet, const TrainingDataOptions& options);
+StatusOr<Eigen::MatrixXd> MakeTrainingWeights(const Puppet& puppet,
+                                              const TrainingDataOptions& options);
 
 // Markers for the poses: the clean set, then `augment_copies` noisy copies of every pose.
 StatusOr<TrainingSet> MakeTrainingSet(const Puppet& puppet, const Eigen::MatrixXd& weights,
@@ -61,6 +62,7 @@ void FillMissingMarkers(const Puppet& puppet, const Eigen::Array<bool, Eigen::Dy
 // similarity s(i, j) = exp(-|x_i - x_j| / scale_mm) on the stacked markers (3M x N). Returns
 // the kept column indices (ascending; the first sample is always kept). threshold in (0, 1]:
 // 1 keeps every sample that is not an exact duplicate.
-std::vector<int> SelectSalientSamples(const Eigen::MatrixXd& markers, double threshold, double scale_mm);
+std::vector<int> SelectSalientSamples(const Eigen::MatrixXd& markers, double threshold,
+                                      double scale_mm);
 
 }  // namespace facedyn::solve

@@ -26,7 +26,8 @@ TEST(AlignToAnchor, NeutralAnchorRemovesAConstantMarkerOffset) {
   truth.col(0).setZero();  // the neutral-ish anchor frame
   Eigen::VectorXd offset(3 * puppet.marker_count());
   for (int m = 0; m < puppet.marker_count(); ++m) {
-    offset.segment<3>(3 * m) = Eigen::Vector3d(2.0, 0.0, 0.0) + Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+    offset.segment<3>(3 * m) =
+        Eigen::Vector3d(2.0, 0.0, 0.0) + Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
   }
   const Eigen::MatrixXd markers =
       ((puppet.marker_basis_mm * truth).colwise() + puppet.StackedNeutral()).colwise() + offset;
@@ -45,7 +46,8 @@ TEST(AlignToAnchor, NeutralAnchorRemovesAConstantMarkerOffset) {
 TEST(AlignToAnchor, AlphaWeightsTheOffsetPerFrame) {
   const Eigen::MatrixXd markers = Eigen::MatrixXd::Zero(3, 3);
   const Eigen::Vector3d offsets(1.0, 2.0, 3.0);
-  const Eigen::MatrixXd aligned = AlignToAnchor(markers, offsets, Eigen::Vector3d(1.0, 0.5, 0.0)).value();
+  const Eigen::MatrixXd aligned =
+      AlignToAnchor(markers, offsets, Eigen::Vector3d(1.0, 0.5, 0.0)).value();
   EXPECT_EIGEN_NEAR(aligned.col(0), -offsets, 0.0);
   EXPECT_EIGEN_NEAR(aligned.col(1), -0.5 * offsets, 0.0);
   EXPECT_EIGEN_NEAR(aligned.col(2), Eigen::Vector3d::Zero(), 0.0);

@@ -51,9 +51,11 @@ TEST(SolveConfig, ProceduralTablesCoverEveryChannelOnce) {
 TEST(SolveConfig, ErrorsNameTheChannelTheRegionAndTheField) {
   SolveConfig config = ProceduralSolveConfig().value();
   config.regions[0].channels.push_back("mouthSmile_L");
-  StatusOr<ResolvedConfig> resolved = ResolveSolveConfig(config, ProceduralRig(), ProceduralPuppet());
+  StatusOr<ResolvedConfig> resolved =
+      ResolveSolveConfig(config, ProceduralRig(), ProceduralPuppet());
   ASSERT_FALSE(resolved.ok());
-  EXPECT_NE(resolved.status().message().find("'mouthSmile_L', which the rig does not have"), std::string::npos)
+  EXPECT_NE(resolved.status().message().find("'mouthSmile_L', which the rig does not have"),
+            std::string::npos)
       << resolved.status().message();
 
   config = ProceduralSolveConfig().value();
@@ -67,15 +69,19 @@ TEST(SolveConfig, ErrorsNameTheChannelTheRegionAndTheField) {
   config.regions[1].rig_regions = {"ears"};
   resolved = ResolveSolveConfig(config, ProceduralRig(), ProceduralPuppet());
   ASSERT_FALSE(resolved.ok());
-  EXPECT_NE(resolved.status().message().find("'ears'"), std::string::npos) << resolved.status().message();
+  EXPECT_NE(resolved.status().message().find("'ears'"), std::string::npos)
+      << resolved.status().message();
 
   const StatusOr<ConfigNode> node = ConfigNode::Parse(
-      "jaw: {rig_regions: [jaw], channels: [jaw_open], features: distance+wobble}\nregions: []\n", "bad.yaml");
+      "jaw: {rig_regions: [jaw], channels: [jaw_open], features: distance+wobble}\nregions: []\n",
+      "bad.yaml");
   ASSERT_TRUE(node.ok());
   const StatusOr<SolveConfig> parsed = ParseSolveConfig(node.value());
   ASSERT_FALSE(parsed.ok());
-  EXPECT_NE(parsed.status().message().find("bad.yaml:1"), std::string::npos) << parsed.status().message();
-  EXPECT_NE(parsed.status().message().find("wobble"), std::string::npos) << parsed.status().message();
+  EXPECT_NE(parsed.status().message().find("bad.yaml:1"), std::string::npos)
+      << parsed.status().message();
+  EXPECT_NE(parsed.status().message().find("wobble"), std::string::npos)
+      << parsed.status().message();
 }
 
 TEST(MakeTrainingWeights, HasSweepsWithinBoundsAndIsSeeded) {
@@ -113,7 +119,8 @@ TEST(MakeTrainingSet, CopiesCarryNoiseShiftAndRefilledDropout) {
     const Eigen::VectorXd d = shifted.markers.col(i) - puppet.StackedNeutral();
     const Eigen::Vector3d shift = d.head<3>();
     EXPECT_LE(shift.norm(), 0.5 + 1e-12);
-    for (int m = 0; m < puppet.marker_count(); ++m) EXPECT_EIGEN_NEAR(d.segment<3>(3 * m), shift, 1e-9);
+    for (int m = 0; m < puppet.marker_count(); ++m)
+      EXPECT_EIGEN_NEAR(d.segment<3>(3 * m), shift, 1e-9);
   }
   // Dropout at neutral refills from the neighbours' deltas: exactly neutral again.
   options.mask_shift_mm = 0.0;
@@ -146,7 +153,8 @@ TEST(FdlsSolver, TrainedSolverReproducesThePuppetsOwnFrames) {
   data_options.rom_clips = 40;
   data_options.augment_copies = 1;
   data_options.jaw_channels = config.jaw.channels;
-  data_options.dropout = 0.1;  // the copies lose a tenth of their markers, refilled as a solve refills them
+  data_options.dropout =
+      0.1;  // the copies lose a tenth of their markers, refilled as a solve refills them
   const Eigen::MatrixXd weights = MakeTrainingWeights(puppet, data_options).value();
   const TrainingSet data = MakeTrainingSet(puppet, weights, data_options).value();
   FdlsTrainOptions train;
@@ -156,10 +164,14 @@ TEST(FdlsSolver, TrainedSolverReproducesThePuppetsOwnFrames) {
   StatusOr<FdlsSolver> solver = FdlsSolver::Train(puppet, config, data, train, &summaries);
   ASSERT_TRUE(solver.ok()) << solver.status().ToString();
   for (const RegionTrainSummary& s : summaries) {
-    std::printf("region %-10s markers %2d inputs %4d outputs %d train rmse %.4f validation rmse %.4f %.1f s\n",
-                s.region.c_str(), s.markers, s.inputs, s.outputs, s.train_rmse, s.validation_rmse, s.train_s);
+    std::printf(
+        "region %-10s markers %2d inputs %4d outputs %d train rmse %.4f validation rmse %.4f %.1f "
+        "s\n",
+        s.region.c_str(), s.markers, s.inputs, s.outputs, s.train_rmse, s.validation_rmse,
+        s.train_s);
   }
-  std::printf("training took %.1f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  std::printf("training took %.1f s\n",
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
 
   // Held-out frames: other random sparse poses (another seed), clean markers.
   TrainingDataOptions test_options = data_options;
@@ -168,7 +180,8 @@ TEST(FdlsSolver, TrainedSolverReproducesThePuppetsOwnFrames) {
   test_options.rom_clips = 0;
   test_options.random_combos = 200;
   const Eigen::MatrixXd truth = MakeTrainingWeights(puppet, test_options).value();
-  const Eigen::MatrixXd markers = (puppet.marker_basis_mm * truth).colwise() + puppet.StackedNeutral();
+  const Eigen::MatrixXd markers =
+      (puppet.marker_basis_mm * truth).colwise() + puppet.StackedNeutral();
   const Eigen::MatrixXd solved = solver.value().Solve(markers).value();
   const double weight_rmse = std::sqrt((solved - truth).squaredNorm() / truth.size());
   const double marker_rmse = MarkerRmseMm(puppet, solved, markers);
@@ -180,9 +193,11 @@ TEST(FdlsSolver, TrainedSolverReproducesThePuppetsOwnFrames) {
 
   // A tenth of the markers lost in every frame (refilled from neighbours): still close.
   Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic> present =
-      Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic>::Constant(puppet.marker_count(), truth.cols(), true);
+      Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic>::Constant(puppet.marker_count(),
+                                                                   truth.cols(), true);
   for (Eigen::Index f = 0; f < truth.cols(); ++f) {
-    for (int m = static_cast<int>(f % 10); m < puppet.marker_count(); m += 10) present(m, f) = false;
+    for (int m = static_cast<int>(f % 10); m < puppet.marker_count(); m += 10)
+      present(m, f) = false;
   }
   Eigen::MatrixXd holes = markers;
   for (Eigen::Index f = 0; f < truth.cols(); ++f) {
@@ -211,12 +226,14 @@ TEST(FdlsSolver, TrainedSolverReproducesThePuppetsOwnFrames) {
   facedyn::testing::WriteBytes(dir.Join("s/solver.json"), json.substr(0, json.size() / 2));
   loaded = FdlsSolver::Load(dir.Join("s"));
   ASSERT_FALSE(loaded.ok());
-  EXPECT_NE(loaded.status().message().find("solver.json"), std::string::npos) << loaded.status().message();
+  EXPECT_NE(loaded.status().message().find("solver.json"), std::string::npos)
+      << loaded.status().message();
   facedyn::testing::WriteBytes(dir.Join("s/solver.json"), json);
   facedyn::testing::WriteBytes(dir.Join("s/mouth.pt"), "not an archive");
   loaded = FdlsSolver::Load(dir.Join("s"));
   ASSERT_FALSE(loaded.ok());
-  EXPECT_NE(loaded.status().message().find("mouth.pt"), std::string::npos) << loaded.status().message();
+  EXPECT_NE(loaded.status().message().find("mouth.pt"), std::string::npos)
+      << loaded.status().message();
 }
 
 }  // namespace

@@ -35,9 +35,11 @@ TEST(IctPuppet, TablesResolveAndPairsAreFoundByName) {
   EXPECT_EQ(resolved.value().jaw.channels.size(), 4u);
 
   // The procedural tables on this rig name the first channel the rig lacks.
-  const StatusOr<ResolvedConfig> wrong = ResolveSolveConfig(ProceduralSolveConfig().value(), rig.value(), puppet);
+  const StatusOr<ResolvedConfig> wrong =
+      ResolveSolveConfig(ProceduralSolveConfig().value(), rig.value(), puppet);
   ASSERT_FALSE(wrong.ok());
-  EXPECT_NE(wrong.status().message().find("'jaw_open', which the rig does not have"), std::string::npos)
+  EXPECT_NE(wrong.status().message().find("'jaw_open', which the rig does not have"),
+            std::string::npos)
       << wrong.status().message();
 
   // QP on clean puppet markers: the marker residual vanishes whatever the rank of B.
@@ -45,7 +47,8 @@ TEST(IctPuppet, TablesResolveAndPairsAreFoundByName) {
   truth(puppet.ChannelIndex("jawOpen"), 0) = 0.6;
   truth(puppet.ChannelIndex("mouthSmile_L"), 1) = 0.8;
   truth(puppet.ChannelIndex("browInnerUp_R"), 2) = 0.5;
-  const Eigen::MatrixXd markers = (puppet.marker_basis_mm * truth).colwise() + puppet.StackedNeutral();
+  const Eigen::MatrixXd markers =
+      (puppet.marker_basis_mm * truth).colwise() + puppet.StackedNeutral();
   MarkerFitSummary summary;
   const Eigen::MatrixXd solved = SolveMarkersQp(puppet, markers, nullptr, &summary).value();
   EXPECT_LT(summary.final_rmse_mm, 0.01);

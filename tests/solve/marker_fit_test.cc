@@ -52,7 +52,8 @@ TEST(SolveMarkersQp, RecoversExactWeightsFromCleanPuppetMarkers) {
   const Puppet& puppet = ProceduralPuppet();
   const Eigen::MatrixXd truth = SomeWeights(puppet, 20, 7);
   MarkerFitSummary summary;
-  const StatusOr<Eigen::MatrixXd> solved = SolveMarkersQp(puppet, MarkersOf(puppet, truth), nullptr, &summary);
+  const StatusOr<Eigen::MatrixXd> solved =
+      SolveMarkersQp(puppet, MarkersOf(puppet, truth), nullptr, &summary);
   ASSERT_TRUE(solved.ok()) << solved.status().ToString();
   EXPECT_EIGEN_NEAR(solved.value(), truth, 1e-6);
   EXPECT_LT(summary.final_rmse_mm, 1e-6);
@@ -91,7 +92,8 @@ TEST(FitWeightsToMarkers, FinetuneStaysInBoundsAndLeavesFrozenChannels) {
                              puppet.ChannelIndex("brow_raise")};
     options.smoothness = smoothness;
     MarkerFitSummary summary;
-    const StatusOr<Eigen::MatrixXd> tuned = FitWeightsToMarkers(puppet, markers, start, nullptr, options, &summary);
+    const StatusOr<Eigen::MatrixXd> tuned =
+        FitWeightsToMarkers(puppet, markers, start, nullptr, options, &summary);
     ASSERT_TRUE(tuned.ok()) << tuned.status().ToString();
     EXPECT_GE(tuned.value().minCoeff(), 0.0);
     EXPECT_LE(tuned.value().maxCoeff(), 1.0);
@@ -118,22 +120,28 @@ TEST(FitWeightsToMarkers, SmoothnessReducesFrameToFrameChange) {
   MarkerFitOptions rough, smooth;
   smooth.smoothness = 2000.0;
   const Eigen::MatrixXd start = Eigen::MatrixXd::Zero(puppet.channel_count(), 30);
-  const Eigen::MatrixXd a = FitWeightsToMarkers(puppet, markers, start, nullptr, rough, nullptr).value();
-  const Eigen::MatrixXd b = FitWeightsToMarkers(puppet, markers, start, nullptr, smooth, nullptr).value();
+  const Eigen::MatrixXd a =
+      FitWeightsToMarkers(puppet, markers, start, nullptr, rough, nullptr).value();
+  const Eigen::MatrixXd b =
+      FitWeightsToMarkers(puppet, markers, start, nullptr, smooth, nullptr).value();
   EXPECT_LT(roughness(b), 0.2 * roughness(a));
   EXPECT_LT((b - truth).norm(), (a - truth).norm());
 }
 
 TEST(FitWeightsToMarkers, BadInputIsNamed) {
   const Puppet& puppet = ProceduralPuppet();
-  const Eigen::MatrixXd markers = MarkersOf(puppet, Eigen::MatrixXd::Zero(puppet.channel_count(), 2));
+  const Eigen::MatrixXd markers =
+      MarkersOf(puppet, Eigen::MatrixXd::Zero(puppet.channel_count(), 2));
   const Eigen::MatrixXd start = Eigen::MatrixXd::Zero(puppet.channel_count(), 2);
   MarkerFitOptions options;
   options.free_channels = {99};
-  StatusOr<Eigen::MatrixXd> result = FitWeightsToMarkers(puppet, markers, start, nullptr, options, nullptr);
+  StatusOr<Eigen::MatrixXd> result =
+      FitWeightsToMarkers(puppet, markers, start, nullptr, options, nullptr);
   ASSERT_FALSE(result.ok());
-  EXPECT_NE(result.status().message().find("free_channels"), std::string::npos) << result.status().message();
-  result = FitWeightsToMarkers(puppet, markers.topRows(30), start, nullptr, MarkerFitOptions{}, nullptr);
+  EXPECT_NE(result.status().message().find("free_channels"), std::string::npos)
+      << result.status().message();
+  result =
+      FitWeightsToMarkers(puppet, markers.topRows(30), start, nullptr, MarkerFitOptions{}, nullptr);
   ASSERT_FALSE(result.ok());
   MarkerPresence none = MarkerPresence::Constant(puppet.marker_count(), 2, false);
   result = FitWeightsToMarkers(puppet, markers, start, &none, MarkerFitOptions{}, nullptr);

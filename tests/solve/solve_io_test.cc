@@ -9,9 +9,9 @@
 namespace facedyn::solve {
 namespace {
 
+using facedyn::testing::ReadBytes;
 using facedyn::testing::TempDir;
 using facedyn::testing::WriteBytes;
-using facedyn::testing::ReadBytes;
 using testing::ProceduralPuppet;
 
 bool Contains(const Status& status, const std::string& text) {
@@ -37,17 +37,20 @@ TEST(WeightsCsv, RoundTrip) {
 TEST(WeightsCsv, UnknownChannelIsNamedWithFileAndColumn) {
   TempDir dir;
   WriteBytes(dir.Join("w.csv"), "time_s,smile,mouthSmile_L\n0,0.5,0.25\n");
-  const StatusOr<Eigen::MatrixXd> read = ReadWeightsCsv(dir.Join("w.csv"), ProceduralPuppet(), nullptr);
+  const StatusOr<Eigen::MatrixXd> read =
+      ReadWeightsCsv(dir.Join("w.csv"), ProceduralPuppet(), nullptr);
   ASSERT_FALSE(read.ok());
   EXPECT_TRUE(Contains(read.status(), dir.Join("w.csv"))) << read.status().message();
-  EXPECT_TRUE(Contains(read.status(), "column 3 'mouthSmile_L' is not a channel of rig 'procedural'"))
+  EXPECT_TRUE(
+      Contains(read.status(), "column 3 'mouthSmile_L' is not a channel of rig 'procedural'"))
       << read.status().message();
 }
 
 TEST(WeightsCsv, ChannelsWithoutAColumnAreZero) {
   TempDir dir;
   WriteBytes(dir.Join("w.csv"), "time_s,pucker\n0,0.5\n0.1,0.25\n");
-  const Eigen::MatrixXd read = ReadWeightsCsv(dir.Join("w.csv"), ProceduralPuppet(), nullptr).value();
+  const Eigen::MatrixXd read =
+      ReadWeightsCsv(dir.Join("w.csv"), ProceduralPuppet(), nullptr).value();
   EXPECT_EQ(read.row(ProceduralPuppet().ChannelIndex("pucker")).sum(), 0.75);
   EXPECT_EQ(read.cwiseAbs().sum(), 0.75);
 }
@@ -55,11 +58,13 @@ TEST(WeightsCsv, ChannelsWithoutAColumnAreZero) {
 TEST(WeightsCsv, TruncatedAndCorruptedInputsAreErrors) {
   TempDir dir;
   WriteBytes(dir.Join("t.csv"), "time_s,smile\n0,0.5\n0.1");
-  const StatusOr<Eigen::MatrixXd> truncated = ReadWeightsCsv(dir.Join("t.csv"), ProceduralPuppet(), nullptr);
+  const StatusOr<Eigen::MatrixXd> truncated =
+      ReadWeightsCsv(dir.Join("t.csv"), ProceduralPuppet(), nullptr);
   ASSERT_FALSE(truncated.ok());
   EXPECT_TRUE(Contains(truncated.status(), ":3")) << truncated.status().message();
   WriteBytes(dir.Join("c.csv"), "time_s,smile\n0,0.5\n0.1,abc\n");
-  const StatusOr<Eigen::MatrixXd> corrupted = ReadWeightsCsv(dir.Join("c.csv"), ProceduralPuppet(), nullptr);
+  const StatusOr<Eigen::MatrixXd> corrupted =
+      ReadWeightsCsv(dir.Join("c.csv"), ProceduralPuppet(), nullptr);
   ASSERT_FALSE(corrupted.ok());
   EXPECT_TRUE(Contains(corrupted.status(), "abc")) << corrupted.status().message();
 }
@@ -69,7 +74,8 @@ MarkerFrames SomeFrames(const Puppet& puppet) {
   frames.time_s = {0.0, 0.5};
   frames.markers_in_skull.resize(3 * puppet.marker_count(), 2);
   frames.markers_in_skull.col(0) = puppet.StackedNeutral();
-  frames.markers_in_skull.col(1) = puppet.StackedMarkers(Eigen::VectorXd::Constant(puppet.channel_count(), 0.3));
+  frames.markers_in_skull.col(1) =
+      puppet.StackedMarkers(Eigen::VectorXd::Constant(puppet.channel_count(), 0.3));
   frames.present = MarkerPresence::Constant(puppet.marker_count(), 2, true);
   frames.present(5, 1) = false;
   frames.markers_in_skull.col(1).segment<3>(15).setZero();
@@ -99,7 +105,8 @@ TEST(MarkersCsv, MissingMarkerColumnsAreNamed) {
   WriteBytes(dir.Join("short.csv"), header.substr(0, at) + header.substr(at + 21) + "\n");
   const StatusOr<MarkerFrames> read = ReadMarkersCsv(dir.Join("short.csv"), puppet);
   ASSERT_FALSE(read.ok());
-  EXPECT_TRUE(Contains(read.status(), "3 marker columns of rig 'procedural' are missing: m007_x, m007_y, m007_z"))
+  EXPECT_TRUE(Contains(read.status(),
+                       "3 marker columns of rig 'procedural' are missing: m007_x, m007_y, m007_z"))
       << read.status().message();
 }
 
@@ -126,7 +133,8 @@ TEST(MarkersCsv, HalfMissingMarkerAndBadTimesAreNamed) {
   read = ReadMarkersCsv(dir.Join("h.csv"), puppet);
   ASSERT_FALSE(read.ok());
   EXPECT_TRUE(Contains(read.status(), "h.csv:2")) << read.status().message();
-  EXPECT_TRUE(Contains(read.status(), "marker 'm000' has 1 of its 3 coordinates empty")) << read.status().message();
+  EXPECT_TRUE(Contains(read.status(), "marker 'm000' has 1 of its 3 coordinates empty"))
+      << read.status().message();
 }
 
 }  // namespace

@@ -8,7 +8,8 @@
 namespace facedyn::solve::testing {
 
 inline const FaceRig& ProceduralRig() {
-  static const FaceRig* rig = new FaceRig(sim::MakeProceduralFace(sim::ProceduralFaceOptions{}).value());
+  static const FaceRig* rig =
+      new FaceRig(sim::MakeProceduralFace(sim::ProceduralFaceOptions{}).value());
   return *rig;
 }
 

@@ -8,59 +8,9 @@
 #include <memory>
 #include <set>
 
+#include "solve/marker_costs.h"
+
 namespace facedyn::solve {
-namespace {
-
-// r = A w - b for one frame's free weights: A the present markers' rows of B over the free
-// channels, b the observed markers minus neutral minus the frozen channels' contribution.
-class LinearMarkerCost final : public ceres::CostFunction {
- public:
-  LinearMarkerCost(Eigen::MatrixXd a, Eigen::VectorXd b) : a_(std::move(a)), b_(std::move(b)) {
-    set_num_residuals(static_cast<int>(a_.rows()));
-    mutable_parameter_block_sizes()->push_back(static_cast<int>(a_.cols()));
-  }
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    const Eigen::Map<const Eigen::VectorXd> w(parameters[0], a_.cols());
-    Eigen::Map<Eigen::VectorXd>(residuals, a_.rows()) = a_ * w - b_;
-    if (jacobians != nullptr && jacobians[0] != nullptr) {
-      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
-          jacobians[0], a_.rows(), a_.cols()) = a_;
-    }
-    return true;
-  }
-
- private:
-  Eigen::MatrixXd a_;
-  Eigen::VectorXd b_;
-};
-
-// sqrt(lambda) (w_t - w_{t-1}) over the free channels.
-class SmoothnessCost final : public ceres::CostFunction {
- public:
-  SmoothnessCost(int size, double lambda) : size_(size), scale_(std::sqrt(lambda)) {
-    set_num_residuals(size);
-    mutable_parameter_block_sizes()->push_back(size);
-    mutable_parameter_block_sizes()->push_back(size);
-  }
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    for (int i = 0; i < size_; ++i) residuals[i] = scale_ * (parameters[1][i] - parameters[0][i]);
-    for (int block = 0; block < 2; ++block) {
-      if (jacobians == nullptr || jacobians[block] == nullptr) continue;
-      std::fill(jacobians[block], jacobians[block] + size_ * size_, 0.0);
-      for (int i = 0; i < size_; ++i)
-        jacobians[block][i * size_ + i] = block == 0 ? -scale_ : scale_;
-    }
-    return true;
-  }
-
- private:
-  int size_;
-  double scale_;
-};
-
-}  // namespace
 
 Status MarkerFitOptions::Check(int channel_count) const {
   std::set<int> seen;
@@ -163,7 +113,7 @@ StatusOr<Eigen::MatrixXd> FitWeightsToMarkers(const Puppet& puppet, const Eigen:
       for (int i = 0; i < k; ++i)
         a(static_cast<Eigen::Index>(r), i) = puppet.marker_basis_mm(row, free[i]);
     }
-    return new LinearMarkerCost(std::move(a), std::move(b));
+    return new internal::LinearMarkerCost(std::move(a), std::move(b));
   };
 
   ceres::Solver::Options solver_options;
@@ -208,7 +158,7 @@ StatusOr<Eigen::MatrixXd> FitWeightsToMarkers(const Puppet& puppet, const Eigen:
         add_bounds(&problem, free_weights.col(f).data());
       }
       for (Eigen::Index f = 1; f < n; ++f) {
-        problem.AddResidualBlock(new SmoothnessCost(k, options.smoothness), nullptr,
+        problem.AddResidualBlock(new internal::SmoothnessCost(k, options.smoothness), nullptr,
                                  free_weights.col(f - 1).data(), free_weights.col(f).data());
       }
       FACEDYN_RETURN_IF_ERROR(run(&problem));

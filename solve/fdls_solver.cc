@@ -74,9 +74,9 @@ Eigen::MatrixXf FdlsSolver::RegionInputs(const Puppet& puppet, const ResolvedReg
 }
 
 StatusOr<FdlsSolver::Network> FdlsSolver::TrainNetwork(
-    const Puppet& puppet, const ResolvedRegion& region, const NetworkSpec& spec,
-    const Eigen::MatrixXf& inputs, int jaw_inputs, const Eigen::MatrixXd& weights,
-    const FdlsTrainOptions& options, RegionTrainSummary* summary) {
+    const ResolvedRegion& region, const NetworkSpec& spec, const Eigen::MatrixXf& inputs,
+    int jaw_inputs, const Eigen::MatrixXd& weights, const FdlsTrainOptions& options,
+    RegionTrainSummary* summary) {
   const Eigen::MatrixXf targets = Rows(weights, region.channels).cast<float>();
   learn::MlpShape shape;
   shape.input_size = static_cast<int>(inputs.rows());
@@ -129,7 +129,6 @@ StatusOr<FdlsSolver::Network> FdlsSolver::TrainNetwork(
         trained.validation_loss.empty() ? 0.0 : std::sqrt(trained.validation_loss.back());
     summary->train_s = trained.train_s;
   }
-  (void)puppet;
   return Network{region, std::move(mlp)};
 }
 
@@ -152,8 +151,8 @@ StatusOr<FdlsSolver> FdlsSolver::Train(const Puppet& puppet, const ResolvedConfi
   RegionTrainSummary summary;
   {
     const Eigen::MatrixXf inputs = RegionInputs(puppet, config.jaw, data.markers, nullptr);
-    FACEDYN_ASSIGN_OR_RETURN(solver.jaw_, TrainNetwork(puppet, config.jaw, config.network, inputs,
-                                                       0, data.weights, options, &summary));
+    FACEDYN_ASSIGN_OR_RETURN(solver.jaw_, TrainNetwork(config.jaw, config.network, inputs, 0,
+                                                       data.weights, options, &summary));
     if (summaries != nullptr) summaries->push_back(summary);
   }
   // Eq. (4): the conditioned networks see the ground-truth jaw while training.
@@ -164,7 +163,7 @@ StatusOr<FdlsSolver> FdlsSolver::Train(const Puppet& puppet, const ResolvedConfi
         RegionInputs(puppet, region, data.markers, conditioned ? &true_jaw : nullptr);
     FACEDYN_ASSIGN_OR_RETURN(
         Network network,
-        TrainNetwork(puppet, region, config.network, inputs,
+        TrainNetwork(region, config.network, inputs,
                      conditioned ? static_cast<int>(config.jaw.channels.size()) : 0, data.weights,
                      options, &summary));
     solver.regions_.push_back(std::move(network));

@@ -87,9 +87,9 @@ class FdlsSolver {
   // Features (F x N) of the region's markers for every frame, jaw rows appended when given.
   static Eigen::MatrixXf RegionInputs(const Puppet& puppet, const ResolvedRegion& region,
                                       const Eigen::MatrixXd& markers, const Eigen::MatrixXd* jaw);
-  static StatusOr<Network> TrainNetwork(const Puppet& puppet, const ResolvedRegion& region,
-                                        const NetworkSpec& spec, const Eigen::MatrixXf& inputs,
-                                        int jaw_inputs, const Eigen::MatrixXd& weights,
+  static StatusOr<Network> TrainNetwork(const ResolvedRegion& region, const NetworkSpec& spec,
+                                        const Eigen::MatrixXf& inputs, int jaw_inputs,
+                                        const Eigen::MatrixXd& weights,
                                         const FdlsTrainOptions& options,
                                         RegionTrainSummary* summary);
 

@@ -6,6 +6,7 @@
 #include "solve/marker_fit.h"
 #include "solve/puppet.h"
 #include "solve/solve_config.h"
+#include "solve/training_data.h"
 #include "tests/support/test_support.h"
 
 namespace facedyn::solve {
@@ -41,6 +42,21 @@ TEST(IctPuppet, TablesResolveAndPairsAreFoundByName) {
   EXPECT_NE(wrong.status().message().find("'jaw_open', which the rig does not have"),
             std::string::npos)
       << wrong.status().message();
+
+  // Training poses: the sweeps, then each pair symmetric and asymmetric (both sides at a, one
+  // side at a and the other at a/2), FDLS 4.1.
+  TrainingDataOptions data_options;
+  data_options.sweep_steps = 4;
+  data_options.rom_clips = 0;
+  data_options.random_combos = 0;
+  const Eigen::MatrixXd poses = MakeTrainingWeights(puppet, data_options).value();
+  ASSERT_EQ(poses.cols(), 1 + 55 * 4 + 21 * 4 * 3);
+  const auto [left, right] = puppet.symmetric_pairs.front();
+  const Eigen::Index first_pair = 1 + 55 * 4;
+  EXPECT_EQ(poses(left, first_pair), 0.25);
+  EXPECT_EQ(poses(right, first_pair), 0.25);
+  EXPECT_EQ(poses(right, first_pair + 1), 0.125);
+  EXPECT_EQ(poses.col(first_pair).cwiseAbs().sum(), 0.5);
 
   // QP on clean puppet markers: the marker residual vanishes whatever the rank of B.
   Eigen::MatrixXd truth = Eigen::MatrixXd::Zero(puppet.channel_count(), 3);

@@ -1,7 +1,7 @@
 // solve_bench: the rig-solving figures of issue 21 (FDLS), printed as JSON.
 //
 //   solve_bench [--quick] [--seed N] [--seeds 1,2,3] [--epochs N] [--seconds S] [--fps N]
-//               [--noise-mm S] [--salient T] [--threads N]
+//               [--noise-mm S] [--salient T] [--smoothness L] [--threads N]
 //
 // Subject: the procedural face (sim/, the embedded default rig; the solve library itself never
 // links sim/). Its puppet generates the training tuples (FDLS 4.1: one-hot sweeps, ROM clips,
@@ -25,6 +25,8 @@
 // "anchor_alignment": the shot from a face 3% larger with its mask 2 mm off, solved by the
 // network before and after alignment on one neutral-ish frame (4.4.2), and the fraction of the
 // error the change added that alignment removed.
+// --smoothness L: also "network_finetuned_smooth", the fine-tuning with temporal smoothness
+// lambda = L (mm^2 per unit weight^2 per frame step; one problem over the whole performance).
 // --quick: fewer epochs and tuples (a smoke run, not the figures).
 
 #include <ATen/Parallel.h>
@@ -152,6 +154,7 @@ struct Settings {
   double fps = 60.0;
   double noise_mm = 0.1;
   double salient = 0.0;
+  double smoothness = 0.0;
   int threads = 2;
 };
 
@@ -242,6 +245,21 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
     entry["network_finetuned"]["iterations_per_frame"] =
         static_cast<double>(tune_summary.iterations) / frames;
     entry["network_finetuned"]["converged"] = tune_summary.converged;
+    if (settings.smoothness > 0.0) {
+      Eigen::MatrixXd smooth;
+      MarkerFitSummary smooth_summary;
+      MarkerFitOptions smooth_options;
+      smooth_options.smoothness = settings.smoothness;
+      const double smooth_fps = FramesPerSecond(frames, [&] {
+        smooth = Check(FitWeightsToMarkers(puppet, *markers, network, nullptr, smooth_options,
+                                           &smooth_summary),
+                       "smooth finetune");
+      });
+      entry["network_finetuned_smooth"] =
+          ToJson(Score(puppet, config.jaw.channels, smooth, truth, *markers), smooth_fps);
+      entry["network_finetuned_smooth"]["smoothness_mm2"] = settings.smoothness;
+      entry["network_finetuned_smooth"]["converged"] = smooth_summary.converged;
+    }
     test[name] = entry;
   }
   if (settings.salient > 0.0) {
@@ -378,6 +396,8 @@ int main(int argc, char** argv) {
       settings.fps = facedyn::bench::FlagNumber("solve_bench", arg, next());
     } else if (arg == "--noise-mm") {
       settings.noise_mm = facedyn::bench::FlagNumber("solve_bench", arg, next());
+    } else if (arg == "--smoothness") {
+      settings.smoothness = facedyn::bench::FlagNumber("solve_bench", arg, next());
     } else if (arg == "--salient") {
       settings.salient = facedyn::bench::FlagNumber("solve_bench", arg, next());
     } else if (arg == "--threads") {
@@ -385,7 +405,7 @@ int main(int argc, char** argv) {
     } else if (arg == "--help" || arg == "-h") {
       std::printf(
           "solve_bench [--quick] [--seed N] [--seeds 1,2,3] [--epochs N] [--seconds S] [--fps N]\n"
-          "            [--noise-mm S] [--salient T] [--threads N]\n");
+          "            [--noise-mm S] [--salient T] [--smoothness L] [--threads N]\n");
       return 0;
     } else {
       std::fprintf(stderr, "solve_bench: unknown flag '%s' (--help lists them)\n", arg.c_str());

@@ -22,6 +22,7 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected);
 void AddReportCommand(CLI::App& app, CommandRunner* selected);  // the demo's report again
 void AddSimCommands(CLI::App& app, CommandRunner* selected);
 void AddDynamicsCommands(CLI::App& app, CommandRunner* selected);
+void AddSolveCommands(CLI::App& app, CommandRunner* selected);  // solve train|run|apply (FDLS)
 void AddRigCommands(CLI::App& app, CommandRunner* selected);
 void AddSweepCommand(CLI::App& app, CommandRunner* selected);
 void AddCalibrateCommand(CLI::App& app, CommandRunner* selected);

@@ -1,0 +1,156 @@
+#include "solve/solve_io.h"
+
+#include <fmt/format.h>
+
+#include <array>
+#include <cmath>
+#include <map>
+
+#include "core/csv.h"
+#include "core/file_util.h"
+
+namespace facedyn::solve {
+
+StatusOr<BlendshapeWeightsTrack> WeightsToTrack(const Puppet& puppet,
+                                                const std::vector<double>& time_s,
+                                                const Eigen::MatrixXd& weights) {
+  if (weights.rows() != puppet.channel_count() ||
+      weights.cols() != static_cast<Eigen::Index>(time_s.size())) {
+    return InvalidArgumentError(fmt::format("weights: {} x {} for {} channels and {} times",
+                                            weights.rows(), weights.cols(), puppet.channel_count(),
+                                            time_s.size()));
+  }
+  BlendshapeWeightsTrack track;
+  track.names = puppet.channel_names;
+  track.time_s = time_s;
+  track.weights = weights.transpose();
+  FACEDYN_RETURN_IF_ERROR(track.Validate());
+  return track;
+}
+
+StatusOr<Eigen::MatrixXd> WeightsFromTrack(const Puppet& puppet,
+                                           const BlendshapeWeightsTrack& track,
+                                           const std::string& source) {
+  Eigen::MatrixXd weights = Eigen::MatrixXd::Zero(puppet.channel_count(), track.sample_count());
+  for (size_t column = 0; column < track.names.size(); ++column) {
+    const int c = puppet.ChannelIndex(track.names[column]);
+    if (c < 0) {
+      std::string known;
+      for (const std::string& name : puppet.channel_names)
+        known += (known.empty() ? "" : ", ") + name;
+      return InvalidArgumentError(
+          fmt::format("{}: column {} '{}' is not a channel of rig '{}' (channels: {})", source,
+                      column + 2, track.names[column], puppet.rig_name, known));
+    }
+    weights.row(c) = track.weights.col(static_cast<Eigen::Index>(column)).transpose();
+  }
+  return weights;
+}
+
+Status WriteWeightsCsv(const std::string& path, const Puppet& puppet,
+                       const std::vector<double>& time_s, const Eigen::MatrixXd& weights) {
+  FACEDYN_ASSIGN_OR_RETURN(const BlendshapeWeightsTrack track,
+                           WeightsToTrack(puppet, time_s, weights));
+  return WriteBlendshapeWeightsCsv(path, track);
+}
+
+StatusOr<Eigen::MatrixXd> ReadWeightsCsv(const std::string& path, const Puppet& puppet,
+                                         std::vector<double>* time_s) {
+  FACEDYN_ASSIGN_OR_RETURN(const BlendshapeWeightsTrack track, ReadBlendshapeWeightsCsv(path));
+  if (time_s != nullptr) *time_s = track.time_s;
+  return WeightsFromTrack(puppet, track, path);
+}
+
+StatusOr<MarkerFrames> ReadMarkersCsv(const std::string& path, const Puppet& puppet) {
+  FACEDYN_ASSIGN_OR_RETURN(const CsvTable table, CsvTable::ReadWithHeader(path));
+  const std::vector<std::string>& columns = table.columns();
+  if (columns.empty() || columns[0] != "time_s") {
+    return DataLossError(path +
+                         ": the header's first column must be time_s (then <marker>_x,_y,_z)");
+  }
+  std::map<std::string, size_t> column_of;
+  for (size_t i = 1; i < columns.size(); ++i) {
+    if (!column_of.emplace(columns[i], i).second) {
+      return DataLossError(
+          fmt::format("{}: the header names the column '{}' twice", path, columns[i]));
+    }
+  }
+  const int m_count = puppet.marker_count();
+  std::vector<std::array<size_t, 3>> marker_columns(m_count);
+  std::string missing;
+  int missing_count = 0;
+  for (int m = 0; m < m_count; ++m) {
+    for (int a = 0; a < 3; ++a) {
+      const std::string name = puppet.marker_names[m] + "_" + "xyz"[a];
+      const auto it = column_of.find(name);
+      if (it == column_of.end()) {
+        if (missing_count < 8) missing += (missing.empty() ? "" : ", ") + name;
+        ++missing_count;
+        continue;
+      }
+      marker_columns[m][a] = it->second;
+    }
+  }
+  if (missing_count > 0) {
+    return DataLossError(fmt::format("{}: {} marker columns of rig '{}' are missing: {}{}", path,
+                                     missing_count, puppet.rig_name, missing,
+                                     missing_count > 8 ? ", ..." : ""));
+  }
+  const size_t n = table.row_count();
+  if (n == 0) return DataLossError(path + ": no frames");
+  MarkerFrames frames;
+  frames.time_s.resize(n);
+  frames.markers_in_skull = Eigen::MatrixXd::Zero(3 * m_count, static_cast<Eigen::Index>(n));
+  frames.present = MarkerPresence::Constant(m_count, static_cast<Eigen::Index>(n), true);
+  for (size_t row = 0; row < n; ++row) {
+    FACEDYN_ASSIGN_OR_RETURN(frames.time_s[row], table.Number(row, 0));
+    if (row > 0 && !(frames.time_s[row] > frames.time_s[row - 1])) {
+      return table.RowError(row, fmt::format("time_s {} is not after the previous row's {}",
+                                             frames.time_s[row], frames.time_s[row - 1]));
+    }
+    for (int m = 0; m < m_count; ++m) {
+      int empty = 0;
+      for (int a = 0; a < 3; ++a) empty += table.Text(row, marker_columns[m][a]).empty() ? 1 : 0;
+      if (empty == 3) {
+        frames.present(m, static_cast<Eigen::Index>(row)) = false;
+        continue;
+      }
+      if (empty != 0) {
+        return table.RowError(
+            row, fmt::format("marker '{}' has {} of its 3 coordinates empty (all or none)",
+                             puppet.marker_names[m], empty));
+      }
+      for (int a = 0; a < 3; ++a) {
+        FACEDYN_ASSIGN_OR_RETURN(frames.markers_in_skull(3 * m + a, static_cast<Eigen::Index>(row)),
+                                 table.Number(row, marker_columns[m][a]));
+      }
+    }
+  }
+  return frames;
+}
+
+Status WriteMarkersCsv(const std::string& path, const Puppet& puppet, const MarkerFrames& frames) {
+  const Eigen::Index n = static_cast<Eigen::Index>(frames.time_s.size());
+  if (frames.markers_in_skull.rows() != 3 * puppet.marker_count() ||
+      frames.markers_in_skull.cols() != n || frames.present.rows() != puppet.marker_count() ||
+      frames.present.cols() != n) {
+    return InvalidArgumentError("markers CSV: frames do not match the puppet's markers");
+  }
+  std::string text = "time_s";
+  for (const std::string& name : puppet.marker_names)
+    text += "," + name + "_x," + name + "_y," + name + "_z";
+  text += "\n";
+  for (Eigen::Index f = 0; f < n; ++f) {
+    text += fmt::format("{:.9g}", frames.time_s[f]);
+    for (int m = 0; m < puppet.marker_count(); ++m) {
+      for (int a = 0; a < 3; ++a) {
+        text += frames.present(m, f) ? fmt::format(",{:.9g}", frames.markers_in_skull(3 * m + a, f))
+                                     : ",";
+      }
+    }
+    text += "\n";
+  }
+  return WriteFileAtomic(path, text);
+}
+
+}  // namespace facedyn::solve

@@ -1,0 +1,49 @@
+// Files of the solve stage:
+//   - weights CSV (core/blendshape_weights.h): `time_s`, then one column per channel (the rig's
+//     names: ARKit names for ICT-FaceKit), one row per frame; read back onto a puppet's channels;
+//   - labelled markers CSV, the layout marker systems export: `time_s`, then `<marker>_x`,
+//     `<marker>_y`, `<marker>_z` per marker (mm, skull frame); an empty field marks a marker
+//     missing in that frame (all three must then be empty). Markers the puppet does not know are
+//     ignored (systems label more dots than a face rig paints); a puppet marker without columns
+//     is an error naming it.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "core/blendshape_weights.h"
+#include "core/status.h"
+#include "solve/marker_fit.h"
+#include "solve/puppet.h"
+
+namespace facedyn::solve {
+
+// Weights C x N of the puppet's channels over times (N) as a track (columns = channel names).
+StatusOr<BlendshapeWeightsTrack> WeightsToTrack(const Puppet& puppet,
+                                                const std::vector<double>& time_s,
+                                                const Eigen::MatrixXd& weights);
+// A track onto the puppet's channels (C x N): a column the puppet has no channel for is an
+// error naming `source`, the column and the channels the puppet has; channels without a column
+// are 0. `source` is the file the track came from, for messages.
+StatusOr<Eigen::MatrixXd> WeightsFromTrack(const Puppet& puppet,
+                                           const BlendshapeWeightsTrack& track,
+                                           const std::string& source);
+Status WriteWeightsCsv(const std::string& path, const Puppet& puppet,
+                       const std::vector<double>& time_s, const Eigen::MatrixXd& weights);
+// Reads `path` onto the puppet's channels; times into *time_s.
+StatusOr<Eigen::MatrixXd> ReadWeightsCsv(const std::string& path, const Puppet& puppet,
+                                         std::vector<double>* time_s);
+
+struct MarkerFrames {
+  std::vector<double> time_s;        // N
+  Eigen::MatrixXd markers_in_skull;  // 3M x N in the puppet's marker order, mm (0 where missing)
+  MarkerPresence present;            // M x N
+};
+
+// Reads a labelled-markers CSV onto the puppet's markers. Errors name the file, the line and the
+// column: missing marker columns, a half-missing marker, a non-number, times not increasing.
+StatusOr<MarkerFrames> ReadMarkersCsv(const std::string& path, const Puppet& puppet);
+Status WriteMarkersCsv(const std::string& path, const Puppet& puppet, const MarkerFrames& frames);
+
+}  // namespace facedyn::solve

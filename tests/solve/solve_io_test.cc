@@ -1,0 +1,141 @@
+// Weights and labelled-markers CSV files of the solve stage: round trips, and bad input named.
+#include "solve/solve_io.h"
+
+#include <gtest/gtest.h>
+
+#include "tests/solve/solve_test_rig.h"
+#include "tests/support/test_support.h"
+
+namespace facedyn::solve {
+namespace {
+
+using facedyn::testing::ReadBytes;
+using facedyn::testing::TempDir;
+using facedyn::testing::WriteBytes;
+using testing::ProceduralPuppet;
+
+bool Contains(const Status& status, const std::string& text) {
+  return status.message().find(text) != std::string::npos;
+}
+
+TEST(WeightsCsv, RoundTrip) {
+  const Puppet& puppet = ProceduralPuppet();
+  TempDir dir;
+  const std::vector<double> time_s{0.0, 1.0 / 60, 2.0 / 60};
+  Eigen::MatrixXd weights = Eigen::MatrixXd::Random(puppet.channel_count(), 3).cwiseAbs();
+  weights(2, 1) = 1.0;
+  ASSERT_TRUE(WriteWeightsCsv(dir.Join("w.csv"), puppet, time_s, weights).ok());
+  EXPECT_EQ(ReadBytes(dir.Join("w.csv")).substr(0, 16), "time_s,smile,jaw");
+  std::vector<double> read_time;
+  const StatusOr<Eigen::MatrixXd> read = ReadWeightsCsv(dir.Join("w.csv"), puppet, &read_time);
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  EXPECT_EIGEN_NEAR(read.value(), weights, 1e-9);
+  ASSERT_EQ(read_time.size(), 3u);
+  EXPECT_NEAR(read_time[2], 2.0 / 60, 1e-9);
+}
+
+TEST(WeightsCsv, UnknownChannelIsNamedWithFileAndColumn) {
+  TempDir dir;
+  WriteBytes(dir.Join("w.csv"), "time_s,smile,mouthSmile_L\n0,0.5,0.25\n");
+  const StatusOr<Eigen::MatrixXd> read =
+      ReadWeightsCsv(dir.Join("w.csv"), ProceduralPuppet(), nullptr);
+  ASSERT_FALSE(read.ok());
+  EXPECT_TRUE(Contains(read.status(), dir.Join("w.csv"))) << read.status().message();
+  EXPECT_TRUE(
+      Contains(read.status(), "column 3 'mouthSmile_L' is not a channel of rig 'procedural'"))
+      << read.status().message();
+}
+
+TEST(WeightsCsv, ChannelsWithoutAColumnAreZero) {
+  TempDir dir;
+  WriteBytes(dir.Join("w.csv"), "time_s,pucker\n0,0.5\n0.1,0.25\n");
+  const Eigen::MatrixXd read =
+      ReadWeightsCsv(dir.Join("w.csv"), ProceduralPuppet(), nullptr).value();
+  EXPECT_EQ(read.row(ProceduralPuppet().ChannelIndex("pucker")).sum(), 0.75);
+  EXPECT_EQ(read.cwiseAbs().sum(), 0.75);
+}
+
+TEST(WeightsCsv, TruncatedAndCorruptedInputsAreErrors) {
+  TempDir dir;
+  WriteBytes(dir.Join("t.csv"), "time_s,smile\n0,0.5\n0.1");
+  const StatusOr<Eigen::MatrixXd> truncated =
+      ReadWeightsCsv(dir.Join("t.csv"), ProceduralPuppet(), nullptr);
+  ASSERT_FALSE(truncated.ok());
+  EXPECT_TRUE(Contains(truncated.status(), ":3")) << truncated.status().message();
+  WriteBytes(dir.Join("c.csv"), "time_s,smile\n0,0.5\n0.1,abc\n");
+  const StatusOr<Eigen::MatrixXd> corrupted =
+      ReadWeightsCsv(dir.Join("c.csv"), ProceduralPuppet(), nullptr);
+  ASSERT_FALSE(corrupted.ok());
+  EXPECT_TRUE(Contains(corrupted.status(), "abc")) << corrupted.status().message();
+}
+
+MarkerFrames SomeFrames(const Puppet& puppet) {
+  MarkerFrames frames;
+  frames.time_s = {0.0, 0.5};
+  frames.markers_in_skull.resize(3 * puppet.marker_count(), 2);
+  frames.markers_in_skull.col(0) = puppet.StackedNeutral();
+  frames.markers_in_skull.col(1) =
+      puppet.StackedMarkers(Eigen::VectorXd::Constant(puppet.channel_count(), 0.3));
+  frames.present = MarkerPresence::Constant(puppet.marker_count(), 2, true);
+  frames.present(5, 1) = false;
+  frames.markers_in_skull.col(1).segment<3>(15).setZero();
+  return frames;
+}
+
+TEST(MarkersCsv, RoundTripWithAMissingMarker) {
+  const Puppet& puppet = ProceduralPuppet();
+  TempDir dir;
+  const MarkerFrames frames = SomeFrames(puppet);
+  ASSERT_TRUE(WriteMarkersCsv(dir.Join("m.csv"), puppet, frames).ok());
+  const StatusOr<MarkerFrames> read = ReadMarkersCsv(dir.Join("m.csv"), puppet);
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  EXPECT_EIGEN_NEAR(read.value().markers_in_skull, frames.markers_in_skull, 1e-6);
+  EXPECT_TRUE((read.value().present == frames.present).all());
+}
+
+TEST(MarkersCsv, MissingMarkerColumnsAreNamed) {
+  const Puppet& puppet = ProceduralPuppet();
+  TempDir dir;
+  ASSERT_TRUE(WriteMarkersCsv(dir.Join("m.csv"), puppet, SomeFrames(puppet)).ok());
+  // Drop the columns of marker m007 (header and every row).
+  std::string text = ReadBytes(dir.Join("m.csv"));
+  const std::string header = text.substr(0, text.find('\n'));
+  const size_t at = header.find(",m007_x,m007_y,m007_z");
+  ASSERT_NE(at, std::string::npos);
+  WriteBytes(dir.Join("short.csv"), header.substr(0, at) + header.substr(at + 21) + "\n");
+  const StatusOr<MarkerFrames> read = ReadMarkersCsv(dir.Join("short.csv"), puppet);
+  ASSERT_FALSE(read.ok());
+  EXPECT_TRUE(Contains(read.status(),
+                       "3 marker columns of rig 'procedural' are missing: m007_x, m007_y, m007_z"))
+      << read.status().message();
+}
+
+TEST(MarkersCsv, HalfMissingMarkerAndBadTimesAreNamed) {
+  const Puppet& puppet = ProceduralPuppet();
+  TempDir dir;
+  ASSERT_TRUE(WriteMarkersCsv(dir.Join("m.csv"), puppet, SomeFrames(puppet)).ok());
+  std::string text = ReadBytes(dir.Join("m.csv"));
+  // Second data row (line 3): time 0.5 -> 0 (not increasing).
+  const size_t line3 = text.find('\n', text.find('\n') + 1) + 1;
+  std::string bad_time = text;
+  bad_time.replace(line3, 3, "0");
+  WriteBytes(dir.Join("t.csv"), bad_time);
+  StatusOr<MarkerFrames> read = ReadMarkersCsv(dir.Join("t.csv"), puppet);
+  ASSERT_FALSE(read.ok());
+  EXPECT_TRUE(Contains(read.status(), "t.csv:3")) << read.status().message();
+  // Line 2: blank out marker m000's x only.
+  const size_t line2 = text.find('\n') + 1;
+  const size_t first_comma = text.find(',', line2);
+  const size_t second_comma = text.find(',', first_comma + 1);
+  std::string half = text;
+  half.erase(first_comma + 1, second_comma - first_comma - 1);
+  WriteBytes(dir.Join("h.csv"), half);
+  read = ReadMarkersCsv(dir.Join("h.csv"), puppet);
+  ASSERT_FALSE(read.ok());
+  EXPECT_TRUE(Contains(read.status(), "h.csv:2")) << read.status().message();
+  EXPECT_TRUE(Contains(read.status(), "marker 'm000' has 1 of its 3 coordinates empty"))
+      << read.status().message();
+}
+
+}  // namespace
+}  // namespace facedyn::solve

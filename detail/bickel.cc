@@ -111,7 +111,6 @@ StatusOr<BickelModel> BickelModel::Train(const DetailTrainingSet& set, const Bic
 
   // One interpolant per vertex (constant polynomial part), on that vertex's weighted distance.
   model.coefficients_.resize(k + 1, 3 * v_count);
-  const Eigen::MatrixXd poly = Eigen::MatrixXd::Ones(k, 1);
   Eigen::MatrixXd kernel(k, k), values(k, 3);
   for (int v = 0; v < v_count; ++v) {
     for (int a = 0; a < k; ++a) {
@@ -126,15 +125,26 @@ StatusOr<BickelModel> BickelModel::Train(const DetailTrainingSet& set, const Bic
       }
       values.row(a) = analysis.local_offsets_mm[chosen[a]].col(v).transpose();
     }
-    StatusOr<Eigen::MatrixXd> x = SolveRbfSystem(kernel, poly, values);
-    if (!x.ok()) {
-      // Two training poses the vertex's weighting can not tell apart: the vertex keeps the
-      // mean offset (constant part only), which is what a regularised fit tends to.
-      model.coefficients_.middleCols(3 * v, 3).setZero();
-      model.coefficients_.block(k, 3 * v, 1, 3) = values.colwise().mean();
-      continue;
+    // Poses this vertex's weighting can not tell apart (its edges' strains equal) are one
+    // centre: keep the first, as BiharmonicRbf::Fit does.
+    const double extent = std::max(kernel.maxCoeff(), 1e-300);
+    std::vector<int> keep;
+    for (int a = 0; a < k; ++a) {
+      bool repeated = false;
+      for (int b : keep) repeated = repeated || kernel(a, b) <= 1e-12 * extent;
+      if (!repeated) keep.push_back(a);
     }
-    model.coefficients_.middleCols(3 * v, 3) = x.value();
+    const int kk = static_cast<int>(keep.size());
+    Eigen::MatrixXd sub_kernel(kk, kk), sub_values(kk, 3);
+    for (int a = 0; a < kk; ++a) {
+      for (int b = 0; b < kk; ++b) sub_kernel(a, b) = kernel(keep[a], keep[b]);
+      sub_values.row(a) = values.row(keep[a]);
+    }
+    StatusOr<Eigen::MatrixXd> x = SolveRbfSystem(sub_kernel, Eigen::MatrixXd::Ones(kk, 1), sub_values);
+    if (!x.ok()) return x.status().WithContext(fmt::format("detail (Bickel): vertex {}", v));
+    model.coefficients_.middleCols(3 * v, 3).setZero();
+    for (int a = 0; a < kk; ++a) model.coefficients_.block(keep[a], 3 * v, 1, 3) = x->row(a);
+    model.coefficients_.block(k, 3 * v, 1, 3) = x->row(kk);
   }
   return model;
 }

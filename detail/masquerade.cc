@@ -6,6 +6,7 @@
 #include <cstring>
 #include <limits>
 
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 
 #include "core/file_util.h"

@@ -37,14 +37,14 @@ inline std::vector<Marker> TestMarkers(const Mesh& mesh, int per_side = 4) {
   return markers;
 }
 
-// Frame for pose (a, b): a smooth bulge and shear (large scale) plus ripples of amplitude
+// Frame for pose (a, b): a smooth bulge and a sideways stretch (large scale) plus ripples of amplitude
 // 0.6 a mm along z with a 12 mm wavelength (fine scale).
 inline Eigen::Matrix3Xd TestFrame(const Mesh& mesh, double a, double b) {
   Eigen::Matrix3Xd x = mesh.positions_mm;
   for (int v = 0; v < x.cols(); ++v) {
     const double px = mesh.positions_mm(0, v), py = mesh.positions_mm(1, v);
     x(2, v) += 8.0 * a * std::exp(-(px * px + py * py) / (2 * 40.0 * 40.0));
-    x(0, v) += 4.0 * b * py / 100.0;
+    x(0, v) += 4.0 * b * px / 100.0;
     x(2, v) += 0.6 * a * std::sin(2 * M_PI * px / 12.0) * std::cos(2 * M_PI * py / 12.0) +
                0.3 * b * std::sin(2 * M_PI * py / 10.0);
   }

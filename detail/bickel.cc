@@ -125,23 +125,30 @@ StatusOr<BickelModel> BickelModel::Train(const DetailTrainingSet& set, const Bic
       }
       values.row(a) = analysis.local_offsets_mm[chosen[a]].col(v).transpose();
     }
-    // Poses this vertex's weighting can not tell apart (its edges' strains equal) are one
-    // centre: keep the first, as BiharmonicRbf::Fit does.
+    // Poses this vertex's weighting can not tell apart (its edges' strains equal, or nearly:
+    // the system is then too ill-conditioned to solve) are one centre: keep the first, as
+    // BiharmonicRbf::Fit does, merging at a coarser relative distance until the system solves.
     const double extent = std::max(kernel.maxCoeff(), 1e-300);
     std::vector<int> keep;
-    for (int a = 0; a < k; ++a) {
-      bool repeated = false;
-      for (int b : keep) repeated = repeated || kernel(a, b) <= 1e-12 * extent;
-      if (!repeated) keep.push_back(a);
+    StatusOr<Eigen::MatrixXd> x = InternalError("unsolved");
+    for (double tolerance : {1e-12, 1e-6, 1e-4, 1e-2}) {
+      keep.clear();
+      for (int a = 0; a < k; ++a) {
+        bool repeated = false;
+        for (int b : keep) repeated = repeated || kernel(a, b) <= tolerance * extent;
+        if (!repeated) keep.push_back(a);
+      }
+      const int kk = static_cast<int>(keep.size());
+      Eigen::MatrixXd sub_kernel(kk, kk), sub_values(kk, 3);
+      for (int a = 0; a < kk; ++a) {
+        for (int b = 0; b < kk; ++b) sub_kernel(a, b) = kernel(keep[a], keep[b]);
+        sub_values.row(a) = values.row(keep[a]);
+      }
+      x = SolveRbfSystem(sub_kernel, Eigen::MatrixXd::Ones(kk, 1), sub_values);
+      if (x.ok()) break;
     }
-    const int kk = static_cast<int>(keep.size());
-    Eigen::MatrixXd sub_kernel(kk, kk), sub_values(kk, 3);
-    for (int a = 0; a < kk; ++a) {
-      for (int b = 0; b < kk; ++b) sub_kernel(a, b) = kernel(keep[a], keep[b]);
-      sub_values.row(a) = values.row(keep[a]);
-    }
-    StatusOr<Eigen::MatrixXd> x = SolveRbfSystem(sub_kernel, Eigen::MatrixXd::Ones(kk, 1), sub_values);
     if (!x.ok()) return x.status().WithContext(fmt::format("detail (Bickel): vertex {}", v));
+    const int kk = static_cast<int>(keep.size());
     model.coefficients_.middleCols(3 * v, 3).setZero();
     for (int a = 0; a < kk; ++a) model.coefficients_.block(keep[a], 3 * v, 1, 3) = x->row(a);
     model.coefficients_.block(k, 3 * v, 1, 3) = x->row(kk);

@@ -22,7 +22,7 @@
 // Speed: upsampling frames/s (Apply on the test markers, best of 3 passes) on this machine.
 //
 //   detail_bench [--vertices N] [--markers N] [--train-frames N] [--test-frames N]
-//                [--global-frames N] [--sigma-mm S] [--seed N] [--seeds 1,2,3] [--quick]
+//                [--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S] [--seed N] [--seeds 1,2,3] [--quick]
 //
 // --seeds: one run per seed (the seed draws both performances' timing and pose order), then a
 // "summary" with each figure's mean and sample standard deviation over the seeds.
@@ -66,7 +66,11 @@ struct Settings {
   int train_frames = 320;
   int test_frames = 300;
   int global_frames = 80;
-  double sigma_mm = 10.0;
+  // Falloffs chosen on `--quick --seed 1` (region 4/6/10, feature 10/20/30, edge 5/6/10/20 mm,
+  // each method's lowest mean face error); report figures with other seeds.
+  double sigma_mm = 4.0;           // region blend falloff
+  double feature_sigma_mm = 20.0;  // falloff of the triangles in a region's pose
+  double edge_sigma_mm = 20.0;     // Bickel: falloff of a vertex's edge weights
 };
 
 std::vector<Eigen::Matrix3Xd> Frames(const facedyn::FaceRig& rig, const facedyn::sim::ExpressionCurve& curve,
@@ -167,6 +171,9 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
   run["markers"] = s.markers;
   run["train_frames"] = s.train_frames;
   run["test_frames"] = s.test_frames;
+  run["region_sigma_mm"] = s.sigma_mm;
+  run["feature_sigma_mm"] = s.feature_sigma_mm;
+  run["bickel_edge_sigma_mm"] = s.edge_sigma_mm;
 
   // Masquerade variants.
   struct Variant {
@@ -181,7 +188,8 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
   bool large_done = false;
   for (const Variant& variant : variants) {
     detail::MasqueradeOptions options;
-    options.region_sigma_mm = options.feature_sigma_mm = s.sigma_mm;
+    options.region_sigma_mm = s.sigma_mm;
+    options.feature_sigma_mm = s.feature_sigma_mm;
     options.global_frames = variant.global;
     options.per_region_frames = variant.per_region;
     detail::MasqueradeTrainingSummary summary;
@@ -204,7 +212,7 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
   }
   {
     detail::BickelOptions options;
-    options.edge_sigma_mm = s.sigma_mm;
+    options.edge_sigma_mm = s.edge_sigma_mm;
     options.frames = s.global_frames;
     const auto start = Clock::now();
     FACEDYN_ASSIGN_OR_RETURN(const detail::BickelModel model, detail::BickelModel::Train(set, options));
@@ -264,6 +272,10 @@ int main(int argc, char** argv) {
       s.global_frames = static_cast<int>(Integer(next(), arg));
     } else if (arg == "--sigma-mm") {
       s.sigma_mm = Number(next(), arg);
+    } else if (arg == "--feature-sigma-mm") {
+      s.feature_sigma_mm = Number(next(), arg);
+    } else if (arg == "--edge-sigma-mm") {
+      s.edge_sigma_mm = Number(next(), arg);
     } else if (arg == "--seed") {
       seed = static_cast<uint64_t>(Integer(next(), arg));
     } else if (arg == "--seeds") {
@@ -277,12 +289,12 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: detail_bench [--vertices N] [--markers N] [--train-frames N] [--test-frames N] "
-                   "[--global-frames N] [--sigma-mm S] [--seed N] [--seeds 1,2,3] [--quick]\n");
+                   "[--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S] [--seed N] [--seeds 1,2,3] [--quick]\n");
       return 2;
     }
   }
-  if (s.markers < 4 || s.train_frames < 2 || s.test_frames < 1 || !(s.sigma_mm > 0)) {
-    std::fprintf(stderr, "detail_bench: need --markers >= 4, --train-frames >= 2, --test-frames >= 1, --sigma-mm > 0\n");
+  if (s.markers < 4 || s.train_frames < 2 || s.test_frames < 1 || !(s.sigma_mm > 0) || !(s.feature_sigma_mm > 0) || !(s.edge_sigma_mm > 0)) {
+    std::fprintf(stderr, "detail_bench: need --markers >= 4, --train-frames >= 2, --test-frames >= 1, sigmas > 0\n");
     return 2;
   }
   facedyn::InitLogging(facedyn::Verbosity::kQuiet);

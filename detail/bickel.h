@@ -26,7 +26,7 @@ namespace facedyn::detail {
 
 struct BickelOptions {
   LaplacianDeformerOptions large_scale;
-  double edge_sigma_mm = 10.0;
+  double edge_sigma_mm = 20.0;  // the lowest error of 5/6/10/20 in bench/detail_bench --quick
   int frames = 80;  // greedy; 0 or >= #frames: every frame
   Status Check() const;
 };

@@ -89,10 +89,23 @@ StatusOr<LaplacianDeformer> LaplacianDeformer::Create(const Mesh& neutral,
         "part of the mesh needs a marker",
         v_count, markers.size()));
   }
+  // Marker response: column m is the displacement field of a unit residual at marker m.
+  Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(v_count, static_cast<int>(markers.size()));
+  for (size_t m = 0; m < markers.size(); ++m) {
+    for (int k = 0; k < 3; ++k) unit(markers[m].vertices[k], static_cast<int>(m)) += deformer.weight_ * markers[m].weights[k];
+  }
+  deformer.response_ = deformer.solver_->solve(unit);
   return deformer;
 }
 
 void LaplacianDeformer::Deform(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3Xd* skin_mm) const {
+  FACEDYN_CHECK(markers_mm.cols() == marker_count(), "LaplacianDeformer::Deform: marker count");
+  // d^T = r K^T  (3 x V).
+  skin_mm->noalias() = (markers_mm - neutral_markers_mm_) * response_.transpose();
+  *skin_mm += neutral_mm_;
+}
+
+void LaplacianDeformer::DeformBySolve(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3Xd* skin_mm) const {
   FACEDYN_CHECK(markers_mm.cols() == marker_count(), "LaplacianDeformer::Deform: marker count");
   const int v_count = vertex_count();
   // rhs = w C^T (p - C x0), V x 3 (one column per coordinate).

@@ -63,6 +63,19 @@ TEST(LaplacianDeformer, MarkerResidualFallsWithWeight) {
   EXPECT_LT(residual[1], 0.25);  // default weight: within 5% of the push
 }
 
+TEST(LaplacianDeformer, MarkerResponseEqualsBackSubstitution) {
+  const Mesh mesh = testing::TestPatch();
+  const std::vector<Marker> markers = testing::TestMarkers(mesh);
+  StatusOr<LaplacianDeformer> deformer = LaplacianDeformer::Create(mesh, Points(markers), {});
+  ASSERT_TRUE(deformer.ok());
+  const Eigen::Matrix3Xd p = MarkersOn(markers, testing::TestFrame(mesh, 0.8, -0.4));
+  Eigen::Matrix3Xd a, b;
+  deformer->Deform(p, &a);
+  deformer->DeformBySolve(p, &b);
+  EXPECT_LT((a - b).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_GT((a - mesh.positions_mm).cwiseAbs().maxCoeff(), 1.0);
+}
+
 TEST(LaplacianDeformer, BadInputNamed) {
   const Mesh mesh = testing::TestPatch();
   std::vector<SurfacePoint> points{SurfacePoint::AtVertex(0), SurfacePoint::AtVertex(mesh.vertex_count() + 3)};

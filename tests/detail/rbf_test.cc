@@ -1,5 +1,7 @@
 #include "detail/rbf.h"
 
+#include <algorithm>
+#include <cmath>
 #include <random>
 
 #include <gmock/gmock.h>
@@ -107,6 +109,41 @@ TEST(GreedySelectFrames, PicksWorstReconstructedFrame) {
   ASSERT_EQ(chosen.size(), 2u);
   EXPECT_EQ(chosen[0], 5);
   EXPECT_EQ(chosen[1], 0);
+}
+
+TEST(GreedySelectFrames, MatchesExplicitRefitting) {
+  // The Gram-matrix shortcut must pick what refitting the interpolant and measuring every
+  // frame's error directly would pick.
+  const int n = 25;
+  const Eigen::MatrixXd features = RandomMatrix(3, n, 11);
+  Eigen::MatrixXd y(n, 12);
+  for (int j = 0; j < n; ++j) {
+    for (int c = 0; c < 12; ++c) y(j, c) = std::sin((c + 1) * features(0, j)) + features(1, j) * features(2, j) * c;
+  }
+  const std::vector<int> chosen = GreedySelectFrames(features, y * y.transpose(), 8);
+  ASSERT_EQ(chosen.size(), 8u);
+  for (int step = 1; step < 8; ++step) {
+    Eigen::MatrixXd c(3, step), v(step, 12);
+    for (int i = 0; i < step; ++i) {
+      c.col(i) = features.col(chosen[i]);
+      v.row(i) = y.row(chosen[i]);
+    }
+    StatusOr<BiharmonicRbf> rbf = BiharmonicRbf::Fit(c, v, RbfPolynomial::kConstant);
+    ASSERT_TRUE(rbf.ok());
+    int worst = -1;
+    double worst_error = -1;
+    Eigen::VectorXd out(12);
+    for (int j = 0; j < n; ++j) {
+      if (std::find(chosen.begin(), chosen.begin() + step, j) != chosen.begin() + step) continue;
+      rbf->Evaluate(features.col(j), out);
+      const double e = (out - y.row(j).transpose()).squaredNorm();
+      if (e > worst_error) {
+        worst_error = e;
+        worst = j;
+      }
+    }
+    EXPECT_EQ(chosen[step], worst) << "step " << step;
+  }
 }
 
 }  // namespace

@@ -421,6 +421,11 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
     }
     for (int k = 0; k < 3; ++k) FACEDYN_RETURN_IF_ERROR(r.Pod(&marker.point.weights[k], "a marker weight"));
     FACEDYN_RETURN_IF_ERROR(r.Pod(&marker.diameter_mm, "a marker diameter"));
+    const Eigen::Vector3d& b = marker.point.weights;
+    if (!b.allFinite() || b.minCoeff() < -1e-9 || std::abs(b.sum() - 1.0) > 1e-6) {
+      return DataLossError(fmt::format("{}: marker '{}' has barycentric weights ({}, {}, {})", path, marker.name, b[0],
+                                       b[1], b[2]));
+    }
     model.markers_.push_back(std::move(marker));
   }
   const int t_count = static_cast<int>(model.neutral_.Triangles().cols());
@@ -436,6 +441,9 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
     for (int v : model.regions_.vertices[g]) {
       if (v < 0 || v >= v_count) return DataLossError(fmt::format("{}: {} has vertex {} of {}", path, what, v, v_count));
     }
+    for (double wt : model.regions_.weights[g]) {
+      if (!(wt >= 0 && wt <= 1)) return DataLossError(fmt::format("{}: {} has blend weight {}", path, what, wt));
+    }
     std::vector<int> tri;
     std::vector<double> tri_w;
     FACEDYN_RETURN_IF_ERROR(r.Array(&tri, -1, what.c_str()));
@@ -443,6 +451,9 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
     for (size_t i = 0; i < tri.size(); ++i) {
       if (tri[i] < 0 || tri[i] >= t_count) {
         return DataLossError(fmt::format("{}: {} has triangle {} of {}", path, what, tri[i], t_count));
+      }
+      if (!(tri_w[i] >= 0 && tri_w[i] <= 1)) {
+        return DataLossError(fmt::format("{}: {} has pose weight {}", path, what, tri_w[i]));
       }
       model.feature_triangles_[g].emplace_back(tri[i], tri_w[i]);
     }
@@ -461,6 +472,12 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
     FACEDYN_RETURN_IF_ERROR(r.Array(&c, int64_t{dim} * centres, what.c_str()));
     const int rows = centres + (linear ? 1 + dim : 1);
     FACEDYN_RETURN_IF_ERROR(r.Array(&coef, int64_t{rows} * outputs, what.c_str()));
+    for (double value : c) {
+      if (!std::isfinite(value)) return DataLossError(fmt::format("{}: {}: non-finite RBF centre", path, what));
+    }
+    for (double value : coef) {
+      if (!std::isfinite(value)) return DataLossError(fmt::format("{}: {}: non-finite RBF coefficient", path, what));
+    }
     StatusOr<BiharmonicRbf> rbf = BiharmonicRbf::FromParts(Eigen::Map<const Eigen::MatrixXd>(c.data(), dim, centres),
                                                            Eigen::Map<const Eigen::MatrixXd>(coef.data(), rows, outputs),
                                                            linear == 1);

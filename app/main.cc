@@ -35,6 +35,7 @@ int main(int argc, char** argv) {
   app::AddViewCommand(cli, &selected);
   app::AddSimCommands(cli, &selected);
   app::AddDynamicsCommands(cli, &selected);
+  app::AddDetailCommands(cli, &selected);
   app::AddRigCommands(cli, &selected);
   app::AddSweepCommand(cli, &selected);
   app::AddCalibrateCommand(cli, &selected);

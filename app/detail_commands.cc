@@ -29,17 +29,20 @@ namespace {
 // farthest-point sampling, so any prefix is spread over the face) or a file of marker names,
 // one per line.
 StatusOr<std::vector<Marker>> SelectMarkers(const FaceRig& rig, const std::string& spec) {
-  const bool all_digits = !spec.empty() && spec.find_first_not_of("0123456789") == std::string::npos;
+  const bool all_digits =
+      !spec.empty() && spec.find_first_not_of("0123456789") == std::string::npos;
   if (all_digits) {
     const long long n = std::stoll(spec.substr(0, 9));
     if (n < 4 || n > static_cast<long long>(rig.markers.size())) {
-      return InvalidArgumentError("--markers " + spec + ": need 4.." + std::to_string(rig.markers.size()) +
-                                  " (the rig's marker count)");
+      return InvalidArgumentError("--markers " + spec + ": need 4.." +
+                                  std::to_string(rig.markers.size()) + " (the rig's marker count)");
     }
     return std::vector<Marker>(rig.markers.begin(), rig.markers.begin() + n);
   }
   std::ifstream in(spec);
-  if (!in) return NotFoundError("--markers " + spec + ": neither a count nor a readable file of marker names");
+  if (!in)
+    return NotFoundError("--markers " + spec +
+                         ": neither a count nor a readable file of marker names");
   std::vector<Marker> markers;
   std::set<std::string> seen;
   std::string line;
@@ -53,15 +56,17 @@ StatusOr<std::vector<Marker>> SelectMarkers(const FaceRig& rig, const std::strin
       if (m.name == line) found = &m;
     }
     if (found == nullptr) {
-      return NotFoundError(spec + ":" + std::to_string(line_number) + ": marker '" + line + "' is not in rig '" +
-                           rig.name + "'");
+      return NotFoundError(spec + ":" + std::to_string(line_number) + ": marker '" + line +
+                           "' is not in rig '" + rig.name + "'");
     }
     if (!seen.insert(line).second) {
-      return InvalidArgumentError(spec + ":" + std::to_string(line_number) + ": marker '" + line + "' listed twice");
+      return InvalidArgumentError(spec + ":" + std::to_string(line_number) + ": marker '" + line +
+                                  "' listed twice");
     }
     markers.push_back(*found);
   }
-  if (markers.size() < 4) return InvalidArgumentError("--markers " + spec + ": fewer than 4 markers");
+  if (markers.size() < 4)
+    return InvalidArgumentError("--markers " + spec + ": fewer than 4 markers");
   return markers;
 }
 
@@ -73,7 +78,8 @@ Eigen::Matrix3Xd SkinInSkull(const Take& take, int f) {
 
 void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
   auto* detail = app.add_subcommand(
-      "detail", "Fine-scale detail for sparse head-mounted-camera markers (Masquerade, Moser et al. 2017)");
+      "detail",
+      "Fine-scale detail for sparse head-mounted-camera markers (Masquerade, Moser et al. 2017)");
   detail->require_subcommand(1);
 
   struct TrainOptions {
@@ -88,29 +94,43 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
     bool json = false;
   };
   auto train_options = std::make_shared<TrainOptions>();
-  auto* train = detail->add_subcommand(
-      "train", "Learn a detail model from high-resolution takes of one subject (virtual markers on their skin)");
-  train->add_option("--takes", train_options->takes, "High-resolution takes in the rig's topology")->required();
-  train->add_option("--face", train_options->face, "FaceRig folder, or 'procedural'")->capture_default_str();
-  train->add_option("--markers", train_options->markers,
-                    "Marker layout: a count (the rig's first N markers) or a file of marker names")
+  auto* train = detail->add_subcommand("train",
+                                       "Learn a detail model from high-resolution takes of one "
+                                       "subject (virtual markers on their skin)");
+  train->add_option("--takes", train_options->takes, "High-resolution takes in the rig's topology")
+      ->required();
+  train->add_option("--face", train_options->face, "FaceRig folder, or 'procedural'")
+      ->capture_default_str();
+  train
+      ->add_option("--markers", train_options->markers,
+                   "Marker layout: a count (the rig's first N markers) or a file of marker names")
       ->capture_default_str();
   train->add_option("--out", train_options->out, "Model file to write")->required();
-  train->add_option("--frames", train_options->frames, "Greedy global training frames (0: every frame)")
+  train
+      ->add_option("--frames", train_options->frames,
+                   "Greedy global training frames (0: every frame)")
       ->capture_default_str();
-  train->add_option("--per-region", train_options->per_region,
-                    "Greedy frames per region among the global ones (0: all of them)")
+  train
+      ->add_option("--per-region", train_options->per_region,
+                   "Greedy frames per region among the global ones (0: all of them)")
       ->capture_default_str();
-  train->add_option("--region-sigma-mm", train_options->region_sigma_mm, "Falloff of the region blend weights")
+  train
+      ->add_option("--region-sigma-mm", train_options->region_sigma_mm,
+                   "Falloff of the region blend weights")
       ->capture_default_str();
-  train->add_option("--feature-sigma-mm", train_options->feature_sigma_mm, "Falloff of a region's pose triangles")
+  train
+      ->add_option("--feature-sigma-mm", train_options->feature_sigma_mm,
+                   "Falloff of a region's pose triangles")
       ->capture_default_str();
   train->add_flag("--json", train_options->json, "Print a JSON summary on stdout");
   train->callback([train_options, selected] {
     *selected = [train_options]() -> Status {
       const TrainOptions& o = *train_options;
-      if (o.frames < 0) return InvalidArgumentError("--frames must be >= 0, got " + std::to_string(o.frames));
-      if (o.per_region < 0) return InvalidArgumentError("--per-region must be >= 0, got " + std::to_string(o.per_region));
+      if (o.frames < 0)
+        return InvalidArgumentError("--frames must be >= 0, got " + std::to_string(o.frames));
+      if (o.per_region < 0)
+        return InvalidArgumentError("--per-region must be >= 0, got " +
+                                    std::to_string(o.per_region));
       FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(o.face));
       detail::DetailTrainingSet set;
       set.subject = rig.name;
@@ -119,8 +139,9 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
       for (const std::string& dir : o.takes) {
         FACEDYN_ASSIGN_OR_RETURN(const Take take, LoadTake(dir));
         if (take.vertex_count() != rig.vertex_count()) {
-          return FailedPreconditionError(dir + ": " + std::to_string(take.vertex_count()) + " vertices, rig '" +
-                                         rig.name + "' has " + std::to_string(rig.vertex_count()));
+          return FailedPreconditionError(dir + ": " + std::to_string(take.vertex_count()) +
+                                         " vertices, rig '" + rig.name + "' has " +
+                                         std::to_string(rig.vertex_count()));
         }
         for (int f = 0; f < take.frame_count(); ++f) set.frames_mm.push_back(SkinInSkull(take, f));
       }
@@ -144,8 +165,8 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
                            {"train_s", summary.train_s}};
         std::printf("%s\n", json.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       } else {
-        spdlog::info("trained on {} frames ({} selected) with {} markers; wrote {}", set.frames_mm.size(),
-                     summary.global_frames.size(), set.markers.size(), o.out);
+        spdlog::info("trained on {} frames ({} selected) with {} markers; wrote {}",
+                     set.frames_mm.size(), summary.global_frames.size(), set.markers.size(), o.out);
       }
       return Status::Ok();
     };
@@ -159,19 +180,23 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
   };
   auto apply_options = std::make_shared<ApplyOptions>();
   auto* apply = detail->add_subcommand(
-      "apply", "Upsample a take: the model's markers read from it, the fine detail added, a take out");
-  apply->add_option("--take", apply_options->take, "Input take in the model's rig topology")->required();
-  apply->add_option("--model", apply_options->model, "Model file from `facedyn detail train`")->required();
+      "apply",
+      "Upsample a take: the model's markers read from it, the fine detail added, a take out");
+  apply->add_option("--take", apply_options->take, "Input take in the model's rig topology")
+      ->required();
+  apply->add_option("--model", apply_options->model, "Model file from `facedyn detail train`")
+      ->required();
   apply->add_option("--out", apply_options->out, "Output take folder")->required();
   apply->add_flag("--json", apply_options->json, "Print a JSON summary on stdout");
   apply->callback([apply_options, selected] {
     *selected = [apply_options]() -> Status {
       const ApplyOptions& o = *apply_options;
-      FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model, detail::MasqueradeModel::Load(o.model));
+      FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
+                               detail::MasqueradeModel::Load(o.model));
       FACEDYN_ASSIGN_OR_RETURN(Take take, LoadTake(o.take));
       // Markers come from the take's own surface, so only the topology must agree.
-      FACEDYN_RETURN_IF_ERROR(model.CheckCompatible(detail::MarkerNames(model.markers()), take.vertex_count(),
-                                                    "take " + o.take));
+      FACEDYN_RETURN_IF_ERROR(model.CheckCompatible(detail::MarkerNames(model.markers()),
+                                                    take.vertex_count(), "take " + o.take));
       const auto start = std::chrono::steady_clock::now();
       Eigen::Matrix3Xd skin;
       Eigen::Matrix3Xd markers(3, static_cast<int>(model.markers().size()));
@@ -184,7 +209,8 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
         if (!status.ok()) return status.WithContext(o.take + " frame " + std::to_string(f));
         take.positions.Frame(f) = take.world_from_skull[f].Apply(skin).cast<float>();
       }
-      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      const double seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       take.channels.clear();  // the input's channels describe the input, not the result
       take.info.source = "detail apply";
       take.info.metadata["detail_model"] = o.model;

@@ -22,7 +22,8 @@
 // Speed: upsampling frames/s (Apply on the test markers, best of 3 passes) on this machine.
 //
 //   detail_bench [--vertices N] [--markers N] [--train-frames N] [--test-frames N]
-//                [--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S] [--seed N] [--seeds 1,2,3] [--quick]
+//                [--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S]
+//                [--seed N] [--seeds 1,2,3] [--quick]
 //
 // --seeds: one run per seed (the seed draws both performances' timing and pose order), then a
 // "summary" with each figure's mean and sample standard deviation over the seeds.
@@ -52,7 +53,9 @@ using facedyn::Json;
 using Clock = std::chrono::steady_clock;
 namespace detail = facedyn::detail;
 
-double Seconds(Clock::time_point a) { return std::chrono::duration<double>(Clock::now() - a).count(); }
+double Seconds(Clock::time_point a) {
+  return std::chrono::duration<double>(Clock::now() - a).count();
+}
 double Number(const char* text, const std::string& flag) {
   return facedyn::bench::FlagNumber("detail_bench", flag, text);
 }
@@ -73,8 +76,9 @@ struct Settings {
   double edge_sigma_mm = 20.0;     // Bickel: falloff of a vertex's edge weights
 };
 
-std::vector<Eigen::Matrix3Xd> Frames(const facedyn::FaceRig& rig, const facedyn::sim::ExpressionCurve& curve,
-                                     int count, double fps) {
+std::vector<Eigen::Matrix3Xd> Frames(const facedyn::FaceRig& rig,
+                                     const facedyn::sim::ExpressionCurve& curve, int count,
+                                     double fps) {
   std::vector<Eigen::Matrix3Xd> frames;
   for (int f = 0; f < count; ++f) frames.push_back(rig.Evaluate(curve.Weights(f / fps)));
   return frames;
@@ -91,8 +95,8 @@ double Percentile95(std::vector<double> v) {
   return v[k];
 }
 
-Errors Score(const std::vector<Eigen::Matrix3Xd>& result, const std::vector<Eigen::Matrix3Xd>& truth,
-             const std::vector<int>& lips) {
+Errors Score(const std::vector<Eigen::Matrix3Xd>& result,
+             const std::vector<Eigen::Matrix3Xd>& truth, const std::vector<int>& lips) {
   std::vector<double> face, lip;
   for (size_t f = 0; f < truth.size(); ++f) {
     const Eigen::VectorXd e = (result[f] - truth[f]).colwise().norm().transpose();
@@ -108,7 +112,10 @@ Errors Score(const std::vector<Eigen::Matrix3Xd>& result, const std::vector<Eige
 }
 
 Json ErrorsJson(const Errors& e) {
-  return {{"face_mean_mm", e.face_mean}, {"face_p95_mm", e.face_p95}, {"lips_mean_mm", e.lips_mean}, {"lips_p95_mm", e.lips_p95}};
+  return {{"face_mean_mm", e.face_mean},
+          {"face_p95_mm", e.face_p95},
+          {"lips_mean_mm", e.lips_mean},
+          {"lips_p95_mm", e.lips_p95}};
 }
 
 // Runs `apply` over the test markers three times; frames/s of the fastest pass.
@@ -129,8 +136,9 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
   face_options.target_vertex_count = s.vertices;
   FACEDYN_ASSIGN_OR_RETURN(const facedyn::FaceRig rig, sim::MakeProceduralFace(face_options));
   if (s.markers > static_cast<int>(rig.markers.size())) {
-    return facedyn::InvalidArgumentError("--markers " + std::to_string(s.markers) + ": the rig has " +
-                                         std::to_string(rig.markers.size()) + " markers");
+    return facedyn::InvalidArgumentError("--markers " + std::to_string(s.markers) +
+                                         ": the rig has " + std::to_string(rig.markers.size()) +
+                                         " markers");
   }
   auto lips_it = rig.regions.find("lips");
   if (lips_it == rig.regions.end()) return facedyn::NotFoundError("the rig has no 'lips' region");
@@ -149,8 +157,10 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
     }
   }
   std::vector<Eigen::VectorXd> visemes;
-  for (const char* name : {"neutral", "lips_parted", "smile", "pucker", "lip_funnel", "mouth_stretch", "jaw_open"}) {
-    visemes.push_back(std::string(name) == "jaw_open" ? Eigen::VectorXd(0.4 * pose[name]) : pose[name]);
+  for (const char* name :
+       {"neutral", "lips_parted", "smile", "pucker", "lip_funnel", "mouth_stretch", "jaw_open"}) {
+    visemes.push_back(std::string(name) == "jaw_open" ? Eigen::VectorXd(0.4 * pose[name])
+                                                      : pose[name]);
   }
   const auto rom_curve = sim::MakeSpeechSequence(rom, 3.0, seed);
   const auto speech_curve = sim::MakeSpeechSequence(visemes, 4.5, seed + 1000);
@@ -193,34 +203,41 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
     options.global_frames = variant.global;
     options.per_region_frames = variant.per_region;
     detail::MasqueradeTrainingSummary summary;
-    FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model, detail::MasqueradeModel::Train(set, options, &summary));
+    FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
+                             detail::MasqueradeModel::Train(set, options, &summary));
     std::vector<Eigen::Matrix3Xd> result(truth.size()), large(truth.size());
-    for (size_t f = 0; f < truth.size(); ++f) FACEDYN_RETURN_IF_ERROR(model.Apply(test_markers[f], &result[f], &large[f]));
+    for (size_t f = 0; f < truth.size(); ++f)
+      FACEDYN_RETURN_IF_ERROR(model.Apply(test_markers[f], &result[f], &large[f]));
     if (!large_done) {
       methods["large_scale_only"] = {{"errors", ErrorsJson(Score(large, truth, lips_it->second))}};
       large_done = true;
     }
     Eigen::Matrix3Xd skin;
-    const double fps = FramesPerSecond(test_markers, [&](const Eigen::Matrix3Xd& m) { (void)model.Apply(m, &skin); });
+    const double fps = FramesPerSecond(
+        test_markers, [&](const Eigen::Matrix3Xd& m) { (void)model.Apply(m, &skin); });
     methods[variant.name] = {{"errors", ErrorsJson(Score(result, truth, lips_it->second))},
                              {"memory_bytes", model.MemoryBytes()},
                              {"mean_frames_per_region", summary.mean_frames_per_region},
                              {"regions_with_linear_part", summary.linear_regions},
                              {"train_s", summary.train_s},
                              {"upsample_frames_per_s", fps}};
-    std::fprintf(stderr, "detail_bench: seed %llu %s done\n", static_cast<unsigned long long>(seed), variant.name);
+    std::fprintf(stderr, "detail_bench: seed %llu %s done\n", static_cast<unsigned long long>(seed),
+                 variant.name);
   }
   {
     detail::BickelOptions options;
     options.edge_sigma_mm = s.edge_sigma_mm;
     options.frames = s.global_frames;
     const auto start = Clock::now();
-    FACEDYN_ASSIGN_OR_RETURN(const detail::BickelModel model, detail::BickelModel::Train(set, options));
+    FACEDYN_ASSIGN_OR_RETURN(const detail::BickelModel model,
+                             detail::BickelModel::Train(set, options));
     const double train_s = Seconds(start);
     std::vector<Eigen::Matrix3Xd> result(truth.size());
-    for (size_t f = 0; f < truth.size(); ++f) FACEDYN_RETURN_IF_ERROR(model.Apply(test_markers[f], &result[f]));
+    for (size_t f = 0; f < truth.size(); ++f)
+      FACEDYN_RETURN_IF_ERROR(model.Apply(test_markers[f], &result[f]));
     Eigen::Matrix3Xd skin;
-    const double fps = FramesPerSecond(test_markers, [&](const Eigen::Matrix3Xd& m) { (void)model.Apply(m, &skin); });
+    const double fps = FramesPerSecond(
+        test_markers, [&](const Eigen::Matrix3Xd& m) { (void)model.Apply(m, &skin); });
     methods["bickel2008_80"] = {{"errors", ErrorsJson(Score(result, truth, lips_it->second))},
                                 {"memory_bytes", model.MemoryBytes()},
                                 {"marker_graph_edges", model.edge_count()},
@@ -232,9 +249,11 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
 }
 
 // Mean and sample sd over runs of every number at the same path.
-void Summarise(const std::vector<Json>& runs, const Json& like, const Json::json_pointer& at, Json* out) {
+void Summarise(const std::vector<Json>& runs, const Json& like, const Json::json_pointer& at,
+               Json* out) {
   if (like.is_object()) {
-    for (auto it = like.begin(); it != like.end(); ++it) Summarise(runs, it.value(), at / it.key(), out);
+    for (auto it = like.begin(); it != like.end(); ++it)
+      Summarise(runs, it.value(), at / it.key(), out);
     return;
   }
   if (!like.is_number()) return;
@@ -242,7 +261,8 @@ void Summarise(const std::vector<Json>& runs, const Json& like, const Json::json
   for (const Json& r : runs) sum += r.at(at).get<double>();
   const double mean = sum / runs.size();
   for (const Json& r : runs) sum2 += std::pow(r.at(at).get<double>() - mean, 2);
-  (*out)[at] = {{"mean", mean}, {"sd", runs.size() > 1 ? std::sqrt(sum2 / (runs.size() - 1)) : 0.0}};
+  (*out)[at] = {{"mean", mean},
+                {"sd", runs.size() > 1 ? std::sqrt(sum2 / (runs.size() - 1)) : 0.0}};
 }
 
 }  // namespace
@@ -281,20 +301,26 @@ int main(int argc, char** argv) {
     } else if (arg == "--seeds") {
       std::stringstream list(next());
       std::string item;
-      while (std::getline(list, item, ',')) seeds.push_back(static_cast<uint64_t>(Integer(item.c_str(), arg)));
+      while (std::getline(list, item, ','))
+        seeds.push_back(static_cast<uint64_t>(Integer(item.c_str(), arg)));
     } else if (arg == "--quick") {
       s.vertices = 4000;
       s.train_frames = 160;
       s.test_frames = 120;
     } else {
-      std::fprintf(stderr,
-                   "usage: detail_bench [--vertices N] [--markers N] [--train-frames N] [--test-frames N] "
-                   "[--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S] [--seed N] [--seeds 1,2,3] [--quick]\n");
+      std::fprintf(
+          stderr,
+          "usage: detail_bench [--vertices N] [--markers N] [--train-frames N] [--test-frames N] "
+          "[--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S] [--seed "
+          "N] [--seeds 1,2,3] [--quick]\n");
       return 2;
     }
   }
-  if (s.markers < 4 || s.train_frames < 2 || s.test_frames < 1 || !(s.sigma_mm > 0) || !(s.feature_sigma_mm > 0) || !(s.edge_sigma_mm > 0)) {
-    std::fprintf(stderr, "detail_bench: need --markers >= 4, --train-frames >= 2, --test-frames >= 1, sigmas > 0\n");
+  if (s.markers < 4 || s.train_frames < 2 || s.test_frames < 1 || !(s.sigma_mm > 0) ||
+      !(s.feature_sigma_mm > 0) || !(s.edge_sigma_mm > 0)) {
+    std::fprintf(
+        stderr,
+        "detail_bench: need --markers >= 4, --train-frames >= 2, --test-frames >= 1, sigmas > 0\n");
     return 2;
   }
   facedyn::InitLogging(facedyn::Verbosity::kQuiet);

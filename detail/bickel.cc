@@ -1,11 +1,11 @@
 #include "detail/bickel.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <set>
-
-#include <fmt/format.h>
 
 #include "detail/rbf.h"
 #include "detail/regions.h"
@@ -15,9 +15,11 @@ namespace facedyn::detail {
 Status BickelOptions::Check() const {
   FACEDYN_RETURN_IF_ERROR(large_scale.Check());
   if (!(edge_sigma_mm > 0 && std::isfinite(edge_sigma_mm))) {
-    return InvalidArgumentError(fmt::format("BickelOptions.edge_sigma_mm must be > 0, got {}", edge_sigma_mm));
+    return InvalidArgumentError(
+        fmt::format("BickelOptions.edge_sigma_mm must be > 0, got {}", edge_sigma_mm));
   }
-  if (frames < 0) return InvalidArgumentError(fmt::format("BickelOptions.frames must be >= 0, got {}", frames));
+  if (frames < 0)
+    return InvalidArgumentError(fmt::format("BickelOptions.frames must be >= 0, got {}", frames));
   return Status::Ok();
 }
 
@@ -25,7 +27,9 @@ Eigen::VectorXd BickelModel::Strains(const Eigen::Matrix3Xd& markers_mm) const {
   Eigen::VectorXd s(edges_.size());
   for (size_t e = 0; e < edges_.size(); ++e) {
     s[static_cast<int>(e)] =
-        (markers_mm.col(edges_[e].first) - markers_mm.col(edges_[e].second)).norm() / rest_length_mm_[static_cast<int>(e)] - 1.0;
+        (markers_mm.col(edges_[e].first) - markers_mm.col(edges_[e].second)).norm() /
+            rest_length_mm_[static_cast<int>(e)] -
+        1.0;
   }
   return s;
 }
@@ -37,7 +41,8 @@ StatusOr<BickelModel> BickelModel::Train(const DetailTrainingSet& set, const Bic
   BickelModel model;
   const std::vector<SurfacePoint> points = set.MarkerPoints();
   model.marker_count_ = static_cast<int>(points.size());
-  FACEDYN_ASSIGN_OR_RETURN(model.deformer_, LaplacianDeformer::Create(set.neutral, points, options.large_scale));
+  FACEDYN_ASSIGN_OR_RETURN(model.deformer_,
+                           LaplacianDeformer::Create(set.neutral, points, options.large_scale));
   model.tangent_ = TangentFrames(set.neutral);
   // Marker graph from the nearest-marker cells (edge-path distance).
   FACEDYN_ASSIGN_OR_RETURN(const MarkerRegions regions,
@@ -50,21 +55,25 @@ StatusOr<BickelModel> BickelModel::Train(const DetailTrainingSet& set, const Bic
   for (int f = 0; f < mesh.face_count(); ++f) {
     const int begin = mesh.face_offsets[f], size = mesh.FaceSize(f);
     for (int k = 0; k < size; ++k) {
-      const int a = cell[mesh.corner_vertices[begin + k]], b = cell[mesh.corner_vertices[begin + (k + 1) % size]];
+      const int a = cell[mesh.corner_vertices[begin + k]],
+                b = cell[mesh.corner_vertices[begin + (k + 1) % size]];
       if (a != b) edge_set.emplace(std::min(a, b), std::max(a, b));
     }
   }
   model.edges_.assign(edge_set.begin(), edge_set.end());
-  if (model.edges_.empty()) return FailedPreconditionError("detail (Bickel): the marker graph has no edge");
+  if (model.edges_.empty())
+    return FailedPreconditionError("detail (Bickel): the marker graph has no edge");
   const Eigen::Matrix3Xd neutral_markers = set.MarkersOn(set.neutral.positions_mm);
   const int e_count = static_cast<int>(model.edges_.size());
   model.rest_length_mm_.resize(e_count);
   for (int e = 0; e < e_count; ++e) {
-    const double l = (neutral_markers.col(model.edges_[e].first) - neutral_markers.col(model.edges_[e].second)).norm();
+    const double l =
+        (neutral_markers.col(model.edges_[e].first) - neutral_markers.col(model.edges_[e].second))
+            .norm();
     if (!(l > 0)) {
-      return FailedPreconditionError(fmt::format("detail (Bickel): markers '{}' and '{}' coincide on the neutral",
-                                                 set.markers[model.edges_[e].first].name,
-                                                 set.markers[model.edges_[e].second].name));
+      return FailedPreconditionError(fmt::format(
+          "detail (Bickel): markers '{}' and '{}' coincide on the neutral",
+          set.markers[model.edges_[e].first].name, set.markers[model.edges_[e].second].name));
     }
     model.rest_length_mm_[e] = l;
   }
@@ -76,7 +85,9 @@ StatusOr<BickelModel> BickelModel::Train(const DetailTrainingSet& set, const Bic
   std::vector<int> chosen;
   if (options.frames > 0 && options.frames < n) {
     Eigen::MatrixXd y(n, 3 * v_count);
-    for (int f = 0; f < n; ++f) y.row(f) = Eigen::Map<const Eigen::RowVectorXd>(analysis.local_offsets_mm[f].data(), 3 * v_count);
+    for (int f = 0; f < n; ++f)
+      y.row(f) =
+          Eigen::Map<const Eigen::RowVectorXd>(analysis.local_offsets_mm[f].data(), 3 * v_count);
     chosen = GreedySelectFrames(strains, y * y.transpose(), options.frames);
   } else {
     for (int f = 0; f < n; ++f) chosen.push_back(f);
@@ -92,13 +103,15 @@ StatusOr<BickelModel> BickelModel::Train(const DetailTrainingSet& set, const Bic
   Eigen::VectorXd d(e_count);
   for (int v = 0; v < v_count; ++v) {
     for (int e = 0; e < e_count; ++e) {
-      d[e] = 0.5 * (regions.distances_mm(model.edges_[e].first, v) + regions.distances_mm(model.edges_[e].second, v));
+      d[e] = 0.5 * (regions.distances_mm(model.edges_[e].first, v) +
+                    regions.distances_mm(model.edges_[e].second, v));
     }
     const double d_min = d.minCoeff();
     double sum = 0;
     const size_t begin = model.edge_alpha_.size();
     for (int e = 0; e < e_count; ++e) {
-      const double excess = std::isfinite(d_min) ? d[e] * d[e] - d_min * d_min : (e == 0 ? 0.0 : 1e300);
+      const double excess =
+          std::isfinite(d_min) ? d[e] * d[e] - d_min * d_min : (e == 0 ? 0.0 : 1e300);
       if (excess > 9 * s2) continue;
       const double g = std::exp(-excess / (2 * s2));
       model.edge_index_.push_back(e);
@@ -118,7 +131,8 @@ StatusOr<BickelModel> BickelModel::Train(const DetailTrainingSet& set, const Bic
       for (int b = a + 1; b < k; ++b) {
         double s = 0;
         for (int i = model.vertex_offsets_[v]; i < model.vertex_offsets_[v + 1]; ++i) {
-          const double diff = model.training_strains_(model.edge_index_[i], a) - model.training_strains_(model.edge_index_[i], b);
+          const double diff = model.training_strains_(model.edge_index_[i], a) -
+                              model.training_strains_(model.edge_index_[i], b);
           s += model.edge_alpha_[i] * diff * diff;
         }
         kernel(a, b) = kernel(b, a) = std::sqrt(s);
@@ -158,8 +172,9 @@ StatusOr<BickelModel> BickelModel::Train(const DetailTrainingSet& set, const Bic
 
 Status BickelModel::Apply(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3Xd* skin_mm) const {
   if (markers_mm.cols() != marker_count_ || !markers_mm.allFinite()) {
-    return InvalidArgumentError(fmt::format("detail (Bickel): {} marker positions given ({} expected, all finite)",
-                                            markers_mm.cols(), marker_count_));
+    return InvalidArgumentError(
+        fmt::format("detail (Bickel): {} marker positions given ({} expected, all finite)",
+                    markers_mm.cols(), marker_count_));
   }
   Eigen::Matrix3Xd large;
   deformer_.Deform(markers_mm, &large);
@@ -167,12 +182,14 @@ Status BickelModel::Apply(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3Xd* 
   const int k = static_cast<int>(training_strains_.cols());
   const int v_count = static_cast<int>(large.cols());
   // diff(e, j) = s_e - s_je, once per frame; each vertex reads its own edges' rows.
-  const Eigen::MatrixXd diff2 = (training_strains_.colwise() - s).array().square().matrix().transpose();  // k x E
+  const Eigen::MatrixXd diff2 =
+      (training_strains_.colwise() - s).array().square().matrix().transpose();  // k x E
   Eigen::Matrix3Xd local(3, v_count);
   Eigen::VectorXd h(k + 1);
   for (int v = 0; v < v_count; ++v) {
     h.head(k).setZero();
-    for (int i = vertex_offsets_[v]; i < vertex_offsets_[v + 1]; ++i) h.head(k) += edge_alpha_[i] * diff2.col(edge_index_[i]);
+    for (int i = vertex_offsets_[v]; i < vertex_offsets_[v + 1]; ++i)
+      h.head(k) += edge_alpha_[i] * diff2.col(edge_index_[i]);
     h.head(k) = h.head(k).cwiseSqrt();
     h[k] = 1.0;
     local.col(v) = coefficients_.middleCols(3 * v, 3).transpose() * h;
@@ -184,8 +201,8 @@ Status BickelModel::Apply(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3Xd* 
 }
 
 size_t BickelModel::MemoryBytes() const {
-  return sizeof(double) * (static_cast<size_t>(coefficients_.size()) + training_strains_.size() + rest_length_mm_.size() +
-                           edge_alpha_.size()) +
+  return sizeof(double) * (static_cast<size_t>(coefficients_.size()) + training_strains_.size() +
+                           rest_length_mm_.size() + edge_alpha_.size()) +
          sizeof(int) * (edge_index_.size() + vertex_offsets_.size() + 2 * edges_.size());
 }
 

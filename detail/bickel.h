@@ -13,10 +13,9 @@
 // dimensions than there are training frames, so a linear part would be singular.
 #pragma once
 
+#include <Eigen/Core>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/status.h"
 #include "detail/large_scale.h"
@@ -27,7 +26,7 @@ namespace facedyn::detail {
 struct BickelOptions {
   LaplacianDeformerOptions large_scale;
   double edge_sigma_mm = 20.0;  // the lowest error of 5/6/10/20 in bench/detail_bench --quick
-  int frames = 80;  // greedy; 0 or >= #frames: every frame
+  int frames = 80;              // greedy; 0 or >= #frames: every frame
   Status Check() const;
 };
 

@@ -8,9 +8,8 @@
 // shape; a uniform scale s gives diag-like s on the tangent plane and 1 along the normal.
 #pragma once
 
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 #include "core/mesh.h"
 
@@ -32,7 +31,8 @@ class DeformationGradients {
   const Eigen::Matrix3Xi& triangles() const { return triangles_; }
 
   // 9 x T, column t = vec(F_t) (column-major) for `positions_mm` (3 x V).
-  void Compute(const Eigen::Matrix3Xd& positions_mm, Eigen::Matrix<double, 9, Eigen::Dynamic>* f) const;
+  void Compute(const Eigen::Matrix3Xd& positions_mm,
+               Eigen::Matrix<double, 9, Eigen::Dynamic>* f) const;
 
  private:
   Eigen::Matrix3Xi triangles_;

@@ -1,11 +1,11 @@
 #include "detail/large_scale.h"
 
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <string>
-
-#include <Eigen/Geometry>
-#include <fmt/format.h>
 
 namespace facedyn::detail {
 
@@ -53,8 +53,9 @@ StatusOr<LaplacianDeformer> LaplacianDeformer::Create(const Mesh& neutral,
       l_entries.emplace_back(i, i, w);
       l_entries.emplace_back(j, j, w);
     }
-    const double tri_area =
-        0.5 * (x0.col(tris(1, t)) - x0.col(tris(0, t))).cross(x0.col(tris(2, t)) - x0.col(tris(0, t))).norm();
+    const double tri_area = 0.5 * (x0.col(tris(1, t)) - x0.col(tris(0, t)))
+                                      .cross(x0.col(tris(2, t)) - x0.col(tris(0, t)))
+                                      .norm();
     for (int k = 0; k < 3; ++k) area[tris(k, t)] += tri_area / 3.0;
   }
   const double mean_area = area.sum() / std::max(1, v_count);
@@ -62,7 +63,8 @@ StatusOr<LaplacianDeformer> LaplacianDeformer::Create(const Mesh& neutral,
   l.setFromTriplets(l_entries.begin(), l_entries.end());
   Eigen::VectorXd inv_area(v_count);
   for (int v = 0; v < v_count; ++v) inv_area[v] = 1.0 / std::max(area[v], 1e-6 * mean_area);
-  const Eigen::SparseMatrix<double> q = Eigen::SparseMatrix<double>(l.transpose()) * inv_area.asDiagonal() * l;
+  const Eigen::SparseMatrix<double> q =
+      Eigen::SparseMatrix<double>(l.transpose()) * inv_area.asDiagonal() * l;
 
   LaplacianDeformer deformer;
   deformer.neutral_mm_ = x0;
@@ -92,27 +94,31 @@ StatusOr<LaplacianDeformer> LaplacianDeformer::Create(const Mesh& neutral,
   // Marker response: column m is the displacement field of a unit residual at marker m.
   Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(v_count, static_cast<int>(markers.size()));
   for (size_t m = 0; m < markers.size(); ++m) {
-    for (int k = 0; k < 3; ++k) unit(markers[m].vertices[k], static_cast<int>(m)) += deformer.weight_ * markers[m].weights[k];
+    for (int k = 0; k < 3; ++k)
+      unit(markers[m].vertices[k], static_cast<int>(m)) += deformer.weight_ * markers[m].weights[k];
   }
   deformer.response_ = deformer.solver_->solve(unit);
   return deformer;
 }
 
-void LaplacianDeformer::Deform(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3Xd* skin_mm) const {
+void LaplacianDeformer::Deform(const Eigen::Matrix3Xd& markers_mm,
+                               Eigen::Matrix3Xd* skin_mm) const {
   FACEDYN_CHECK(markers_mm.cols() == marker_count(), "LaplacianDeformer::Deform: marker count");
   // d^T = r K^T  (3 x V).
   skin_mm->noalias() = (markers_mm - neutral_markers_mm_) * response_.transpose();
   *skin_mm += neutral_mm_;
 }
 
-void LaplacianDeformer::DeformBySolve(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3Xd* skin_mm) const {
+void LaplacianDeformer::DeformBySolve(const Eigen::Matrix3Xd& markers_mm,
+                                      Eigen::Matrix3Xd* skin_mm) const {
   FACEDYN_CHECK(markers_mm.cols() == marker_count(), "LaplacianDeformer::Deform: marker count");
   const int v_count = vertex_count();
   // rhs = w C^T (p - C x0), V x 3 (one column per coordinate).
   Eigen::MatrixX3d rhs = Eigen::MatrixX3d::Zero(v_count, 3);
   for (int m = 0; m < marker_count(); ++m) {
     const Eigen::Vector3d r = weight_ * (markers_mm.col(m) - neutral_markers_mm_.col(m));
-    for (int k = 0; k < 3; ++k) rhs.row(markers_[m].vertices[k]) += markers_[m].weights[k] * r.transpose();
+    for (int k = 0; k < 3; ++k)
+      rhs.row(markers_[m].vertices[k]) += markers_[m].weights[k] * r.transpose();
   }
   const Eigen::MatrixX3d d = solver_->solve(rhs);
   *skin_mm = neutral_mm_ + d.transpose();
@@ -145,12 +151,14 @@ TangentFrames::TangentFrames(const Mesh& neutral) : triangles_(neutral.Triangles
 void TangentFrames::Compute(const Eigen::Matrix3Xd& positions_mm,
                             Eigen::Matrix<double, 9, Eigen::Dynamic>* frames) const {
   const int v_count = static_cast<int>(positions_mm.cols());
-  FACEDYN_CHECK(v_count == static_cast<int>(reference_neighbour_.size()), "TangentFrames: vertex count");
+  FACEDYN_CHECK(v_count == static_cast<int>(reference_neighbour_.size()),
+                "TangentFrames: vertex count");
   Eigen::Matrix3Xd normals = Eigen::Matrix3Xd::Zero(3, v_count);
   for (int t = 0; t < triangles_.cols(); ++t) {
     const Eigen::Vector3d a = positions_mm.col(triangles_(0, t));
     // The cross product's length is twice the area: area weighting for free.
-    const Eigen::Vector3d n = (positions_mm.col(triangles_(1, t)) - a).cross(positions_mm.col(triangles_(2, t)) - a);
+    const Eigen::Vector3d n =
+        (positions_mm.col(triangles_(1, t)) - a).cross(positions_mm.col(triangles_(2, t)) - a);
     for (int k = 0; k < 3; ++k) normals.col(triangles_(k, t)) += n;
   }
   frames->resize(9, v_count);

@@ -13,9 +13,10 @@
 // columns of w C^T once, giving the marker response K = (Q + w C^T C)^-1 w C^T (V x M, dense):
 // a frame is then d = K r, V x M x 3 multiply-adds (about 2 M for 9,409 vertices and 80
 // markers), several times cheaper than three sparse back-substitutions (DeformBySolve, kept
-// for checking and for marker sets too large for a dense K). What is exactly true of this energy, and tested: neutral markers
-// give the neutral (d = 0), and markers translated by t give x0 + t (L 1 = 0). An affine map
-// is not reproduced exactly on a curved, bounded mesh (L x0 != 0), so it is not claimed.
+// for checking and for marker sets too large for a dense K). What is exactly true of this energy,
+// and tested: neutral markers give the neutral (d = 0), and markers translated by t give x0 + t (L
+// 1 = 0). An affine map is not reproduced exactly on a curved, bounded mesh (L x0 != 0), so it is
+// not claimed.
 //
 // TangentFrames gives every vertex an orthonormal frame [t b n] that follows the surface: n
 // the area-weighted vertex normal, t the edge to a fixed neighbour projected into the tangent
@@ -24,12 +25,11 @@
 // deformations", unlike world-space offsets).
 #pragma once
 
-#include <memory>
-#include <vector>
-
 #include <Eigen/Core>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+#include <memory>
+#include <vector>
 
 #include "core/face_rig.h"
 #include "core/mesh.h"
@@ -83,7 +83,8 @@ class TangentFrames {
   TangentFrames() = default;
 
   // frames: 9 x V, column v = vec([t b n]) (column-major 3x3) of `positions_mm` (3 x V).
-  void Compute(const Eigen::Matrix3Xd& positions_mm, Eigen::Matrix<double, 9, Eigen::Dynamic>* frames) const;
+  void Compute(const Eigen::Matrix3Xd& positions_mm,
+               Eigen::Matrix<double, 9, Eigen::Dynamic>* frames) const;
 
   // Local offsets: frames^T (x - base) per vertex (3 x V, mm).
   static void ToLocal(const Eigen::Matrix<double, 9, Eigen::Dynamic>& frames,

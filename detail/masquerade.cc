@@ -1,13 +1,13 @@
 #include "detail/masquerade.h"
 
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
-
-#include <Eigen/Geometry>
-#include <fmt/format.h>
 
 #include "core/file_util.h"
 
@@ -51,7 +51,8 @@ class Reader {
 
   Status Take(void* out, size_t n, const char* what) {
     if (bytes_.size() - pos_ < n) {
-      return DataLossError(fmt::format("{}: truncated at byte {} while reading {}", path_, pos_, what));
+      return DataLossError(
+          fmt::format("{}: truncated at byte {} while reading {}", path_, pos_, what));
     }
     std::memcpy(out, bytes_.data() + pos_, n);
     pos_ += n;
@@ -64,7 +65,8 @@ class Reader {
   Status Str(std::string* s, const char* what) {
     uint32_t n = 0;
     FACEDYN_RETURN_IF_ERROR(Pod(&n, what));
-    if (n > bytes_.size() - pos_) return DataLossError(fmt::format("{}: truncated in {}", path_, what));
+    if (n > bytes_.size() - pos_)
+      return DataLossError(fmt::format("{}: truncated in {}", path_, what));
     s->assign(bytes_.data() + pos_, n);
     pos_ += n;
     return Status::Ok();
@@ -75,15 +77,17 @@ class Reader {
     int64_t n = 0;
     FACEDYN_RETURN_IF_ERROR(Pod(&n, what));
     if (n < 0 || n > kMaxCount || (expected >= 0 && n != expected)) {
-      return DataLossError(fmt::format("{}: {} has {} entries, expected {}", path_, what, n,
-                                       expected >= 0 ? std::to_string(expected) : std::string("a sane count")));
+      return DataLossError(
+          fmt::format("{}: {} has {} entries, expected {}", path_, what, n,
+                      expected >= 0 ? std::to_string(expected) : std::string("a sane count")));
     }
     out->resize(static_cast<size_t>(n));
     return Take(out->data(), sizeof(T) * static_cast<size_t>(n), what);
   }
   Status Count(int64_t* n, int64_t max, const char* what) {
     FACEDYN_RETURN_IF_ERROR(Pod(n, what));
-    if (*n < 0 || *n > max) return DataLossError(fmt::format("{}: {} is {}, out of range", path_, what, *n));
+    if (*n < 0 || *n > max)
+      return DataLossError(fmt::format("{}: {} is {}, out of range", path_, what, *n));
     return Status::Ok();
   }
   bool AtEnd() const { return pos_ == bytes_.size(); }
@@ -98,7 +102,8 @@ class Reader {
 Status CheckMarkers(const Eigen::Matrix3Xd& markers_mm, int expected) {
   if (markers_mm.cols() != expected) {
     return FailedPreconditionError(
-        fmt::format("detail: {} marker positions given, the model was trained with {}", markers_mm.cols(), expected));
+        fmt::format("detail: {} marker positions given, the model was trained with {}",
+                    markers_mm.cols(), expected));
   }
   for (int m = 0; m < markers_mm.cols(); ++m) {
     if (!markers_mm.col(m).allFinite()) {
@@ -113,14 +118,19 @@ Status CheckMarkers(const Eigen::Matrix3Xd& markers_mm, int expected) {
 Status MasqueradeOptions::Check() const {
   FACEDYN_RETURN_IF_ERROR(large_scale.Check());
   if (!(region_sigma_mm > 0 && std::isfinite(region_sigma_mm))) {
-    return InvalidArgumentError(fmt::format("MasqueradeOptions.region_sigma_mm must be > 0, got {}", region_sigma_mm));
+    return InvalidArgumentError(
+        fmt::format("MasqueradeOptions.region_sigma_mm must be > 0, got {}", region_sigma_mm));
   }
   if (!(feature_sigma_mm > 0 && std::isfinite(feature_sigma_mm))) {
-    return InvalidArgumentError(fmt::format("MasqueradeOptions.feature_sigma_mm must be > 0, got {}", feature_sigma_mm));
+    return InvalidArgumentError(
+        fmt::format("MasqueradeOptions.feature_sigma_mm must be > 0, got {}", feature_sigma_mm));
   }
-  if (global_frames < 0) return InvalidArgumentError(fmt::format("MasqueradeOptions.global_frames must be >= 0, got {}", global_frames));
+  if (global_frames < 0)
+    return InvalidArgumentError(
+        fmt::format("MasqueradeOptions.global_frames must be >= 0, got {}", global_frames));
   if (per_region_frames < 0) {
-    return InvalidArgumentError(fmt::format("MasqueradeOptions.per_region_frames must be >= 0, got {}", per_region_frames));
+    return InvalidArgumentError(
+        fmt::format("MasqueradeOptions.per_region_frames must be >= 0, got {}", per_region_frames));
   }
   return Status::Ok();
 }
@@ -128,7 +138,8 @@ Status MasqueradeOptions::Check() const {
 Status MasqueradeModel::Build() {
   std::vector<SurfacePoint> points;
   for (const Marker& m : markers_) points.push_back(m.point);
-  FACEDYN_ASSIGN_OR_RETURN(deformer_, LaplacianDeformer::Create(neutral_, points, options_.large_scale));
+  FACEDYN_ASSIGN_OR_RETURN(deformer_,
+                           LaplacianDeformer::Create(neutral_, points, options_.large_scale));
   tangent_ = TangentFrames(neutral_);
   gradients_ = DeformationGradients(neutral_);
   return Status::Ok();
@@ -137,7 +148,8 @@ Status MasqueradeModel::Build() {
 void MasqueradeModel::RegionPoses(const Eigen::Matrix3Xd& large_mm, Eigen::MatrixXd* poses) const {
   Eigen::Matrix<double, 9, Eigen::Dynamic> f;
   gradients_.Compute(large_mm, &f);
-  const Eigen::Matrix<double, 9, 1> identity = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(Eigen::Matrix3d::Identity().eval().data());
+  const Eigen::Matrix<double, 9, 1> identity =
+      Eigen::Map<const Eigen::Matrix<double, 9, 1>>(Eigen::Matrix3d::Identity().eval().data());
   poses->resize(9, static_cast<int>(feature_triangles_.size()));
   for (size_t r = 0; r < feature_triangles_.size(); ++r) {
     Eigen::Matrix<double, 9, 1> sum = Eigen::Matrix<double, 9, 1>::Zero();
@@ -146,7 +158,8 @@ void MasqueradeModel::RegionPoses(const Eigen::Matrix3Xd& large_mm, Eigen::Matri
   }
 }
 
-StatusOr<MasqueradeModel> MasqueradeModel::Train(const DetailTrainingSet& set, const MasqueradeOptions& options,
+StatusOr<MasqueradeModel> MasqueradeModel::Train(const DetailTrainingSet& set,
+                                                 const MasqueradeOptions& options,
                                                  MasqueradeTrainingSummary* summary) {
   const auto start = std::chrono::steady_clock::now();
   FACEDYN_RETURN_IF_ERROR(options.Check());
@@ -157,8 +170,8 @@ StatusOr<MasqueradeModel> MasqueradeModel::Train(const DetailTrainingSet& set, c
   model.neutral_ = set.neutral;
   model.markers_ = set.markers;
   FACEDYN_RETURN_IF_ERROR(model.Build());
-  FACEDYN_ASSIGN_OR_RETURN(model.regions_,
-                           ComputeMarkerRegions(set.neutral, set.MarkerPoints(), options.region_sigma_mm));
+  FACEDYN_ASSIGN_OR_RETURN(model.regions_, ComputeMarkerRegions(set.neutral, set.MarkerPoints(),
+                                                                options.region_sigma_mm));
 
   // Pose triangles: Gaussian of the mean edge-path distance of the triangle's corners, times
   // its rest area (so the pose does not depend on how finely an area is meshed).
@@ -172,10 +185,13 @@ StatusOr<MasqueradeModel> MasqueradeModel::Train(const DetailTrainingSet& set, c
     double sum = 0, nearest_d = std::numeric_limits<double>::infinity();
     int nearest_t = -1;
     for (int t = 0; t < tris.cols(); ++t) {
-      const double d = (model.regions_.distances_mm(r, tris(0, t)) + model.regions_.distances_mm(r, tris(1, t)) +
-                        model.regions_.distances_mm(r, tris(2, t))) / 3.0;
-      const double area =
-          0.5 * (x0.col(tris(1, t)) - x0.col(tris(0, t))).cross(x0.col(tris(2, t)) - x0.col(tris(0, t))).norm();
+      const double d =
+          (model.regions_.distances_mm(r, tris(0, t)) + model.regions_.distances_mm(r, tris(1, t)) +
+           model.regions_.distances_mm(r, tris(2, t))) /
+          3.0;
+      const double area = 0.5 * (x0.col(tris(1, t)) - x0.col(tris(0, t)))
+                                    .cross(x0.col(tris(2, t)) - x0.col(tris(0, t)))
+                                    .norm();
       if (area > 0 && d < nearest_d) {
         nearest_d = d;
         nearest_t = t;
@@ -189,7 +205,9 @@ StatusOr<MasqueradeModel> MasqueradeModel::Train(const DetailTrainingSet& set, c
       list.emplace_back(nearest_t, 1.0);
       sum = 1.0;
     }
-    if (list.empty()) return FailedPreconditionError(fmt::format("detail: marker '{}' has no triangle with area near it", set.markers[r].name));
+    if (list.empty())
+      return FailedPreconditionError(fmt::format(
+          "detail: marker '{}' has no triangle with area near it", set.markers[r].name));
     for (auto& entry : list) entry.second /= sum;
   }
 
@@ -205,7 +223,8 @@ StatusOr<MasqueradeModel> MasqueradeModel::Train(const DetailTrainingSet& set, c
     Eigen::MatrixXd features(9 * r_count, n), y(n, 3 * v_count);
     for (int f = 0; f < n; ++f) {
       features.col(f) = Eigen::Map<const Eigen::VectorXd>(poses[f].data(), 9 * r_count);
-      y.row(f) = Eigen::Map<const Eigen::RowVectorXd>(analysis.local_offsets_mm[f].data(), 3 * v_count);
+      y.row(f) =
+          Eigen::Map<const Eigen::RowVectorXd>(analysis.local_offsets_mm[f].data(), 3 * v_count);
     }
     const Eigen::MatrixXd gram = y * y.transpose();
     pool = GreedySelectFrames(features, gram, options.global_frames);
@@ -224,25 +243,31 @@ StatusOr<MasqueradeModel> MasqueradeModel::Train(const DetailTrainingSet& set, c
     for (int i = 0; i < p; ++i) {
       features.col(i) = poses[pool[i]].col(r);
       for (size_t j = 0; j < verts.size(); ++j) {
-        values.block<1, 3>(i, 3 * static_cast<int>(j)) = analysis.local_offsets_mm[pool[i]].col(verts[j]).transpose();
+        values.block<1, 3>(i, 3 * static_cast<int>(j)) =
+            analysis.local_offsets_mm[pool[i]].col(verts[j]).transpose();
       }
     }
     std::vector<int> chosen;
     if (options.per_region_frames > 0 && options.per_region_frames < p) {
       // Weighted offsets: the error that reaches the blended result.
       Eigen::MatrixXd weighted = values;
-      for (size_t j = 0; j < verts.size(); ++j) weighted.middleCols(3 * static_cast<int>(j), 3) *= model.regions_.weights[r][j];
-      chosen = GreedySelectFrames(features, weighted * weighted.transpose(), options.per_region_frames);
+      for (size_t j = 0; j < verts.size(); ++j)
+        weighted.middleCols(3 * static_cast<int>(j), 3) *= model.regions_.weights[r][j];
+      chosen =
+          GreedySelectFrames(features, weighted * weighted.transpose(), options.per_region_frames);
     } else {
       for (int i = 0; i < p; ++i) chosen.push_back(i);
     }
-    Eigen::MatrixXd c(9, static_cast<int>(chosen.size())), y(static_cast<int>(chosen.size()), k_out);
+    Eigen::MatrixXd c(9, static_cast<int>(chosen.size())),
+        y(static_cast<int>(chosen.size()), k_out);
     for (size_t i = 0; i < chosen.size(); ++i) {
       c.col(static_cast<int>(i)) = features.col(chosen[i]);
       y.row(static_cast<int>(i)) = values.row(chosen[i]);
     }
     StatusOr<BiharmonicRbf> rbf = BiharmonicRbf::Fit(c, y);
-    if (!rbf.ok()) return rbf.status().WithContext(fmt::format("detail: region of marker '{}'", set.markers[r].name));
+    if (!rbf.ok())
+      return rbf.status().WithContext(
+          fmt::format("detail: region of marker '{}'", set.markers[r].name));
     frames_total += rbf->centre_count();
     linear_regions += rbf->linear() ? 1 : 0;
     model.rbfs_.push_back(std::move(rbf).value());
@@ -251,7 +276,8 @@ StatusOr<MasqueradeModel> MasqueradeModel::Train(const DetailTrainingSet& set, c
     summary->global_frames = pool;
     summary->mean_frames_per_region = frames_total / r_count;
     summary->linear_regions = linear_regions;
-    summary->train_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    summary->train_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
   return model;
 }
@@ -272,7 +298,8 @@ Status MasqueradeModel::Apply(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3
     rbf.Evaluate(poses.col(static_cast<int>(r)), out);
     const std::vector<int>& verts = regions_.vertices[r];
     const std::vector<double>& w = regions_.weights[r];
-    for (size_t j = 0; j < verts.size(); ++j) local.col(verts[j]) += w[j] * out.segment<3>(3 * static_cast<int>(j));
+    for (size_t j = 0; j < verts.size(); ++j)
+      local.col(verts[j]) += w[j] * out.segment<3>(3 * static_cast<int>(j));
   }
   Eigen::Matrix<double, 9, Eigen::Dynamic> frames;
   tangent_.Compute(large, &frames);
@@ -281,25 +308,28 @@ Status MasqueradeModel::Apply(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3
   return Status::Ok();
 }
 
-Status MasqueradeModel::CheckCompatible(const std::vector<std::string>& marker_names, int vertex_count_in,
-                                        const std::string& what) const {
+Status MasqueradeModel::CheckCompatible(const std::vector<std::string>& marker_names,
+                                        int vertex_count_in, const std::string& what) const {
   if (vertex_count_in != vertex_count()) {
-    return FailedPreconditionError(fmt::format("{}: {} vertices, the detail model's rig '{}' has {}", what,
-                                               vertex_count_in, subject_, vertex_count()));
+    return FailedPreconditionError(
+        fmt::format("{}: {} vertices, the detail model's rig '{}' has {}", what, vertex_count_in,
+                    subject_, vertex_count()));
   }
   for (size_t m = 0; m < markers_.size(); ++m) {
     if (m >= marker_names.size()) {
-      return FailedPreconditionError(
-          fmt::format("{}: marker '{}' (#{}) of the detail model is missing", what, markers_[m].name, m));
+      return FailedPreconditionError(fmt::format(
+          "{}: marker '{}' (#{}) of the detail model is missing", what, markers_[m].name, m));
     }
     if (marker_names[m] != markers_[m].name) {
-      return FailedPreconditionError(fmt::format("{}: marker #{} is '{}', the detail model expects '{}'", what, m,
-                                                 marker_names[m], markers_[m].name));
+      return FailedPreconditionError(
+          fmt::format("{}: marker #{} is '{}', the detail model expects '{}'", what, m,
+                      marker_names[m], markers_[m].name));
     }
   }
   if (marker_names.size() > markers_.size()) {
-    return FailedPreconditionError(fmt::format("{}: marker '{}' (#{}) is not in the detail model's layout", what,
-                                               marker_names[markers_.size()], markers_.size()));
+    return FailedPreconditionError(
+        fmt::format("{}: marker '{}' (#{}) is not in the detail model's layout", what,
+                    marker_names[markers_.size()], markers_.size()));
   }
   return Status::Ok();
 }
@@ -368,8 +398,9 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
   uint32_t version = 0;
   FACEDYN_RETURN_IF_ERROR(r.Pod(&version, "the format version"));
   if (version != kDetailModelFormatVersion) {
-    return FailedPreconditionError(fmt::format("{}: detail model format version {}, this build reads {}", path,
-                                               version, kDetailModelFormatVersion));
+    return FailedPreconditionError(
+        fmt::format("{}: detail model format version {}, this build reads {}", path, version,
+                    kDetailModelFormatVersion));
   }
   MasqueradeModel model;
   FACEDYN_RETURN_IF_ERROR(r.Str(&model.subject_, "the subject"));
@@ -388,7 +419,8 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
   std::vector<double> positions;
   FACEDYN_RETURN_IF_ERROR(r.Array(&positions, -1, "the neutral positions"));
   if (positions.size() % 3 != 0 || positions.empty()) {
-    return DataLossError(fmt::format("{}: {} neutral coordinates, not a multiple of 3", path, positions.size()));
+    return DataLossError(
+        fmt::format("{}: {} neutral coordinates, not a multiple of 3", path, positions.size()));
   }
   const int v_count = static_cast<int>(positions.size() / 3);
   model.neutral_.positions_mm = Eigen::Map<const Eigen::Matrix3Xd>(positions.data(), 3, v_count);
@@ -401,7 +433,8 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
     for (size_t i = 1; offsets_ok && i < mesh.face_offsets.size(); ++i) {
       offsets_ok = mesh.face_offsets[i] > mesh.face_offsets[i - 1];
     }
-    if (!offsets_ok) return DataLossError(fmt::format("{}: the neutral's face offsets are inconsistent", path));
+    if (!offsets_ok)
+      return DataLossError(fmt::format("{}: the neutral's face offsets are inconsistent", path));
     Status s = mesh.Validate(path + " neutral");
     if (!s.ok()) return DataLossError(s.message());
   }
@@ -415,16 +448,18 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
       int32_t v = 0;
       FACEDYN_RETURN_IF_ERROR(r.Pod(&v, "a marker vertex"));
       if (v < 0 || v >= v_count) {
-        return DataLossError(fmt::format("{}: marker '{}' refers to vertex {} of {}", path, marker.name, v, v_count));
+        return DataLossError(fmt::format("{}: marker '{}' refers to vertex {} of {}", path,
+                                         marker.name, v, v_count));
       }
       marker.point.vertices[k] = v;
     }
-    for (int k = 0; k < 3; ++k) FACEDYN_RETURN_IF_ERROR(r.Pod(&marker.point.weights[k], "a marker weight"));
+    for (int k = 0; k < 3; ++k)
+      FACEDYN_RETURN_IF_ERROR(r.Pod(&marker.point.weights[k], "a marker weight"));
     FACEDYN_RETURN_IF_ERROR(r.Pod(&marker.diameter_mm, "a marker diameter"));
     const Eigen::Vector3d& b = marker.point.weights;
     if (!b.allFinite() || b.minCoeff() < -1e-9 || std::abs(b.sum() - 1.0) > 1e-6) {
-      return DataLossError(fmt::format("{}: marker '{}' has barycentric weights ({}, {}, {})", path, marker.name, b[0],
-                                       b[1], b[2]));
+      return DataLossError(fmt::format("{}: marker '{}' has barycentric weights ({}, {}, {})", path,
+                                       marker.name, b[0], b[1], b[2]));
     }
     model.markers_.push_back(std::move(marker));
   }
@@ -436,13 +471,16 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
     const std::string& name = model.markers_[g].name;
     const std::string what = "region of marker '" + name + "'";
     FACEDYN_RETURN_IF_ERROR(r.Array(&model.regions_.vertices[g], -1, what.c_str()));
-    FACEDYN_RETURN_IF_ERROR(
-        r.Array(&model.regions_.weights[g], static_cast<int64_t>(model.regions_.vertices[g].size()), what.c_str()));
+    FACEDYN_RETURN_IF_ERROR(r.Array(&model.regions_.weights[g],
+                                    static_cast<int64_t>(model.regions_.vertices[g].size()),
+                                    what.c_str()));
     for (int v : model.regions_.vertices[g]) {
-      if (v < 0 || v >= v_count) return DataLossError(fmt::format("{}: {} has vertex {} of {}", path, what, v, v_count));
+      if (v < 0 || v >= v_count)
+        return DataLossError(fmt::format("{}: {} has vertex {} of {}", path, what, v, v_count));
     }
     for (double wt : model.regions_.weights[g]) {
-      if (!(wt >= 0 && wt <= 1)) return DataLossError(fmt::format("{}: {} has blend weight {}", path, what, wt));
+      if (!(wt >= 0 && wt <= 1))
+        return DataLossError(fmt::format("{}: {} has blend weight {}", path, what, wt));
     }
     std::vector<int> tri;
     std::vector<double> tri_w;
@@ -450,7 +488,8 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
     FACEDYN_RETURN_IF_ERROR(r.Array(&tri_w, static_cast<int64_t>(tri.size()), what.c_str()));
     for (size_t i = 0; i < tri.size(); ++i) {
       if (tri[i] < 0 || tri[i] >= t_count) {
-        return DataLossError(fmt::format("{}: {} has triangle {} of {}", path, what, tri[i], t_count));
+        return DataLossError(
+            fmt::format("{}: {} has triangle {} of {}", path, what, tri[i], t_count));
       }
       if (!(tri_w[i] >= 0 && tri_w[i] <= 1)) {
         return DataLossError(fmt::format("{}: {} has pose weight {}", path, what, tri_w[i]));
@@ -465,29 +504,33 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
     FACEDYN_RETURN_IF_ERROR(r.Pod(&outputs, what.c_str()));
     if (dim != 9 || centres <= 0 || centres > 100000 || linear > 1 ||
         outputs != 3 * static_cast<int>(model.regions_.vertices[g].size())) {
-      return DataLossError(fmt::format("{}: {}: RBF of dimension {}, {} centres, {} outputs do not fit the region", path,
-                                       what, dim, centres, outputs));
+      return DataLossError(
+          fmt::format("{}: {}: RBF of dimension {}, {} centres, {} outputs do not fit the region",
+                      path, what, dim, centres, outputs));
     }
     std::vector<double> c, coef;
     FACEDYN_RETURN_IF_ERROR(r.Array(&c, int64_t{dim} * centres, what.c_str()));
     const int rows = centres + (linear ? 1 + dim : 1);
     FACEDYN_RETURN_IF_ERROR(r.Array(&coef, int64_t{rows} * outputs, what.c_str()));
     for (double value : c) {
-      if (!std::isfinite(value)) return DataLossError(fmt::format("{}: {}: non-finite RBF centre", path, what));
+      if (!std::isfinite(value))
+        return DataLossError(fmt::format("{}: {}: non-finite RBF centre", path, what));
     }
     for (double value : coef) {
-      if (!std::isfinite(value)) return DataLossError(fmt::format("{}: {}: non-finite RBF coefficient", path, what));
+      if (!std::isfinite(value))
+        return DataLossError(fmt::format("{}: {}: non-finite RBF coefficient", path, what));
     }
-    StatusOr<BiharmonicRbf> rbf = BiharmonicRbf::FromParts(Eigen::Map<const Eigen::MatrixXd>(c.data(), dim, centres),
-                                                           Eigen::Map<const Eigen::MatrixXd>(coef.data(), rows, outputs),
-                                                           linear == 1);
+    StatusOr<BiharmonicRbf> rbf = BiharmonicRbf::FromParts(
+        Eigen::Map<const Eigen::MatrixXd>(c.data(), dim, centres),
+        Eigen::Map<const Eigen::MatrixXd>(coef.data(), rows, outputs), linear == 1);
     if (!rbf.ok()) return rbf.status().WithContext(path);
     model.rbfs_.push_back(std::move(rbf).value());
   }
   char trailer[4];
   FACEDYN_RETURN_IF_ERROR(r.Take(trailer, sizeof(trailer), "the trailer"));
   if (std::memcmp(trailer, kTrailer, sizeof(kTrailer)) != 0 || !r.AtEnd()) {
-    return DataLossError(fmt::format("{}: corrupted: the trailer is not where the counts say", path));
+    return DataLossError(
+        fmt::format("{}: corrupted: the trailer is not where the counts say", path));
   }
   {
     Status s = model.Build();

@@ -22,11 +22,10 @@
 // truncated or inconsistent.
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/face_rig.h"
 #include "core/mesh.h"
@@ -62,7 +61,8 @@ struct MasqueradeTrainingSummary {
 
 class MasqueradeModel {
  public:
-  static StatusOr<MasqueradeModel> Train(const DetailTrainingSet& set, const MasqueradeOptions& options,
+  static StatusOr<MasqueradeModel> Train(const DetailTrainingSet& set,
+                                         const MasqueradeOptions& options,
                                          MasqueradeTrainingSummary* summary = nullptr);
 
   // Upsampled skin (3 x V, skull frame, mm) for marker positions (3 x M, same order as

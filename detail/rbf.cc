@@ -1,11 +1,11 @@
 #include "detail/rbf.h"
 
+#include <fmt/format.h>
+
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
-#include <Eigen/LU>
-#include <fmt/format.h>
 
 namespace facedyn::detail {
 namespace {
@@ -31,7 +31,8 @@ Eigen::MatrixXd Kernel(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
 StatusOr<Eigen::MatrixXd> SolveRbfSystem(const Eigen::MatrixXd& kernel, const Eigen::MatrixXd& poly,
                                          const Eigen::MatrixXd& values) {
   const int n = static_cast<int>(kernel.rows()), p = static_cast<int>(poly.cols());
-  FACEDYN_CHECK(kernel.cols() == n && poly.rows() == n && values.rows() == n, "SolveRbfSystem: sizes");
+  FACEDYN_CHECK(kernel.cols() == n && poly.rows() == n && values.rows() == n,
+                "SolveRbfSystem: sizes");
   Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n + p, n + p);
   a.topLeftCorner(n, n) = kernel;
   a.topRightCorner(n, p) = poly;
@@ -44,21 +45,25 @@ StatusOr<Eigen::MatrixXd> SolveRbfSystem(const Eigen::MatrixXd& kernel, const Ei
   const double residual = (a * x - rhs).norm() / scale;
   if (!x.allFinite() || residual > 1e-7) {
     return FailedPreconditionError(fmt::format(
-        "RBF system with {} centres and {} polynomial terms is singular (relative residual {:.3g})", n, p, residual));
+        "RBF system with {} centres and {} polynomial terms is singular (relative residual {:.3g})",
+        n, p, residual));
   }
   return x;
 }
 
-StatusOr<BiharmonicRbf> BiharmonicRbf::Fit(const Eigen::MatrixXd& centres, const Eigen::MatrixXd& values,
+StatusOr<BiharmonicRbf> BiharmonicRbf::Fit(const Eigen::MatrixXd& centres,
+                                           const Eigen::MatrixXd& values,
                                            RbfPolynomial polynomial) {
   if (centres.cols() == 0) return InvalidArgumentError("RBF fit: no centres");
   if (centres.cols() != values.rows()) {
     return InvalidArgumentError(
         fmt::format("RBF fit: {} centres but {} value rows", centres.cols(), values.rows()));
   }
-  if (!centres.allFinite() || !values.allFinite()) return InvalidArgumentError("RBF fit: non-finite centre or value");
+  if (!centres.allFinite() || !values.allFinite())
+    return InvalidArgumentError("RBF fit: non-finite centre or value");
   // Drop repeated centres (keep the first).
-  const double extent = std::max((centres.rowwise().maxCoeff() - centres.rowwise().minCoeff()).norm(), 1e-300);
+  const double extent =
+      std::max((centres.rowwise().maxCoeff() - centres.rowwise().minCoeff()).norm(), 1e-300);
   std::vector<int> keep;
   for (int j = 0; j < centres.cols(); ++j) {
     bool repeated = false;
@@ -76,7 +81,8 @@ StatusOr<BiharmonicRbf> BiharmonicRbf::Fit(const Eigen::MatrixXd& centres, const
     c.col(k) = centres.col(keep[k]);
     y.row(k) = values.row(keep[k]);
   }
-  bool linear = polynomial == RbfPolynomial::kLinear || (polynomial == RbfPolynomial::kAuto && n >= 2 * (d + 1));
+  bool linear = polynomial == RbfPolynomial::kLinear ||
+                (polynomial == RbfPolynomial::kAuto && n >= 2 * (d + 1));
   const Eigen::MatrixXd kernel = Kernel(c, c);
   StatusOr<Eigen::MatrixXd> coefficients = SolveRbfSystem(kernel, PolyRows(c, linear), y);
   if (!coefficients.ok() && linear && polynomial == RbfPolynomial::kAuto) {
@@ -91,11 +97,13 @@ StatusOr<BiharmonicRbf> BiharmonicRbf::Fit(const Eigen::MatrixXd& centres, const
   return rbf;
 }
 
-StatusOr<BiharmonicRbf> BiharmonicRbf::FromParts(Eigen::MatrixXd centres, Eigen::MatrixXd coefficients, bool linear) {
+StatusOr<BiharmonicRbf> BiharmonicRbf::FromParts(Eigen::MatrixXd centres,
+                                                 Eigen::MatrixXd coefficients, bool linear) {
   const Eigen::Index expected = centres.cols() + (linear ? 1 + centres.rows() : 1);
   if (centres.cols() == 0 || coefficients.rows() != expected) {
-    return DataLossError(fmt::format("RBF: {} coefficient rows for {} centres of dimension {} ({} expected)",
-                                     coefficients.rows(), centres.cols(), centres.rows(), expected));
+    return DataLossError(
+        fmt::format("RBF: {} coefficient rows for {} centres of dimension {} ({} expected)",
+                    coefficients.rows(), centres.cols(), centres.rows(), expected));
   }
   BiharmonicRbf rbf;
   rbf.centres_ = std::move(centres);
@@ -104,8 +112,10 @@ StatusOr<BiharmonicRbf> BiharmonicRbf::FromParts(Eigen::MatrixXd centres, Eigen:
   return rbf;
 }
 
-void BiharmonicRbf::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& f, Eigen::Ref<Eigen::VectorXd> out) const {
-  FACEDYN_CHECK(f.size() == dimension() && out.size() == outputs(), "BiharmonicRbf::Evaluate: sizes");
+void BiharmonicRbf::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& f,
+                             Eigen::Ref<Eigen::VectorXd> out) const {
+  FACEDYN_CHECK(f.size() == dimension() && out.size() == outputs(),
+                "BiharmonicRbf::Evaluate: sizes");
   const int n = centre_count();
   Eigen::VectorXd h(coefficients_.rows());
   for (int j = 0; j < n; ++j) h[j] = (centres_.col(j) - f).norm();
@@ -114,7 +124,8 @@ void BiharmonicRbf::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& f, Eigen::
   out.noalias() = coefficients_.transpose() * h;
 }
 
-std::vector<int> GreedySelectFrames(const Eigen::MatrixXd& features, const Eigen::MatrixXd& gram, int count) {
+std::vector<int> GreedySelectFrames(const Eigen::MatrixXd& features, const Eigen::MatrixXd& gram,
+                                    int count) {
   const int n = static_cast<int>(features.cols());
   FACEDYN_CHECK(gram.rows() == n && gram.cols() == n, "GreedySelectFrames: gram size");
   count = std::clamp(count, 0, n);
@@ -157,7 +168,8 @@ std::vector<int> GreedySelectFrames(const Eigen::MatrixXd& features, const Eigen
     const Eigen::MatrixXd mg = m * g_ss;
     for (int j = 0; j < n; ++j) {
       error[j] = taken[j] ? 0.0
-                          : std::max(0.0, mg.row(j).dot(m.row(j)) - 2 * m.row(j).dot(g_s_all.col(j)) + gram(j, j));
+                          : std::max(0.0, mg.row(j).dot(m.row(j)) -
+                                              2 * m.row(j).dot(g_s_all.col(j)) + gram(j, j));
     }
   }
   return selected;

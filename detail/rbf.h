@@ -13,9 +13,8 @@
 // both would make Phi singular).
 #pragma once
 
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 #include "core/status.h"
 
@@ -29,7 +28,8 @@ class BiharmonicRbf {
   static StatusOr<BiharmonicRbf> Fit(const Eigen::MatrixXd& centres, const Eigen::MatrixXd& values,
                                      RbfPolynomial polynomial = RbfPolynomial::kAuto);
   // From stored parts (a loaded model); coefficients (N + P) x K, P = 1 or 1 + D.
-  static StatusOr<BiharmonicRbf> FromParts(Eigen::MatrixXd centres, Eigen::MatrixXd coefficients, bool linear);
+  static StatusOr<BiharmonicRbf> FromParts(Eigen::MatrixXd centres, Eigen::MatrixXd coefficients,
+                                           bool linear);
 
   // s(f) into out (K). Precondition (CHECK): f.size() == dimension(), out->size() == outputs().
   void Evaluate(const Eigen::Ref<const Eigen::VectorXd>& f, Eigen::Ref<Eigen::VectorXd> out) const;
@@ -63,6 +63,7 @@ StatusOr<Eigen::MatrixXd> SolveRbfSystem(const Eigen::MatrixXd& kernel, const Ei
 // sum_i m_ji y_i over the selected i, so its squared error is
 //   m_j^T G_SS m_j - 2 m_j^T G_Sj + G_jj.
 // features: D x N; gram: N x N. Returns frame indices in pick order.
-std::vector<int> GreedySelectFrames(const Eigen::MatrixXd& features, const Eigen::MatrixXd& gram, int count);
+std::vector<int> GreedySelectFrames(const Eigen::MatrixXd& features, const Eigen::MatrixXd& gram,
+                                    int count);
 
 }  // namespace facedyn::detail

@@ -1,27 +1,30 @@
 #include "detail/regions.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <functional>
 #include <limits>
 #include <queue>
 
-#include <fmt/format.h>
-
 namespace facedyn::detail {
 
-Eigen::VectorXd MeshGraphDistances(const Mesh& mesh, const std::vector<std::pair<int, double>>& seeds) {
+Eigen::VectorXd MeshGraphDistances(const Mesh& mesh,
+                                   const std::vector<std::pair<int, double>>& seeds) {
   const int v_count = mesh.vertex_count();
   // Adjacency from the polygon boundaries (each face's consecutive corners).
   std::vector<std::vector<int>> neighbours(v_count);
   for (int f = 0; f < mesh.face_count(); ++f) {
     const int begin = mesh.face_offsets[f], size = mesh.FaceSize(f);
     for (int k = 0; k < size; ++k) {
-      const int a = mesh.corner_vertices[begin + k], b = mesh.corner_vertices[begin + (k + 1) % size];
+      const int a = mesh.corner_vertices[begin + k],
+                b = mesh.corner_vertices[begin + (k + 1) % size];
       neighbours[a].push_back(b);
       neighbours[b].push_back(a);
     }
   }
-  Eigen::VectorXd dist = Eigen::VectorXd::Constant(v_count, std::numeric_limits<double>::infinity());
+  Eigen::VectorXd dist =
+      Eigen::VectorXd::Constant(v_count, std::numeric_limits<double>::infinity());
   using Item = std::pair<double, int>;
   std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
   for (const auto& [v, d] : seeds) {
@@ -53,10 +56,12 @@ Eigen::VectorXd MarkerRegions::WeightSums(int vertex_count) const {
   return sums;
 }
 
-StatusOr<MarkerRegions> ComputeMarkerRegions(const Mesh& neutral, const std::vector<SurfacePoint>& markers,
+StatusOr<MarkerRegions> ComputeMarkerRegions(const Mesh& neutral,
+                                             const std::vector<SurfacePoint>& markers,
                                              double sigma_mm) {
   if (!(sigma_mm > 0 && std::isfinite(sigma_mm))) {
-    return InvalidArgumentError(fmt::format("detail: region sigma_mm must be > 0, got {}", sigma_mm));
+    return InvalidArgumentError(
+        fmt::format("detail: region sigma_mm must be > 0, got {}", sigma_mm));
   }
   const int v_count = neutral.vertex_count();
   const int r_count = static_cast<int>(markers.size());
@@ -67,13 +72,15 @@ StatusOr<MarkerRegions> ComputeMarkerRegions(const Mesh& neutral, const std::vec
     const SurfacePoint& p = markers[r];
     for (int k = 0; k < 3; ++k) {
       if (p.vertices[k] < 0 || p.vertices[k] >= v_count) {
-        return InvalidArgumentError(fmt::format("detail: marker {} refers to vertex {}, the mesh has {} vertices", r,
-                                                p.vertices[k], v_count));
+        return InvalidArgumentError(
+            fmt::format("detail: marker {} refers to vertex {}, the mesh has {} vertices", r,
+                        p.vertices[k], v_count));
       }
     }
     const Eigen::Vector3d x = p.Evaluate(neutral.positions_mm);
     std::vector<std::pair<int, double>> seeds;
-    for (int k = 0; k < 3; ++k) seeds.emplace_back(p.vertices[k], (neutral.positions_mm.col(p.vertices[k]) - x).norm());
+    for (int k = 0; k < 3; ++k)
+      seeds.emplace_back(p.vertices[k], (neutral.positions_mm.col(p.vertices[k]) - x).norm());
     regions.distances_mm.row(r) = MeshGraphDistances(neutral, seeds).transpose();
   }
   regions.vertices.assign(r_count, {});

@@ -11,9 +11,8 @@
 // vertices far from every marker (ears, back of the head) well defined instead of underflowing.
 #pragma once
 
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 #include "core/face_rig.h"
 #include "core/mesh.h"
@@ -23,7 +22,8 @@ namespace facedyn::detail {
 
 // Edge-path distances (mm) from a set of seeds (vertex, initial distance) to every vertex;
 // +inf where no path exists.
-Eigen::VectorXd MeshGraphDistances(const Mesh& mesh, const std::vector<std::pair<int, double>>& seeds);
+Eigen::VectorXd MeshGraphDistances(const Mesh& mesh,
+                                   const std::vector<std::pair<int, double>>& seeds);
 
 struct MarkerRegions {
   // One entry per marker: the vertices with a non-zero weight and their weights.
@@ -38,7 +38,8 @@ struct MarkerRegions {
 };
 
 // Precondition: sigma_mm > 0 (checked: an error names it).
-StatusOr<MarkerRegions> ComputeMarkerRegions(const Mesh& neutral, const std::vector<SurfacePoint>& markers,
+StatusOr<MarkerRegions> ComputeMarkerRegions(const Mesh& neutral,
+                                             const std::vector<SurfacePoint>& markers,
                                              double sigma_mm);
 
 }  // namespace facedyn::detail

@@ -1,8 +1,8 @@
 #include "detail/training_set.h"
 
-#include <set>
-
 #include <fmt/format.h>
+
+#include <set>
 
 namespace facedyn::detail {
 
@@ -13,25 +13,30 @@ Status DetailTrainingSet::Validate() const {
   std::set<std::string> names;
   for (size_t m = 0; m < markers.size(); ++m) {
     const Marker& marker = markers[m];
-    if (marker.name.empty()) return InvalidArgumentError(fmt::format("detail training set: marker {} has no name", m));
+    if (marker.name.empty())
+      return InvalidArgumentError(fmt::format("detail training set: marker {} has no name", m));
     if (!names.insert(marker.name).second) {
-      return InvalidArgumentError(fmt::format("detail training set: marker name '{}' appears twice", marker.name));
+      return InvalidArgumentError(
+          fmt::format("detail training set: marker name '{}' appears twice", marker.name));
     }
     for (int k = 0; k < 3; ++k) {
       if (marker.point.vertices[k] < 0 || marker.point.vertices[k] >= v_count) {
-        return InvalidArgumentError(fmt::format("detail training set: marker '{}' refers to vertex {}, the mesh has {}",
-                                                marker.name, marker.point.vertices[k], v_count));
+        return InvalidArgumentError(
+            fmt::format("detail training set: marker '{}' refers to vertex {}, the mesh has {}",
+                        marker.name, marker.point.vertices[k], v_count));
       }
     }
   }
   if (frames_mm.empty()) return InvalidArgumentError("detail training set: no frames");
   for (size_t f = 0; f < frames_mm.size(); ++f) {
     if (frames_mm[f].cols() != v_count) {
-      return FailedPreconditionError(fmt::format("detail training set: frame {} has {} vertices, the neutral has {}", f,
-                                                 frames_mm[f].cols(), v_count));
+      return FailedPreconditionError(
+          fmt::format("detail training set: frame {} has {} vertices, the neutral has {}", f,
+                      frames_mm[f].cols(), v_count));
     }
     if (!frames_mm[f].allFinite()) {
-      return InvalidArgumentError(fmt::format("detail training set: frame {} has a non-finite position", f));
+      return InvalidArgumentError(
+          fmt::format("detail training set: frame {} has a non-finite position", f));
     }
   }
   return Status::Ok();
@@ -45,7 +50,8 @@ std::vector<SurfacePoint> DetailTrainingSet::MarkerPoints() const {
 
 Eigen::Matrix3Xd DetailTrainingSet::MarkersOn(const Eigen::Matrix3Xd& skin_mm) const {
   Eigen::Matrix3Xd p(3, static_cast<int>(markers.size()));
-  for (size_t m = 0; m < markers.size(); ++m) p.col(static_cast<int>(m)) = markers[m].point.Evaluate(skin_mm);
+  for (size_t m = 0; m < markers.size(); ++m)
+    p.col(static_cast<int>(m)) = markers[m].point.Evaluate(skin_mm);
   return p;
 }
 

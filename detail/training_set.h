@@ -7,10 +7,9 @@
 // moves with the skull, and the rig captures are stabilised to it.
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/face_rig.h"
 #include "core/mesh.h"

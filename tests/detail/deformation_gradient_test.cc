@@ -1,7 +1,8 @@
 #include "detail/deformation_gradient.h"
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 
 #include "detail_test_util.h"
 
@@ -10,9 +11,9 @@ namespace {
 
 TEST(DeformationGradients, RigidMotionGivesRotations) {
   const Mesh mesh = testing::TestPatch();
-  const Eigen::Matrix3d r =
-      (Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, -1).normalized()) * Eigen::AngleAxisd(-0.3, Eigen::Vector3d::UnitZ()))
-          .toRotationMatrix();
+  const Eigen::Matrix3d r = (Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, -1).normalized()) *
+                             Eigen::AngleAxisd(-0.3, Eigen::Vector3d::UnitZ()))
+                                .toRotationMatrix();
   const Eigen::Vector3d t(12.0, -5.0, 30.0);
   const Eigen::Matrix3Xd moved = (r * mesh.positions_mm).colwise() + t;
   const DeformationGradients gradients(mesh);

@@ -4,11 +4,10 @@
 // the markers alone can not give them) whose amplitude follows the deformation.
 #pragma once
 
+#include <Eigen/Core>
 #include <cmath>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/face_rig.h"
 #include "core/mesh.h"
@@ -37,8 +36,8 @@ inline std::vector<Marker> TestMarkers(const Mesh& mesh, int per_side = 4) {
   return markers;
 }
 
-// Frame for pose (a, b): a smooth bulge and a sideways stretch (large scale) plus ripples of amplitude
-// 0.6 a mm along z with a 12 mm wavelength (fine scale).
+// Frame for pose (a, b): a smooth bulge and a sideways stretch (large scale) plus ripples of
+// amplitude 0.6 a mm along z with a 12 mm wavelength (fine scale).
 inline Eigen::Matrix3Xd TestFrame(const Mesh& mesh, double a, double b) {
   Eigen::Matrix3Xd x = mesh.positions_mm;
   for (int v = 0; v < x.cols(); ++v) {
@@ -58,7 +57,8 @@ inline DetailTrainingSet TestTrainingSet(int per_axis = 5) {
   set.markers = TestMarkers(set.neutral);
   for (int i = 0; i < per_axis; ++i) {
     for (int j = 0; j < per_axis; ++j) {
-      set.frames_mm.push_back(TestFrame(set.neutral, -1.0 + 2.0 * i / (per_axis - 1), -1.0 + 2.0 * j / (per_axis - 1)));
+      set.frames_mm.push_back(
+          TestFrame(set.neutral, -1.0 + 2.0 * i / (per_axis - 1), -1.0 + 2.0 * j / (per_axis - 1)));
     }
   }
   return set;

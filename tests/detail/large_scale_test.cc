@@ -1,8 +1,9 @@
 #include "detail/large_scale.h"
 
-#include <Eigen/Geometry>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 
 #include "detail_test_util.h"
 
@@ -17,7 +18,8 @@ std::vector<SurfacePoint> Points(const std::vector<Marker>& markers) {
 
 Eigen::Matrix3Xd MarkersOn(const std::vector<Marker>& markers, const Eigen::Matrix3Xd& x) {
   Eigen::Matrix3Xd p(3, static_cast<int>(markers.size()));
-  for (size_t m = 0; m < markers.size(); ++m) p.col(static_cast<int>(m)) = markers[m].point.Evaluate(x);
+  for (size_t m = 0; m < markers.size(); ++m)
+    p.col(static_cast<int>(m)) = markers[m].point.Evaluate(x);
   return p;
 }
 
@@ -53,7 +55,8 @@ TEST(LaplacianDeformer, MarkerResidualFallsWithWeight) {
   for (int i = 0; i < 2; ++i) {
     LaplacianDeformerOptions options;
     options.marker_weight = weights[i];
-    StatusOr<LaplacianDeformer> deformer = LaplacianDeformer::Create(mesh, Points(markers), options);
+    StatusOr<LaplacianDeformer> deformer =
+        LaplacianDeformer::Create(mesh, Points(markers), options);
     ASSERT_TRUE(deformer.ok());
     Eigen::Matrix3Xd x;
     deformer->Deform(p, &x);
@@ -78,21 +81,24 @@ TEST(LaplacianDeformer, MarkerResponseEqualsBackSubstitution) {
 
 TEST(LaplacianDeformer, BadInputNamed) {
   const Mesh mesh = testing::TestPatch();
-  std::vector<SurfacePoint> points{SurfacePoint::AtVertex(0), SurfacePoint::AtVertex(mesh.vertex_count() + 3)};
+  std::vector<SurfacePoint> points{SurfacePoint::AtVertex(0),
+                                   SurfacePoint::AtVertex(mesh.vertex_count() + 3)};
   StatusOr<LaplacianDeformer> deformer = LaplacianDeformer::Create(mesh, points, {});
   ASSERT_FALSE(deformer.ok());
   EXPECT_THAT(deformer.status().message(), ::testing::HasSubstr("marker 1 refers to vertex"));
   LaplacianDeformerOptions options;
   options.marker_weight = -1;
-  EXPECT_THAT(LaplacianDeformer::Create(mesh, {SurfacePoint::AtVertex(0)}, options).status().message(),
-              ::testing::HasSubstr("marker_weight"));
+  EXPECT_THAT(
+      LaplacianDeformer::Create(mesh, {SurfacePoint::AtVertex(0)}, options).status().message(),
+      ::testing::HasSubstr("marker_weight"));
   EXPECT_FALSE(LaplacianDeformer::Create(mesh, {}, {}).ok());
 }
 
 TEST(TangentFrames, OrthonormalAndFollowARigidMotion) {
   const Mesh mesh = testing::TestPatch();
   const TangentFrames tangent(mesh);
-  const Eigen::Matrix3d r = Eigen::AngleAxisd(1.1, Eigen::Vector3d(0.3, -1, 0.2).normalized()).toRotationMatrix();
+  const Eigen::Matrix3d r =
+      Eigen::AngleAxisd(1.1, Eigen::Vector3d(0.3, -1, 0.2).normalized()).toRotationMatrix();
   Eigen::Matrix<double, 9, Eigen::Dynamic> rest, moved;
   tangent.Compute(mesh.positions_mm, &rest);
   tangent.Compute((r * mesh.positions_mm).colwise() + Eigen::Vector3d(1, 2, 3), &moved);

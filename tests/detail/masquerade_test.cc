@@ -14,7 +14,9 @@ namespace {
 double MaxError(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
   return (a - b).colwise().norm().maxCoeff();
 }
-double MeanError(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) { return (a - b).colwise().norm().mean(); }
+double MeanError(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
+  return (a - b).colwise().norm().mean();
+}
 
 MasqueradeOptions AllFrames() {
   MasqueradeOptions options;
@@ -114,7 +116,8 @@ TEST(MasqueradeModel, TruncatedAndCorruptedFilesAreNamedErrors) {
   std::string magic = *bytes;
   magic[0] = 'X';
   ASSERT_TRUE(WriteFileAtomic(bad, magic).ok());
-  EXPECT_THAT(MasqueradeModel::Load(bad).status().message(), ::testing::HasSubstr("not a facedyn detail model"));
+  EXPECT_THAT(MasqueradeModel::Load(bad).status().message(),
+              ::testing::HasSubstr("not a facedyn detail model"));
   EXPECT_EQ(MasqueradeModel::Load(dir.Join("missing.bin")).status().code(), StatusCode::kNotFound);
 }
 
@@ -126,7 +129,8 @@ TEST(MasqueradeModel, IncompatibleInputNamed) {
   EXPECT_TRUE(model->CheckCompatible(names, set.neutral.vertex_count(), "take T").ok());
   names[4] = "chin";
   EXPECT_THAT(model->CheckCompatible(names, set.neutral.vertex_count(), "take T").message(),
-              ::testing::HasSubstr("take T: marker #4 is 'chin', the detail model expects '" + set.markers[4].name + "'"));
+              ::testing::HasSubstr("take T: marker #4 is 'chin', the detail model expects '" +
+                                   set.markers[4].name + "'"));
   names.pop_back();
   names[4] = set.markers[4].name;
   EXPECT_THAT(model->CheckCompatible(names, set.neutral.vertex_count(), "take T").message(),
@@ -134,7 +138,8 @@ TEST(MasqueradeModel, IncompatibleInputNamed) {
   EXPECT_THAT(model->CheckCompatible(MarkerNames(set.markers), 10, "take T").message(),
               ::testing::HasSubstr("10 vertices, the detail model's rig 'patch' has"));
   Eigen::Matrix3Xd skin;
-  EXPECT_THAT(model->Apply(Eigen::Matrix3Xd::Zero(3, 5), &skin).message(), ::testing::HasSubstr("5 marker positions"));
+  EXPECT_THAT(model->Apply(Eigen::Matrix3Xd::Zero(3, 5), &skin).message(),
+              ::testing::HasSubstr("5 marker positions"));
   Eigen::Matrix3Xd nan = set.MarkersOn(set.neutral.positions_mm);
   nan(1, 2) = std::nan("");
   EXPECT_THAT(model->Apply(nan, &skin).message(), ::testing::HasSubstr("marker 2"));
@@ -143,10 +148,12 @@ TEST(MasqueradeModel, IncompatibleInputNamed) {
 TEST(MasqueradeModel, BadTrainingSetNamed) {
   DetailTrainingSet set = testing::TestTrainingSet(2);
   set.frames_mm[2] = set.frames_mm[2].leftCols(10);
-  EXPECT_THAT(MasqueradeModel::Train(set, {}).status().message(), ::testing::HasSubstr("frame 2 has 10 vertices"));
+  EXPECT_THAT(MasqueradeModel::Train(set, {}).status().message(),
+              ::testing::HasSubstr("frame 2 has 10 vertices"));
   set = testing::TestTrainingSet(2);
   set.markers[1].name = set.markers[0].name;
-  EXPECT_THAT(MasqueradeModel::Train(set, {}).status().message(), ::testing::HasSubstr("appears twice"));
+  EXPECT_THAT(MasqueradeModel::Train(set, {}).status().message(),
+              ::testing::HasSubstr("appears twice"));
   MasqueradeOptions options;
   options.region_sigma_mm = 0;
   EXPECT_THAT(MasqueradeModel::Train(testing::TestTrainingSet(2), options).status().message(),

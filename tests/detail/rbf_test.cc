@@ -1,11 +1,11 @@
 #include "detail/rbf.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 namespace facedyn::detail {
 namespace {
@@ -75,8 +75,9 @@ TEST(BiharmonicRbf, BadInputNamed) {
   Eigen::MatrixXd nan = RandomMatrix(2, 3, 3);
   nan(1, 1) = std::nan("");
   EXPECT_FALSE(BiharmonicRbf::Fit(nan, RandomMatrix(3, 1, 2)).ok());
-  EXPECT_EQ(BiharmonicRbf::FromParts(RandomMatrix(2, 3, 1), RandomMatrix(5, 1, 1), true).status().code(),
-            StatusCode::kDataLoss);
+  EXPECT_EQ(
+      BiharmonicRbf::FromParts(RandomMatrix(2, 3, 1), RandomMatrix(5, 1, 1), true).status().code(),
+      StatusCode::kDataLoss);
 }
 
 TEST(GreedySelectFrames, StartsWithLargestAndSkipsRepeatedFrames) {
@@ -118,7 +119,8 @@ TEST(GreedySelectFrames, MatchesExplicitRefitting) {
   const Eigen::MatrixXd features = RandomMatrix(3, n, 11);
   Eigen::MatrixXd y(n, 12);
   for (int j = 0; j < n; ++j) {
-    for (int c = 0; c < 12; ++c) y(j, c) = std::sin((c + 1) * features(0, j)) + features(1, j) * features(2, j) * c;
+    for (int c = 0; c < 12; ++c)
+      y(j, c) = std::sin((c + 1) * features(0, j)) + features(1, j) * features(2, j) * c;
   }
   const std::vector<int> chosen = GreedySelectFrames(features, y * y.transpose(), 8);
   ASSERT_EQ(chosen.size(), 8u);

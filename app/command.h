@@ -28,6 +28,7 @@ void AddSweepCommand(CLI::App& app, CommandRunner* selected);
 void AddCalibrateCommand(CLI::App& app, CommandRunner* selected);
 void AddReconstructCommand(CLI::App& app, CommandRunner* selected);
 void AddCaptureCommands(CLI::App& app, CommandRunner* selected);  // capture, session check
+void AddDetailCommands(CLI::App& app, CommandRunner* selected);   // detail train, detail apply
 // train-removal, remove, train-synthesis, synthesize, retarget under `facedyn dynamics`.
 void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected);
 

@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
   app::AddSimCommands(cli, &selected);
   app::AddDynamicsCommands(cli, &selected);
   app::AddSolveCommands(cli, &selected);
+  app::AddDetailCommands(cli, &selected);
   app::AddRigCommands(cli, &selected);
   app::AddSweepCommand(cli, &selected);
   app::AddCalibrateCommand(cli, &selected);

@@ -1,0 +1,232 @@
+// `facedyn detail train` and `facedyn detail apply`: fine-scale detail for sparse HMC markers
+// (Masquerade, detail/masquerade.h). app/ only wires: takes in, model file or take out.
+//
+// Markers are read from takes in the rig's topology: the model's marker surface points are
+// evaluated on each frame's skin in the skull frame (T(t)^-1 x). For training that is exactly
+// Masquerade's virtual markers on high-resolution captures; for `apply` it stands in for HMC
+// marker tracks until the HMC capture path (issue 22) writes its own marker-track files.
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "app/command.h"
+#include "core/face_rig.h"
+#include "core/json_io.h"
+#include "core/take.h"
+#include "detail/masquerade.h"
+
+namespace facedyn::app {
+namespace {
+
+// --markers: a count (the first N of the rig's markers, which the procedural rig orders by
+// farthest-point sampling, so any prefix is spread over the face) or a file of marker names,
+// one per line.
+StatusOr<std::vector<Marker>> SelectMarkers(const FaceRig& rig, const std::string& spec) {
+  const bool all_digits =
+      !spec.empty() && spec.find_first_not_of("0123456789") == std::string::npos;
+  if (all_digits) {
+    const long long n = std::stoll(spec.substr(0, 9));
+    if (n < 4 || n > static_cast<long long>(rig.markers.size())) {
+      return InvalidArgumentError("--markers " + spec + ": need 4.." +
+                                  std::to_string(rig.markers.size()) + " (the rig's marker count)");
+    }
+    return std::vector<Marker>(rig.markers.begin(), rig.markers.begin() + n);
+  }
+  std::ifstream in(spec);
+  if (!in)
+    return NotFoundError("--markers " + spec +
+                         ": neither a count nor a readable file of marker names");
+  std::vector<Marker> markers;
+  std::set<std::string> seen;
+  std::string line;
+  int line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    if (line.empty() || line[0] == '#') continue;
+    const Marker* found = nullptr;
+    for (const Marker& m : rig.markers) {
+      if (m.name == line) found = &m;
+    }
+    if (found == nullptr) {
+      return NotFoundError(spec + ":" + std::to_string(line_number) + ": marker '" + line +
+                           "' is not in rig '" + rig.name + "'");
+    }
+    if (!seen.insert(line).second) {
+      return InvalidArgumentError(spec + ":" + std::to_string(line_number) + ": marker '" + line +
+                                  "' listed twice");
+    }
+    markers.push_back(*found);
+  }
+  if (markers.size() < 4)
+    return InvalidArgumentError("--markers " + spec + ": fewer than 4 markers");
+  return markers;
+}
+
+Eigen::Matrix3Xd SkinInSkull(const Take& take, int f) {
+  return take.world_from_skull[f].Inverse().Apply(take.FramePositions(f));
+}
+
+}  // namespace
+
+void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
+  auto* detail = app.add_subcommand(
+      "detail",
+      "Fine-scale detail for sparse head-mounted-camera markers (Masquerade, Moser et al. 2017)");
+  detail->require_subcommand(1);
+
+  struct TrainOptions {
+    std::vector<std::string> takes;
+    std::string face = "procedural";
+    std::string markers = "80";
+    std::string out;
+    int frames = 80;
+    int per_region = 0;
+    double region_sigma_mm = detail::MasqueradeOptions{}.region_sigma_mm;
+    double feature_sigma_mm = detail::MasqueradeOptions{}.feature_sigma_mm;
+    bool json = false;
+  };
+  auto train_options = std::make_shared<TrainOptions>();
+  auto* train = detail->add_subcommand("train",
+                                       "Learn a detail model from high-resolution takes of one "
+                                       "subject (virtual markers on their skin)");
+  train->add_option("--takes", train_options->takes, "High-resolution takes in the rig's topology")
+      ->required();
+  train->add_option("--face", train_options->face, "FaceRig folder, or 'procedural'")
+      ->capture_default_str();
+  train
+      ->add_option("--markers", train_options->markers,
+                   "Marker layout: a count (the rig's first N markers) or a file of marker names")
+      ->capture_default_str();
+  train->add_option("--out", train_options->out, "Model file to write")->required();
+  train
+      ->add_option("--frames", train_options->frames,
+                   "Greedy global training frames (0: every frame)")
+      ->capture_default_str();
+  train
+      ->add_option("--per-region", train_options->per_region,
+                   "Greedy frames per region among the global ones (0: all of them)")
+      ->capture_default_str();
+  train
+      ->add_option("--region-sigma-mm", train_options->region_sigma_mm,
+                   "Falloff of the region blend weights")
+      ->capture_default_str();
+  train
+      ->add_option("--feature-sigma-mm", train_options->feature_sigma_mm,
+                   "Falloff of a region's pose triangles")
+      ->capture_default_str();
+  train->add_flag("--json", train_options->json, "Print a JSON summary on stdout");
+  train->callback([train_options, selected] {
+    *selected = [train_options]() -> Status {
+      const TrainOptions& o = *train_options;
+      if (o.frames < 0)
+        return InvalidArgumentError("--frames must be >= 0, got " + std::to_string(o.frames));
+      if (o.per_region < 0)
+        return InvalidArgumentError("--per-region must be >= 0, got " +
+                                    std::to_string(o.per_region));
+      FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(o.face));
+      detail::DetailTrainingSet set;
+      set.subject = rig.name;
+      set.neutral = rig.neutral;
+      FACEDYN_ASSIGN_OR_RETURN(set.markers, SelectMarkers(rig, o.markers));
+      for (const std::string& dir : o.takes) {
+        FACEDYN_ASSIGN_OR_RETURN(const Take take, LoadTake(dir));
+        if (take.vertex_count() != rig.vertex_count()) {
+          return FailedPreconditionError(dir + ": " + std::to_string(take.vertex_count()) +
+                                         " vertices, rig '" + rig.name + "' has " +
+                                         std::to_string(rig.vertex_count()));
+        }
+        for (int f = 0; f < take.frame_count(); ++f) set.frames_mm.push_back(SkinInSkull(take, f));
+      }
+      detail::MasqueradeOptions options;
+      options.global_frames = o.frames;
+      options.per_region_frames = o.per_region;
+      options.region_sigma_mm = o.region_sigma_mm;
+      options.feature_sigma_mm = o.feature_sigma_mm;
+      detail::MasqueradeTrainingSummary summary;
+      FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
+                               detail::MasqueradeModel::Train(set, options, &summary));
+      FACEDYN_RETURN_IF_ERROR(model.Save(o.out));
+      if (o.json) {
+        const Json json = {{"model", o.out},
+                           {"subject", rig.name},
+                           {"markers", set.markers.size()},
+                           {"training_frames", set.frames_mm.size()},
+                           {"selected_frames", summary.global_frames.size()},
+                           {"mean_frames_per_region", summary.mean_frames_per_region},
+                           {"memory_bytes", model.MemoryBytes()},
+                           {"train_s", summary.train_s}};
+        std::printf("%s\n", json.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
+      } else {
+        spdlog::info("trained on {} frames ({} selected) with {} markers; wrote {}",
+                     set.frames_mm.size(), summary.global_frames.size(), set.markers.size(), o.out);
+      }
+      return Status::Ok();
+    };
+  });
+
+  struct ApplyOptions {
+    std::string take;
+    std::string model;
+    std::string out;
+    bool json = false;
+  };
+  auto apply_options = std::make_shared<ApplyOptions>();
+  auto* apply = detail->add_subcommand(
+      "apply",
+      "Upsample a take: the model's markers read from it, the fine detail added, a take out");
+  apply->add_option("--take", apply_options->take, "Input take in the model's rig topology")
+      ->required();
+  apply->add_option("--model", apply_options->model, "Model file from `facedyn detail train`")
+      ->required();
+  apply->add_option("--out", apply_options->out, "Output take folder")->required();
+  apply->add_flag("--json", apply_options->json, "Print a JSON summary on stdout");
+  apply->callback([apply_options, selected] {
+    *selected = [apply_options]() -> Status {
+      const ApplyOptions& o = *apply_options;
+      FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
+                               detail::MasqueradeModel::Load(o.model));
+      FACEDYN_ASSIGN_OR_RETURN(Take take, LoadTake(o.take));
+      // Markers come from the take's own surface, so only the topology must agree.
+      FACEDYN_RETURN_IF_ERROR(model.CheckCompatible(detail::MarkerNames(model.markers()),
+                                                    take.vertex_count(), "take " + o.take));
+      const auto start = std::chrono::steady_clock::now();
+      Eigen::Matrix3Xd skin;
+      Eigen::Matrix3Xd markers(3, static_cast<int>(model.markers().size()));
+      for (int f = 0; f < take.frame_count(); ++f) {
+        const Eigen::Matrix3Xd in_skull = SkinInSkull(take, f);
+        for (size_t m = 0; m < model.markers().size(); ++m) {
+          markers.col(static_cast<int>(m)) = model.markers()[m].point.Evaluate(in_skull);
+        }
+        const Status status = model.Apply(markers, &skin);
+        if (!status.ok()) return status.WithContext(o.take + " frame " + std::to_string(f));
+        take.positions.Frame(f) = take.world_from_skull[f].Apply(skin).cast<float>();
+      }
+      const double seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      take.channels.clear();  // the input's channels describe the input, not the result
+      take.info.source = "detail apply";
+      take.info.metadata["detail_model"] = o.model;
+      FACEDYN_RETURN_IF_ERROR(SaveTake(take, o.out));
+      if (o.json) {
+        const Json json = {{"take", o.out},
+                           {"frames", take.frame_count()},
+                           {"markers", model.markers().size()},
+                           {"frames_per_s", seconds > 0 ? take.frame_count() / seconds : 0.0}};
+        std::printf("%s\n", json.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
+      } else {
+        spdlog::info("upsampled {} frames with {}; wrote {}", take.frame_count(), o.model, o.out);
+      }
+      return Status::Ok();
+    };
+  });
+}
+
+}  // namespace facedyn::app

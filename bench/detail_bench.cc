@@ -1,0 +1,347 @@
+// detail_bench: the figures of issue 22 (fine-scale detail from sparse HMC markers, Masquerade),
+// printed as JSON.
+//
+// Data, as Masquerade built its evaluation (Moser et al. 2017, section 3): a high-resolution
+// range-of-motion performance of one subject for training, virtual HMC markers attached to
+// those meshes, and a held-out dialogue-like performance for testing. Here the subject is the
+// procedural FaceRig (sim/procedural_face.h) and a frame is its skin in the skull frame for a
+// blendshape weight vector (the quasistatic skin: no head motion, no jiggle), so the truth is
+// exact:
+//   - training: a range of motion, `--train-frames` frames (default 320, the paper's count) at
+//     30 fps of a sequence through every expression at full and half weight and each mouth
+//     shape with the jaw half open, 3 poses per second (sim/expression_curve.h);
+//   - test: a speech-like sequence through the visemes sim/performance.cc uses for "speech"
+//     (4.5 syllables/s), `--test-frames` frames at 60 fps, another seed;
+//   - markers: the first `--markers` of the rig's painted markers (farthest-point order, so any
+//     prefix is spread over the face).
+// Methods, all on the same markers: large-scale only (Laplacian deformation), Bickel et al.
+// 2008 (per-vertex RBFs on marker-graph edge strain, 80 greedy frames), Masquerade (per-region
+// RBFs on deformation gradients) with every frame, 80 global greedy frames, 40 and 20 per
+// region. Errors: |x - x_true| per vertex and frame (mm), mean and 95th percentile over the face
+// (every vertex of the rig) and over the lips (rig region "lips").
+// Speed: upsampling frames/s (Apply on the test markers, best of 3 passes) on this machine.
+//
+//   detail_bench [--vertices N] [--markers N] [--train-frames N] [--test-frames N]
+//                [--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S]
+//                [--seed N] [--seeds 1,2,3] [--quick]
+//
+// --seeds: one run per seed (the seed draws both performances' timing and pose order), then a
+// "summary" with each figure's mean and sample standard deviation over the seeds.
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bench/bench_flags.h"
+#include "core/json_io.h"
+#include "core/log.h"
+#include "detail/bickel.h"
+#include "detail/masquerade.h"
+#include "sim/expression_curve.h"
+#include "sim/expressions.h"
+#include "sim/procedural_face.h"
+
+namespace {
+
+using facedyn::Json;
+using Clock = std::chrono::steady_clock;
+namespace detail = facedyn::detail;
+
+double Seconds(Clock::time_point a) {
+  return std::chrono::duration<double>(Clock::now() - a).count();
+}
+double Number(const char* text, const std::string& flag) {
+  return facedyn::bench::FlagNumber("detail_bench", flag, text);
+}
+long long Integer(const char* text, const std::string& flag) {
+  return facedyn::bench::FlagInteger("detail_bench", flag, text);
+}
+
+struct Settings {
+  int vertices = 9409;  // the ICT-FaceKit face region's count (issue 22's speed figure)
+  int markers = 80;
+  int train_frames = 320;
+  int test_frames = 300;
+  int global_frames = 80;
+  // Falloffs chosen on `--quick --seed 1` (region 4/6/10, feature 10/20/30, edge 5/6/10/20 mm,
+  // each method's lowest mean face error); report figures with other seeds.
+  double sigma_mm = 4.0;           // region blend falloff
+  double feature_sigma_mm = 20.0;  // falloff of the triangles in a region's pose
+  double edge_sigma_mm = 20.0;     // Bickel: falloff of a vertex's edge weights
+};
+
+std::vector<Eigen::Matrix3Xd> Frames(const facedyn::FaceRig& rig,
+                                     const facedyn::sim::ExpressionCurve& curve, int count,
+                                     double fps) {
+  std::vector<Eigen::Matrix3Xd> frames;
+  for (int f = 0; f < count; ++f) frames.push_back(rig.Evaluate(curve.Weights(f / fps)));
+  return frames;
+}
+
+struct Errors {
+  double face_mean = 0, face_p95 = 0, lips_mean = 0, lips_p95 = 0;
+};
+
+double Percentile95(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const size_t k = static_cast<size_t>(std::ceil(0.95 * v.size())) - 1;
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+
+Errors Score(const std::vector<Eigen::Matrix3Xd>& result,
+             const std::vector<Eigen::Matrix3Xd>& truth, const std::vector<int>& lips) {
+  std::vector<double> face, lip;
+  for (size_t f = 0; f < truth.size(); ++f) {
+    const Eigen::VectorXd e = (result[f] - truth[f]).colwise().norm().transpose();
+    face.insert(face.end(), e.data(), e.data() + e.size());
+    for (int v : lips) lip.push_back(e[v]);
+  }
+  auto mean = [](const std::vector<double>& v) {
+    double s = 0;
+    for (double x : v) s += x;
+    return v.empty() ? 0.0 : s / v.size();
+  };
+  return {mean(face), Percentile95(face), mean(lip), Percentile95(lip)};
+}
+
+Json ErrorsJson(const Errors& e) {
+  return {{"face_mean_mm", e.face_mean},
+          {"face_p95_mm", e.face_p95},
+          {"lips_mean_mm", e.lips_mean},
+          {"lips_p95_mm", e.lips_p95}};
+}
+
+// Runs `apply` over the test markers three times; frames/s of the fastest pass.
+template <typename F>
+double FramesPerSecond(const std::vector<Eigen::Matrix3Xd>& markers, F&& apply) {
+  double best = 0;
+  for (int pass = 0; pass < 3; ++pass) {
+    const auto start = Clock::now();
+    for (const Eigen::Matrix3Xd& m : markers) apply(m);
+    best = std::max(best, markers.size() / Seconds(start));
+  }
+  return best;
+}
+
+facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
+  namespace sim = facedyn::sim;
+  sim::ProceduralFaceOptions face_options;
+  face_options.target_vertex_count = s.vertices;
+  FACEDYN_ASSIGN_OR_RETURN(const facedyn::FaceRig rig, sim::MakeProceduralFace(face_options));
+  if (s.markers > static_cast<int>(rig.markers.size())) {
+    return facedyn::InvalidArgumentError("--markers " + std::to_string(s.markers) +
+                                         ": the rig has " + std::to_string(rig.markers.size()) +
+                                         " markers");
+  }
+  auto lips_it = rig.regions.find("lips");
+  if (lips_it == rig.regions.end()) return facedyn::NotFoundError("the rig has no 'lips' region");
+
+  // Key poses. Training: the range of motion; test: the speech visemes of sim/performance.cc.
+  std::map<std::string, Eigen::VectorXd> pose;
+  for (const std::string& name : sim::ExpressionNames()) {
+    FACEDYN_ASSIGN_OR_RETURN(pose[name], sim::ExpressionWeights(rig, name));
+  }
+  std::vector<Eigen::VectorXd> rom;
+  for (const auto& [name, w] : pose) {
+    rom.push_back(w);
+    rom.push_back(0.5 * w);
+    if (name != "neutral" && name != "jaw_open") {
+      rom.push_back((w + 0.5 * pose["jaw_open"]).cwiseMin(1.0));
+    }
+  }
+  std::vector<Eigen::VectorXd> visemes;
+  for (const char* name :
+       {"neutral", "lips_parted", "smile", "pucker", "lip_funnel", "mouth_stretch", "jaw_open"}) {
+    visemes.push_back(std::string(name) == "jaw_open" ? Eigen::VectorXd(0.4 * pose[name])
+                                                      : pose[name]);
+  }
+  const auto rom_curve = sim::MakeSpeechSequence(rom, 3.0, seed);
+  const auto speech_curve = sim::MakeSpeechSequence(visemes, 4.5, seed + 1000);
+
+  detail::DetailTrainingSet set;
+  set.subject = rig.name;
+  set.neutral = rig.neutral;
+  set.markers.assign(rig.markers.begin(), rig.markers.begin() + s.markers);
+  set.frames_mm = Frames(rig, *rom_curve, s.train_frames, 30.0);
+  const std::vector<Eigen::Matrix3Xd> truth = Frames(rig, *speech_curve, s.test_frames, 60.0);
+  std::vector<Eigen::Matrix3Xd> test_markers;
+  for (const auto& x : truth) test_markers.push_back(set.MarkersOn(x));
+
+  Json run;
+  run["seed"] = seed;
+  run["vertices"] = rig.vertex_count();
+  run["lips_vertices"] = lips_it->second.size();
+  run["markers"] = s.markers;
+  run["train_frames"] = s.train_frames;
+  run["test_frames"] = s.test_frames;
+  run["region_sigma_mm"] = s.sigma_mm;
+  run["feature_sigma_mm"] = s.feature_sigma_mm;
+  run["bickel_edge_sigma_mm"] = s.edge_sigma_mm;
+
+  // Masquerade variants.
+  struct Variant {
+    const char* name;
+    int global, per_region;
+  };
+  const Variant variants[] = {{"masquerade_all_frames", 0, 0},
+                              {"masquerade_global_80", s.global_frames, 0},
+                              {"masquerade_per_region_40", 0, 40},
+                              {"masquerade_per_region_20", 0, 20}};
+  Json methods = Json::object();
+  bool large_done = false;
+  for (const Variant& variant : variants) {
+    detail::MasqueradeOptions options;
+    options.region_sigma_mm = s.sigma_mm;
+    options.feature_sigma_mm = s.feature_sigma_mm;
+    options.global_frames = variant.global;
+    options.per_region_frames = variant.per_region;
+    detail::MasqueradeTrainingSummary summary;
+    FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
+                             detail::MasqueradeModel::Train(set, options, &summary));
+    std::vector<Eigen::Matrix3Xd> result(truth.size()), large(truth.size());
+    for (size_t f = 0; f < truth.size(); ++f)
+      FACEDYN_RETURN_IF_ERROR(model.Apply(test_markers[f], &result[f], &large[f]));
+    if (!large_done) {
+      methods["large_scale_only"] = {{"errors", ErrorsJson(Score(large, truth, lips_it->second))}};
+      large_done = true;
+    }
+    Eigen::Matrix3Xd skin;
+    const double fps = FramesPerSecond(
+        test_markers, [&](const Eigen::Matrix3Xd& m) { (void)model.Apply(m, &skin); });
+    methods[variant.name] = {{"errors", ErrorsJson(Score(result, truth, lips_it->second))},
+                             {"memory_bytes", model.MemoryBytes()},
+                             {"mean_frames_per_region", summary.mean_frames_per_region},
+                             {"regions_with_linear_part", summary.linear_regions},
+                             {"train_s", summary.train_s},
+                             {"upsample_frames_per_s", fps}};
+    std::fprintf(stderr, "detail_bench: seed %llu %s done\n", static_cast<unsigned long long>(seed),
+                 variant.name);
+  }
+  {
+    detail::BickelOptions options;
+    options.edge_sigma_mm = s.edge_sigma_mm;
+    options.frames = s.global_frames;
+    const auto start = Clock::now();
+    FACEDYN_ASSIGN_OR_RETURN(const detail::BickelModel model,
+                             detail::BickelModel::Train(set, options));
+    const double train_s = Seconds(start);
+    std::vector<Eigen::Matrix3Xd> result(truth.size());
+    for (size_t f = 0; f < truth.size(); ++f)
+      FACEDYN_RETURN_IF_ERROR(model.Apply(test_markers[f], &result[f]));
+    Eigen::Matrix3Xd skin;
+    const double fps = FramesPerSecond(
+        test_markers, [&](const Eigen::Matrix3Xd& m) { (void)model.Apply(m, &skin); });
+    methods["bickel2008_80"] = {{"errors", ErrorsJson(Score(result, truth, lips_it->second))},
+                                {"memory_bytes", model.MemoryBytes()},
+                                {"marker_graph_edges", model.edge_count()},
+                                {"train_s", train_s},
+                                {"upsample_frames_per_s", fps}};
+  }
+  run["methods"] = methods;
+  return run;
+}
+
+// Mean and sample sd over runs of every number at the same path.
+void Summarise(const std::vector<Json>& runs, const Json& like, const Json::json_pointer& at,
+               Json* out) {
+  if (like.is_object()) {
+    for (auto it = like.begin(); it != like.end(); ++it)
+      Summarise(runs, it.value(), at / it.key(), out);
+    return;
+  }
+  if (!like.is_number()) return;
+  double sum = 0, sum2 = 0;
+  for (const Json& r : runs) sum += r.at(at).get<double>();
+  const double mean = sum / runs.size();
+  for (const Json& r : runs) sum2 += std::pow(r.at(at).get<double>() - mean, 2);
+  (*out)[at] = {{"mean", mean},
+                {"sd", runs.size() > 1 ? std::sqrt(sum2 / (runs.size() - 1)) : 0.0}};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Settings s;
+  std::vector<uint64_t> seeds;
+  uint64_t seed = 1;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    auto next = [&]() -> const char* {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "detail_bench: %s needs a value\n", arg.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (arg == "--vertices") {
+      s.vertices = static_cast<int>(Integer(next(), arg));
+    } else if (arg == "--markers") {
+      s.markers = static_cast<int>(Integer(next(), arg));
+    } else if (arg == "--train-frames") {
+      s.train_frames = static_cast<int>(Integer(next(), arg));
+    } else if (arg == "--test-frames") {
+      s.test_frames = static_cast<int>(Integer(next(), arg));
+    } else if (arg == "--global-frames") {
+      s.global_frames = static_cast<int>(Integer(next(), arg));
+    } else if (arg == "--sigma-mm") {
+      s.sigma_mm = Number(next(), arg);
+    } else if (arg == "--feature-sigma-mm") {
+      s.feature_sigma_mm = Number(next(), arg);
+    } else if (arg == "--edge-sigma-mm") {
+      s.edge_sigma_mm = Number(next(), arg);
+    } else if (arg == "--seed") {
+      seed = static_cast<uint64_t>(Integer(next(), arg));
+    } else if (arg == "--seeds") {
+      std::stringstream list(next());
+      std::string item;
+      while (std::getline(list, item, ','))
+        seeds.push_back(static_cast<uint64_t>(Integer(item.c_str(), arg)));
+    } else if (arg == "--quick") {
+      s.vertices = 4000;
+      s.train_frames = 160;
+      s.test_frames = 120;
+    } else {
+      std::fprintf(
+          stderr,
+          "usage: detail_bench [--vertices N] [--markers N] [--train-frames N] [--test-frames N] "
+          "[--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S] [--seed "
+          "N] [--seeds 1,2,3] [--quick]\n");
+      return 2;
+    }
+  }
+  if (s.markers < 4 || s.train_frames < 2 || s.test_frames < 1 || !(s.sigma_mm > 0) ||
+      !(s.feature_sigma_mm > 0) || !(s.edge_sigma_mm > 0)) {
+    std::fprintf(
+        stderr,
+        "detail_bench: need --markers >= 4, --train-frames >= 2, --test-frames >= 1, sigmas > 0\n");
+    return 2;
+  }
+  facedyn::InitLogging(facedyn::Verbosity::kQuiet);
+  if (seeds.empty()) seeds.push_back(seed);
+  std::vector<Json> runs;
+  for (uint64_t sd : seeds) {
+    facedyn::StatusOr<Json> run = Run(s, sd);
+    if (!run.ok()) {
+      std::fprintf(stderr, "detail_bench: %s\n", run.status().ToString().c_str());
+      return 1;
+    }
+    runs.push_back(std::move(run).value());
+  }
+  Json out;
+  out["runs"] = runs;
+  if (runs.size() > 1) {
+    Json summary = Json::object();
+    Summarise(runs, runs.front()["methods"], Json::json_pointer("/methods"), &summary);
+    out["summary"] = summary;
+    out["summary"]["seeds"] = seeds;
+  }
+  std::printf("%s\n", out.dump(2, ' ', false, facedyn::kJsonReplaceInvalidUtf8).c_str());
+  return 0;
+}

@@ -1,0 +1,111 @@
+// MasqueradeModel: fine-scale detail for sparse HMC markers (Moser, Hendler, Roble 2017,
+// "Masquerade", SIGGRAPH Talks), following its final design point by point:
+//   1. large-scale skin from the markers (detail/large_scale.h, prefactorised);
+//   2. the pose of each marker's region: deformation gradients of the large-scale mesh
+//      (detail/deformation_gradient.h) averaged over the region's triangles with a Gaussian of
+//      their edge-path distance to the marker, as the 9 numbers of vec(F - I);
+//   3. fine detail: local vertex offsets in frames that follow the large-scale surface;
+//   4. one biharmonic RBF per marker region (not per vertex) from the region's pose to the
+//      local offsets of every vertex of its soft support (detail/rbf.h), blended per vertex
+//      with the region weights (detail/regions.h, sum to 1);
+//   5. greedy training frames, globally (all regions' poses, the whole face's offsets) and then
+//      optionally per region among the global pool (its own pose and its vertices' weighted
+//      offsets). The paper: 80 of 320 frames; 40, even 20, per region.
+// Apply costs one back-substitution, the deformation gradients, R small RBF evaluations and
+// the blend: no per-vertex solver, so the learned part's size follows the regions, not the
+// output resolution.
+//
+// Model file (binary, little-endian as written by this machine): "FDDETAIL" magic, uint32
+// format version, subject, options, neutral mesh (positions, faces), marker layout (names,
+// surface points), regions (vertices and weights, feature triangles and weights), one RBF per
+// region, "END." trailer. Load checks every count against the ones before it and names what is
+// truncated or inconsistent.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/face_rig.h"
+#include "core/mesh.h"
+#include "core/status.h"
+#include "detail/deformation_gradient.h"
+#include "detail/large_scale.h"
+#include "detail/rbf.h"
+#include "detail/regions.h"
+#include "detail/training_set.h"
+
+namespace facedyn::detail {
+
+inline constexpr int kDetailModelFormatVersion = 1;
+
+struct MasqueradeOptions {
+  LaplacianDeformerOptions large_scale;
+  // Falloffs (mm) chosen with bench/detail_bench on the procedural face with 80 markers (about
+  // 19 mm apart): narrow blend regions keep the RBFs' outputs (and memory) small, a wider pose
+  // neighbourhood gives each region's RBF the context of its neighbours.
+  double region_sigma_mm = 4.0;    // falloff of the region blend weights
+  double feature_sigma_mm = 20.0;  // falloff of the triangles that make a region's pose
+  int global_frames = 80;          // greedy global selection; 0 or >= #frames: every frame
+  int per_region_frames = 0;       // greedy per region among the global pool; 0: the pool
+  Status Check() const;
+};
+
+struct MasqueradeTrainingSummary {
+  std::vector<int> global_frames;  // selected frames, pick order
+  double mean_frames_per_region = 0.0;
+  int linear_regions = 0;  // regions whose RBF has the linear polynomial part
+  double train_s = 0.0;
+};
+
+class MasqueradeModel {
+ public:
+  static StatusOr<MasqueradeModel> Train(const DetailTrainingSet& set,
+                                         const MasqueradeOptions& options,
+                                         MasqueradeTrainingSummary* summary = nullptr);
+
+  // Upsampled skin (3 x V, skull frame, mm) for marker positions (3 x M, same order as
+  // marker_names()); optionally the large-scale skin alone. Errors name a wrong marker count
+  // or non-finite input.
+  Status Apply(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3Xd* skin_mm,
+               Eigen::Matrix3Xd* large_scale_mm = nullptr) const;
+
+  // OK when `marker_names` are the model's markers in its order and `vertex_count` its rig's;
+  // otherwise an error naming the first marker that differs (`what` names the input).
+  Status CheckCompatible(const std::vector<std::string>& marker_names, int vertex_count,
+                         const std::string& what) const;
+
+  Status Save(const std::string& path) const;
+  static StatusOr<MasqueradeModel> Load(const std::string& path);
+
+  // Bytes of what was learned: the RBFs (centres, coefficients) and the region tables that
+  // blend them (vertex indices, weights, feature triangles). The neutral mesh and the
+  // large-scale factorisation are left out: the large-scale-only baseline needs them too.
+  size_t MemoryBytes() const;
+
+  const std::string& subject() const { return subject_; }
+  const std::vector<Marker>& markers() const { return markers_; }
+  const MarkerRegions& regions() const { return regions_; }
+  const std::vector<BiharmonicRbf>& rbfs() const { return rbfs_; }
+  int vertex_count() const { return neutral_.vertex_count(); }
+
+  // The 9 x R region poses of a large-scale skin (vec(F - I), weighted mean per region).
+  void RegionPoses(const Eigen::Matrix3Xd& large_mm, Eigen::MatrixXd* poses) const;
+
+ private:
+  Status Build();  // the parts rebuilt from the stored ones: deformer, frames, gradients
+
+  std::string subject_;
+  MasqueradeOptions options_;
+  Mesh neutral_;
+  std::vector<Marker> markers_;
+  MarkerRegions regions_;  // distances_mm is left empty after Load (not needed to apply)
+  std::vector<std::vector<std::pair<int, double>>> feature_triangles_;  // per region, normalised
+  std::vector<BiharmonicRbf> rbfs_;
+  LaplacianDeformer deformer_;
+  TangentFrames tangent_;
+  DeformationGradients gradients_;
+};
+
+}  // namespace facedyn::detail

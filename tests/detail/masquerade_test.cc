@@ -1,0 +1,180 @@
+#include "detail/masquerade.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "core/file_util.h"
+#include "detail/bickel.h"
+#include "detail_test_util.h"
+#include "tests/support/test_support.h"
+
+namespace facedyn::detail {
+namespace {
+
+double MaxError(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
+  return (a - b).colwise().norm().maxCoeff();
+}
+double MeanError(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
+  return (a - b).colwise().norm().mean();
+}
+
+MasqueradeOptions AllFrames() {
+  MasqueradeOptions options;
+  options.global_frames = 0;
+  return options;
+}
+
+TEST(MasqueradeModel, ReproducesItsTrainingFrames) {
+  // Each region interpolates its training offsets exactly and the blend weights sum to 1, so a
+  // training frame's own markers give that frame back.
+  const DetailTrainingSet set = testing::TestTrainingSet();
+  MasqueradeTrainingSummary summary;
+  StatusOr<MasqueradeModel> model = MasqueradeModel::Train(set, AllFrames(), &summary);
+  ASSERT_TRUE(model.ok()) << model.status().ToString();
+  EXPECT_DOUBLE_EQ(summary.mean_frames_per_region, 25.0);
+  for (size_t f = 0; f < set.frames_mm.size(); ++f) {
+    Eigen::Matrix3Xd skin, large;
+    ASSERT_TRUE(model->Apply(set.MarkersOn(set.frames_mm[f]), &skin, &large).ok());
+    EXPECT_LT(MaxError(skin, set.frames_mm[f]), 1e-6) << "frame " << f;
+    if (f == 0) {
+      EXPECT_GT(MaxError(large, set.frames_mm[f]), 0.5);  // the detail was not in the markers
+    }
+  }
+}
+
+TEST(MasqueradeModel, HeldOutPoseBeatsLargeScaleOnly) {
+  const DetailTrainingSet set = testing::TestTrainingSet();
+  StatusOr<MasqueradeModel> model = MasqueradeModel::Train(set, AllFrames());
+  ASSERT_TRUE(model.ok());
+  const Eigen::Matrix3Xd truth = testing::TestFrame(set.neutral, 0.3, -0.6);
+  Eigen::Matrix3Xd skin, large;
+  ASSERT_TRUE(model->Apply(set.MarkersOn(truth), &skin, &large).ok());
+  EXPECT_LT(MeanError(skin, truth), 0.5 * MeanError(large, truth));
+}
+
+TEST(MasqueradeModel, GreedyFramesPerRegion) {
+  const DetailTrainingSet set = testing::TestTrainingSet();
+  MasqueradeOptions options;
+  options.global_frames = 12;
+  options.per_region_frames = 6;
+  MasqueradeTrainingSummary summary;
+  StatusOr<MasqueradeModel> model = MasqueradeModel::Train(set, options, &summary);
+  ASSERT_TRUE(model.ok()) << model.status().ToString();
+  EXPECT_EQ(summary.global_frames.size(), 12u);
+  EXPECT_LE(summary.mean_frames_per_region, 6.0);
+  StatusOr<MasqueradeModel> all = MasqueradeModel::Train(set, AllFrames());
+  ASSERT_TRUE(all.ok());
+  EXPECT_LT(model->MemoryBytes(), all->MemoryBytes());
+}
+
+TEST(MasqueradeModel, FileRoundTrip) {
+  const DetailTrainingSet set = testing::TestTrainingSet(4);
+  StatusOr<MasqueradeModel> model = MasqueradeModel::Train(set, AllFrames());
+  ASSERT_TRUE(model.ok());
+  facedyn::testing::TempDir dir;
+  const std::string path = dir.Join("detail.bin");
+  ASSERT_TRUE(model->Save(path).ok());
+  StatusOr<MasqueradeModel> loaded = MasqueradeModel::Load(path);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  EXPECT_EQ(loaded->subject(), "patch");
+  EXPECT_EQ(loaded->MemoryBytes(), model->MemoryBytes());
+  ASSERT_EQ(loaded->markers().size(), set.markers.size());
+  EXPECT_EQ(loaded->markers()[3].name, set.markers[3].name);
+  const Eigen::Matrix3Xd truth = testing::TestFrame(set.neutral, -0.2, 0.7);
+  Eigen::Matrix3Xd a, b;
+  ASSERT_TRUE(model->Apply(set.MarkersOn(truth), &a).ok());
+  ASSERT_TRUE(loaded->Apply(set.MarkersOn(truth), &b).ok());
+  EXPECT_EQ(MaxError(a, b), 0.0);
+}
+
+TEST(MasqueradeModel, TruncatedAndCorruptedFilesAreNamedErrors) {
+  const DetailTrainingSet set = testing::TestTrainingSet(3);
+  StatusOr<MasqueradeModel> model = MasqueradeModel::Train(set, AllFrames());
+  ASSERT_TRUE(model.ok());
+  facedyn::testing::TempDir dir;
+  const std::string path = dir.Join("detail.bin");
+  ASSERT_TRUE(model->Save(path).ok());
+  StatusOr<std::string> bytes = ReadFileToString(path);
+  ASSERT_TRUE(bytes.ok());
+  const std::string bad = dir.Join("bad.bin");
+  // Truncated anywhere: an error naming the file, never a crash.
+  for (size_t length = 0; length < bytes->size(); length += 1 + bytes->size() / 97) {
+    ASSERT_TRUE(WriteFileAtomic(bad, bytes->substr(0, length)).ok());
+    StatusOr<MasqueradeModel> loaded = MasqueradeModel::Load(bad);
+    ASSERT_FALSE(loaded.ok()) << "length " << length;
+    EXPECT_THAT(loaded.status().message(), ::testing::HasSubstr(bad));
+  }
+  // Bytes flipped anywhere: an error or (a flipped coefficient) a model, never a crash.
+  int errors = 0;
+  for (size_t at = 0; at < bytes->size(); at += 1 + bytes->size() / 211) {
+    std::string corrupt = *bytes;
+    corrupt[at] = static_cast<char>(corrupt[at] ^ 0x5a);
+    ASSERT_TRUE(WriteFileAtomic(bad, corrupt).ok());
+    errors += MasqueradeModel::Load(bad).ok() ? 0 : 1;
+  }
+  EXPECT_GT(errors, 0);
+  std::string magic = *bytes;
+  magic[0] = 'X';
+  ASSERT_TRUE(WriteFileAtomic(bad, magic).ok());
+  EXPECT_THAT(MasqueradeModel::Load(bad).status().message(),
+              ::testing::HasSubstr("not a facedyn detail model"));
+  EXPECT_EQ(MasqueradeModel::Load(dir.Join("missing.bin")).status().code(), StatusCode::kNotFound);
+}
+
+TEST(MasqueradeModel, IncompatibleInputNamed) {
+  const DetailTrainingSet set = testing::TestTrainingSet(3);
+  StatusOr<MasqueradeModel> model = MasqueradeModel::Train(set, AllFrames());
+  ASSERT_TRUE(model.ok());
+  std::vector<std::string> names = MarkerNames(set.markers);
+  EXPECT_TRUE(model->CheckCompatible(names, set.neutral.vertex_count(), "take T").ok());
+  names[4] = "chin";
+  EXPECT_THAT(model->CheckCompatible(names, set.neutral.vertex_count(), "take T").message(),
+              ::testing::HasSubstr("take T: marker #4 is 'chin', the detail model expects '" +
+                                   set.markers[4].name + "'"));
+  names.pop_back();
+  names[4] = set.markers[4].name;
+  EXPECT_THAT(model->CheckCompatible(names, set.neutral.vertex_count(), "take T").message(),
+              ::testing::HasSubstr("is missing"));
+  EXPECT_THAT(model->CheckCompatible(MarkerNames(set.markers), 10, "take T").message(),
+              ::testing::HasSubstr("10 vertices, the detail model's rig 'patch' has"));
+  Eigen::Matrix3Xd skin;
+  EXPECT_THAT(model->Apply(Eigen::Matrix3Xd::Zero(3, 5), &skin).message(),
+              ::testing::HasSubstr("5 marker positions"));
+  Eigen::Matrix3Xd nan = set.MarkersOn(set.neutral.positions_mm);
+  nan(1, 2) = std::nan("");
+  EXPECT_THAT(model->Apply(nan, &skin).message(), ::testing::HasSubstr("marker 2"));
+}
+
+TEST(MasqueradeModel, BadTrainingSetNamed) {
+  DetailTrainingSet set = testing::TestTrainingSet(2);
+  set.frames_mm[2] = Eigen::Matrix3Xd(set.frames_mm[2].leftCols(10));  // a copy: no aliasing
+  EXPECT_THAT(MasqueradeModel::Train(set, {}).status().message(),
+              ::testing::HasSubstr("frame 2 has 10 vertices"));
+  set = testing::TestTrainingSet(2);
+  set.markers[1].name = set.markers[0].name;
+  EXPECT_THAT(MasqueradeModel::Train(set, {}).status().message(),
+              ::testing::HasSubstr("appears twice"));
+  MasqueradeOptions options;
+  options.region_sigma_mm = 0;
+  EXPECT_THAT(MasqueradeModel::Train(testing::TestTrainingSet(2), options).status().message(),
+              ::testing::HasSubstr("region_sigma_mm"));
+}
+
+TEST(BickelModel, ReproducesTrainingFramesAndIsPerVertex) {
+  const DetailTrainingSet set = testing::TestTrainingSet();
+  BickelOptions options;
+  options.frames = 0;
+  StatusOr<BickelModel> model = BickelModel::Train(set, options);
+  ASSERT_TRUE(model.ok()) << model.status().ToString();
+  EXPECT_GT(model->edge_count(), 20);
+  for (size_t f = 0; f < set.frames_mm.size(); f += 6) {
+    Eigen::Matrix3Xd skin;
+    ASSERT_TRUE(model->Apply(set.MarkersOn(set.frames_mm[f]), &skin).ok());
+    EXPECT_LT(MaxError(skin, set.frames_mm[f]), 1e-6) << "frame " << f;
+  }
+  // Per-vertex coefficients: memory grows with the vertex count, at least 3 (N + 1) doubles each.
+  EXPECT_GE(model->MemoryBytes(), sizeof(double) * 3 * 26 * set.neutral.vertex_count());
+}
+
+}  // namespace
+}  // namespace facedyn::detail

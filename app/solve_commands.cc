@@ -92,8 +92,9 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
       train_settings.num_threads = o.threads;
       train_settings.show_progress = !o.json;
       std::vector<solve::RegionTrainSummary> summaries;
-      FACEDYN_ASSIGN_OR_RETURN(const solve::FdlsSolver solver,
-                               solve::FdlsSolver::Train(puppet, resolved, data, train_settings, &summaries));
+      FACEDYN_ASSIGN_OR_RETURN(
+          const solve::FdlsSolver solver,
+          solve::FdlsSolver::Train(puppet, resolved, data, train_settings, &summaries));
       FACEDYN_RETURN_IF_ERROR(solver.Save(o.out));
       Json out = {{"rig", rig.name},
                   {"tuples", data.sample_count()},
@@ -118,6 +119,9 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
 
   struct RunOptions {
     std::string markers;
+    std::string take;
+    std::string rig = "procedural";
+    std::string channel;
     std::string model;
     std::string out;
     int anchor = -1;
@@ -126,10 +130,21 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
     bool json = false;
   };
   auto run_options = std::make_shared<RunOptions>();
-  auto* run = solve->add_subcommand("run", "Solve a labelled-markers CSV into a weights CSV");
-  run->add_option("--markers", run_options->markers,
-                  "Labelled markers CSV (time_s, <marker>_x,_y,_z; skull frame, mm)")
-      ->required();
+  auto* run = solve->add_subcommand(
+      "run", "Solve labelled markers (a CSV, or read off a take) into a weights CSV");
+  auto* markers_option =
+      run->add_option("--markers", run_options->markers,
+                      "Labelled markers CSV (time_s, <marker>_x,_y,_z; skull frame, mm)");
+  auto* take_option = run->add_option(
+      "--take", run_options->take,
+      "Take in the rig's topology (e.g. reconstructed): its markers in the skull frame");
+  markers_option->excludes(take_option);
+  run->add_option("--rig", run_options->rig,
+                  "With --take: the take's FaceRig folder, or 'procedural'")
+      ->capture_default_str();
+  run->add_option("--channel", run_options->channel,
+                  "With --take: solve a channel of the take (e.g. a removal's output) instead of "
+                  "its positions");
   run->add_option("--model", run_options->model, "Solver folder (facedyn solve train --out)")
       ->required();
   run->add_option("--out", run_options->out,
@@ -150,14 +165,25 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
       const RunOptions& o = *run_options;
       FACEDYN_ASSIGN_OR_RETURN(const solve::FdlsSolver solver, solve::FdlsSolver::Load(o.model));
       const solve::Puppet& puppet = solver.puppet();
-      FACEDYN_ASSIGN_OR_RETURN(solve::MarkerFrames frames,
-                               solve::ReadMarkersCsv(o.markers, puppet));
+      if (o.markers.empty() == o.take.empty()) {
+        return InvalidArgumentError("solve run needs exactly one of --markers CSV or --take TAKE");
+      }
+      solve::MarkerFrames frames;
+      if (!o.take.empty()) {
+        FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(o.rig));
+        FACEDYN_ASSIGN_OR_RETURN(const Take take, LoadTake(o.take));
+        FACEDYN_ASSIGN_OR_RETURN(frames, solve::MarkersFromTake(puppet, rig, take, o.channel));
+      } else {
+        if (!o.channel.empty()) return InvalidArgumentError("--channel needs --take");
+        FACEDYN_ASSIGN_OR_RETURN(frames, solve::ReadMarkersCsv(o.markers, puppet));
+      }
+      const std::string source = o.take.empty() ? o.markers : o.take;
       const int n = static_cast<int>(frames.time_s.size());
       Eigen::MatrixXd markers = frames.markers_in_skull;
       if (o.anchor >= 0) {
         if (o.anchor >= n) {
           return InvalidArgumentError(
-              fmt::format("--anchor {}: {} has frames 0..{}", o.anchor, o.markers, n - 1));
+              fmt::format("--anchor {}: {} has frames 0..{}", o.anchor, source, n - 1));
         }
         if (!frames.present.col(o.anchor).all()) {
           return InvalidArgumentError(

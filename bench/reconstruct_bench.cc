@@ -183,8 +183,7 @@ Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int 
   out["window_pixels_per_evaluation"] =
       static_cast<double>(pixel_evaluations) / std::max(1L, evaluations);
   out["fit_ns_per_pixel_evaluation"] = 1e6 * fit_ms / std::max(1L, pixel_evaluations);
-  out["occlusion_fits_per_image"] =
-      static_cast<double>(occlusion_fits) / (frames * cameras.size());
+  out["occlusion_fits_per_image"] = static_cast<double>(occlusion_fits) / (frames * cameras.size());
   out["iterations_per_occlusion_fit"] =
       static_cast<double>(occlusion_iterations) / std::max(1L, occlusion_fits);
   out["occlusion_refits_kept_per_image"] =
@@ -498,11 +497,11 @@ int main(int argc, char** argv) {
     if (arg == "--shared" && i + 1 < argc) {
       shared = argv[++i];
     } else if (arg == "--frames" && i + 1 < argc) {
-      frames = std::max(1, static_cast<int>(facedyn::bench::FlagInteger(
-                                  "reconstruct_bench", "--frames", argv[++i])));
+      frames = std::max(1, static_cast<int>(facedyn::bench::FlagInteger("reconstruct_bench",
+                                                                        "--frames", argv[++i])));
     } else if (arg == "--seconds" && i + 1 < argc) {
-      seconds = std::max(
-          0.75, facedyn::bench::FlagNumber("reconstruct_bench", "--seconds", argv[++i]));
+      seconds =
+          std::max(0.75, facedyn::bench::FlagNumber("reconstruct_bench", "--seconds", argv[++i]));
     } else if (arg == "--stage" && i + 1 < argc) {
       stage = argv[++i];
       if (stage != "all" && stage != "detection" && stage != "pipeline" && stage != "jaw" &&
@@ -543,8 +542,8 @@ int main(int argc, char** argv) {
   const auto wanted = [&](const char* name) { return stage == "all" || stage == name; };
   if (wanted("detection")) {
     out["detection_triangulation_1_thread"] = BenchDetection(*rig, *take, frames, 1);
-    out["detection_triangulation"] = BenchDetection(
-        *rig, *take, frames, static_cast<int>(std::thread::hardware_concurrency()));
+    out["detection_triangulation"] =
+        BenchDetection(*rig, *take, frames, static_cast<int>(std::thread::hardware_concurrency()));
   }
   if (wanted("pipeline")) out["pipeline_11hz_smile"] = BenchPipeline(*rig, *take);
   if (wanted("jaw")) {

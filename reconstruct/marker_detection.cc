@@ -247,8 +247,7 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius, int
 DiskParameters FitBlurredDisk(const cv::Mat& gray, const DiskParameters& initial, bool fix_shape,
                               int max_iterations, double* inlier_fraction, bool robust_from_start) {
   FACEDYN_CHECK(gray.type() == CV_8UC1, "FitBlurredDisk needs an 8-bit grayscale image");
-  const FitResult fit =
-      FitDisk(gray, initial, 100.0, max_iterations, fix_shape, robust_from_start);
+  const FitResult fit = FitDisk(gray, initial, 100.0, max_iterations, fix_shape, robust_from_start);
   if (inlier_fraction) *inlier_fraction = fit.inlier_fraction;
   return fit.p;
 }
@@ -399,8 +398,14 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
     }
     const double b0 = Median(border);
     const double a0 = candidate.blurred - b0;
-    const DiskParameters p = {candidate.center_px.x(), candidate.center_px.y(), 1.0 / r0, 0.0,
-                              1.0 / r0, 1.0 / r0, a0, b0};
+    const DiskParameters p = {candidate.center_px.x(),
+                              candidate.center_px.y(),
+                              1.0 / r0,
+                              0.0,
+                              1.0 / r0,
+                              1.0 / r0,
+                              a0,
+                              b0};
     const FitResult fit = FitDisk(gray, p, max_radius, options.max_iterations);
     summary.fit_iterations += fit.iterations;
     summary.fit_evaluations += fit.evaluations;
@@ -560,8 +565,7 @@ std::vector<StatusOr<std::vector<MarkerDetection>>> DetectMarkersInImages(
     for (size_t i = next++; i < images.size(); i = next++) {
       results[i] = images[i].empty()
                        ? StatusOr<std::vector<MarkerDetection>>(std::vector<MarkerDetection>())
-                       : DetectMarkers(images[i], options,
-                                       summaries ? &(*summaries)[i] : nullptr);
+                       : DetectMarkers(images[i], options, summaries ? &(*summaries)[i] : nullptr);
     }
   };
   std::vector<std::thread> pool;

@@ -68,10 +68,10 @@ struct MarkerDetectionSummary {
   int rejected_contrast = 0;
   int rejected_quality = 0;
   int duplicates = 0;
-  int fit_iterations = 0;   // of the first fits, summed over candidates
-  int fit_evaluations = 0;  // model evaluations over a window in those fits
+  int fit_iterations = 0;          // of the first fits, summed over candidates
+  int fit_evaluations = 0;         // model evaluations over a window in those fits
   long fit_pixel_evaluations = 0;  // pixels x evaluations in those fits
-  int occlusion_fits = 0;   // fits tried for suspected occlusion (several starts per suspect)
+  int occlusion_fits = 0;        // fits tried for suspected occlusion (several starts per suspect)
   int occlusion_iterations = 0;  // summed over those fits
   int refitted_for_occlusion = 0;  // detections whose occlusion refit was kept
   // CPU time of each stage in this call (the calling thread's), milliseconds, for

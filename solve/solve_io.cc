@@ -153,4 +153,56 @@ Status WriteMarkersCsv(const std::string& path, const Puppet& puppet, const Mark
   return WriteFileAtomic(path, text);
 }
 
+StatusOr<MarkerFrames> MarkersFromTake(const Puppet& puppet, const FaceRig& rig, const Take& take,
+                                       const std::string& channel) {
+  if (static_cast<int>(rig.markers.size()) != puppet.marker_count()) {
+    return InvalidArgumentError(fmt::format("rig '{}' has {} markers, the solver's puppet '{}' {}",
+                                            rig.name, rig.markers.size(), puppet.rig_name,
+                                            puppet.marker_count()));
+  }
+  for (int m = 0; m < puppet.marker_count(); ++m) {
+    if (rig.markers[m].name != puppet.marker_names[m]) {
+      return InvalidArgumentError(
+          fmt::format("rig '{}' marker {} is '{}', the solver's puppet expects '{}'", rig.name, m,
+                      rig.markers[m].name, puppet.marker_names[m]));
+    }
+  }
+  if (take.vertex_count() != rig.vertex_count()) {
+    return InvalidArgumentError(
+        fmt::format("take of subject '{}' has {} vertices, rig '{}' {}: not in the rig's topology",
+                    take.info.subject, take.vertex_count(), rig.name, rig.vertex_count()));
+  }
+  // Truth channels of the simulator never feed a method (ARCHITECTURE.md).
+  if (channel == "quasistatic" || channel == "dynamic_offset") {
+    return InvalidArgumentError(fmt::format(
+        "channel '{}' is simulator truth; solve from the take's positions or a method's output",
+        channel));
+  }
+  const PointCache* cache = &take.positions;
+  if (!channel.empty()) {
+    const auto it = take.channels.find(channel);
+    if (it == take.channels.end()) {
+      return NotFoundError(fmt::format("take has no channel '{}'", channel));
+    }
+    cache = &it->second;
+  }
+  const int n = take.frame_count();
+  const int m_count = puppet.marker_count();
+  MarkerFrames frames;
+  frames.time_s.resize(n);
+  frames.markers_in_skull.resize(3 * m_count, n);
+  frames.present = MarkerPresence::Constant(m_count, n, true);
+  for (int f = 0; f < n; ++f) {
+    frames.time_s[f] =
+        f < static_cast<int>(take.time_s.size()) ? take.time_s[f] : f / take.info.fps;
+    const Eigen::Matrix3Xd skin_in_world = cache->Frame(f).cast<double>();
+    const Rigid3 skull_from_world = take.world_from_skull[f].Inverse();
+    for (int m = 0; m < m_count; ++m) {
+      frames.markers_in_skull.block<3, 1>(3 * m, f) =
+          skull_from_world * rig.markers[m].point.Evaluate(skin_in_world);
+    }
+  }
+  return frames;
+}
+
 }  // namespace facedyn::solve

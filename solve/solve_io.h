@@ -13,7 +13,9 @@
 #include <vector>
 
 #include "core/blendshape_weights.h"
+#include "core/face_rig.h"
 #include "core/status.h"
+#include "core/take.h"
 #include "solve/marker_fit.h"
 #include "solve/puppet.h"
 
@@ -45,5 +47,15 @@ struct MarkerFrames {
 // column: missing marker columns, a half-missing marker, a non-number, times not increasing.
 StatusOr<MarkerFrames> ReadMarkersCsv(const std::string& path, const Puppet& puppet);
 Status WriteMarkersCsv(const std::string& path, const Puppet& puppet, const MarkerFrames& frames);
+
+// The puppet's markers read off a take in the rig's topology (a reconstructed take's dense fit,
+// or a dynamics-removed take): each marker's surface point on the frame's mesh, taken into the
+// skull frame with the take's world_from_skull; every marker present. `channel` selects a
+// per-frame channel of the take instead of its positions. Errors: the rig's markers are not the
+// puppet's (by name), the take is not in the rig's topology (vertex count), the channel is
+// missing, or it is one of the simulator's truth channels (quasistatic, dynamic_offset), which
+// never feed a method.
+StatusOr<MarkerFrames> MarkersFromTake(const Puppet& puppet, const FaceRig& rig, const Take& take,
+                                       const std::string& channel = "");
 
 }  // namespace facedyn::solve

@@ -137,5 +137,56 @@ TEST(MarkersCsv, HalfMissingMarkerAndBadTimesAreNamed) {
       << read.status().message();
 }
 
+// Markers read off a take: the puppet's own pose, seen through a moving head, comes back in the
+// skull frame exactly; truth channels and a foreign topology are refused by name.
+TEST(MarkersFromTake, SkullFrameMarkersOfAPosedMovingHead) {
+  const FaceRig& rig = testing::ProceduralRig();
+  const Puppet& puppet = testing::ProceduralPuppet();
+  Eigen::VectorXd weights = Eigen::VectorXd::Zero(puppet.channel_count());
+  weights[0] = 0.7;
+  weights[puppet.channel_count() - 1] = 0.3;
+  Take take;
+  take.info.fps = 10.0;
+  take.info.subject = rig.name;
+  take.topology = rig.neutral;
+  take.positions.vertex_count = rig.vertex_count();
+  take.positions.positions.resize(3 * rig.vertex_count(), 2);
+  const Eigen::Matrix3Xd skin_in_skull = rig.Evaluate(weights);
+  for (int f = 0; f < 2; ++f) {
+    const Rigid3 world_from_skull(Eigen::Quaterniond(Eigen::AngleAxisd(
+                                      0.2 + 0.1 * f, Eigen::Vector3d(0.3, 1, 0.2).normalized())),
+                                  Eigen::Vector3d(10.0 * f, -4.0, 30.0));
+    take.world_from_skull.push_back(world_from_skull);
+    take.time_s.push_back(0.1 * f);
+    Eigen::Matrix3Xd skin_in_world(3, skin_in_skull.cols());
+    for (int v = 0; v < skin_in_skull.cols(); ++v) {
+      skin_in_world.col(v) = world_from_skull * Eigen::Vector3d(skin_in_skull.col(v));
+    }
+    take.positions.Frame(f) = skin_in_world.cast<float>();
+  }
+  take.channels["quasistatic"] = take.positions;
+  const auto frames = MarkersFromTake(puppet, rig, take);
+  ASSERT_TRUE(frames.ok()) << frames.status().message();
+  ASSERT_EQ(frames->markers_in_skull.cols(), 2);
+  EXPECT_TRUE(frames->present.all());
+  const Eigen::VectorXd expected = puppet.StackedMarkers(weights);
+  for (int f = 0; f < 2; ++f) {
+    // float storage of world positions: about 1e-5 mm at these magnitudes.
+    EXPECT_LT((frames->markers_in_skull.col(f) - expected).cwiseAbs().maxCoeff(), 1e-3)
+        << "frame " << f;
+  }
+  const auto truth = MarkersFromTake(puppet, rig, take, "quasistatic");
+  ASSERT_FALSE(truth.ok());
+  EXPECT_NE(truth.status().message().find("simulator truth"), std::string::npos);
+  const auto missing = MarkersFromTake(puppet, rig, take, "removed");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.status().message().find("'removed'"), std::string::npos);
+  Take other = take;
+  other.topology.positions_mm = other.topology.positions_mm.leftCols(10);
+  const auto foreign = MarkersFromTake(puppet, rig, other);
+  ASSERT_FALSE(foreign.ok());
+  EXPECT_NE(foreign.status().message().find("topology"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace facedyn::solve

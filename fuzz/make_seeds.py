@@ -159,3 +159,14 @@ put("mdd", "times_backwards.mdd", mdd(2, 1, times=[1.0, 0.5]))
 put("mdd", "nan.mdd", mdd(1, 1, values=[0.0, float("nan"), 1.0]))
 put("mdd", "huge_counts.mdd", struct.pack(">ii", 0x7FFFFFFF, 0x7FFFFFFF))
 put("mdd", "little_endian.mdd", struct.pack("<ii", 2, 3) + mdd(2, 3)[8:])
+
+
+# detail/masquerade.h: "FDDETAIL", uint32 format version, then the model. A valid model is
+# ~700 KB even for a small face, too large for the corpus; these seeds reach the header checks
+# and the first length fields, and libFuzzer grows from them.
+put("detail_model", "magic_only.bin", b"FDDETAIL")
+put("detail_model", "version_1_truncated.bin", b"FDDETAIL" + struct.pack("<I", 1))
+put("detail_model", "version_1_huge_length.bin",
+    b"FDDETAIL" + struct.pack("<I", 1) + struct.pack("<Q", 1 << 62) + b"subject")
+put("detail_model", "future_version.bin", b"FDDETAIL" + struct.pack("<I", 99) + b"\0" * 64)
+put("detail_model", "bad_magic.bin", b"FDDETAIX" + struct.pack("<I", 1))

@@ -42,6 +42,7 @@ int main(int argc, char** argv) {
   app::AddCalibrateCommand(cli, &selected);
   app::AddReconstructCommand(cli, &selected);
   app::AddCaptureCommands(cli, &selected);
+  app::AddProcessCommand(cli, &selected);
   app::AddDemoCommand(cli, &selected);
   app::AddReportCommand(cli, &selected);
 

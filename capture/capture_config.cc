@@ -9,17 +9,6 @@
 namespace facedyn::capture {
 namespace {
 
-Status CheckFields(const ConfigNode& node, const std::vector<std::string>& allowed) {
-  for (const std::string& key : node.Keys()) {
-    if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
-      std::string list;
-      for (const std::string& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      return node.Error(key, "unknown field (allowed: " + list + ")");
-    }
-  }
-  return Status::Ok();
-}
-
 std::string Resolve(const std::string& base_dir, const std::string& path) {
   if (path.empty() || path[0] == '/') return path;
   return (std::filesystem::path(base_dir) / path).lexically_normal().string();
@@ -166,8 +155,8 @@ StatusOr<CaptureConfig> LoadCaptureConfig(const std::string& path) {
   FACEDYN_ASSIGN_OR_RETURN(const ConfigNode root, ConfigNode::ReadFile(path));
   if (!root.IsMap()) return root.Error("expected a map of capture settings");
   FACEDYN_RETURN_IF_ERROR(
-      CheckFields(root, {"name", "description", "fps", "duration_s", "exposure_us", "pixel_format",
-                         "trigger", "recorder", "sync", "cameras", "platform", "sim"}));
+      root.CheckFields({"name", "description", "fps", "duration_s", "exposure_us", "pixel_format",
+                        "trigger", "recorder", "sync", "cameras", "platform", "sim"}));
   const std::string base_dir = std::filesystem::path(path).parent_path().string();
   CaptureConfig config;
   config.source_path = path;
@@ -183,7 +172,7 @@ StatusOr<CaptureConfig> LoadCaptureConfig(const std::string& path) {
   config.pixel_format = *parsed_format;
   if (root.Has("trigger")) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode trigger, root.Child("trigger"));
-    FACEDYN_RETURN_IF_ERROR(CheckFields(trigger, {"kind", "pace"}));
+    FACEDYN_RETURN_IF_ERROR(trigger.CheckFields({"kind", "pace"}));
     FACEDYN_ASSIGN_OR_RETURN(const std::string kind, trigger.GetOr<std::string>("kind", "virtual"));
     if (kind != "virtual")
       return trigger.Error("kind", "'" + kind +
@@ -193,8 +182,8 @@ StatusOr<CaptureConfig> LoadCaptureConfig(const std::string& path) {
   }
   if (root.Has("recorder")) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode recorder, root.Child("recorder"));
-    FACEDYN_RETURN_IF_ERROR(CheckFields(
-        recorder, {"queue_frames", "backpressure", "block_timeout_s", "sync_on_close"}));
+    FACEDYN_RETURN_IF_ERROR(
+        recorder.CheckFields({"queue_frames", "backpressure", "block_timeout_s", "sync_on_close"}));
     FACEDYN_ASSIGN_OR_RETURN(config.recorder.queue_frames, recorder.GetOr<int>("queue_frames", 16));
     FACEDYN_ASSIGN_OR_RETURN(const std::string policy,
                              recorder.GetOr<std::string>("backpressure", "block"));
@@ -208,14 +197,14 @@ StatusOr<CaptureConfig> LoadCaptureConfig(const std::string& path) {
   }
   if (root.Has("sync")) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode sync, root.Child("sync"));
-    FACEDYN_RETURN_IF_ERROR(CheckFields(sync, {"timestamp_tolerance_us"}));
+    FACEDYN_RETURN_IF_ERROR(sync.CheckFields({"timestamp_tolerance_us"}));
     FACEDYN_ASSIGN_OR_RETURN(const double tolerance_us,
                              sync.GetOr<double>("timestamp_tolerance_us", 100.0));
     config.timestamp_tolerance_ns = std::llround(tolerance_us * 1000);
   }
   FACEDYN_ASSIGN_OR_RETURN(const ConfigNode cameras, root.Child("cameras"));
   FACEDYN_RETURN_IF_ERROR(
-      CheckFields(cameras, {"backend", "calibration", "ring", "sources", "devices", "size_px"}));
+      cameras.CheckFields({"backend", "calibration", "ring", "sources", "devices", "size_px"}));
   FACEDYN_ASSIGN_OR_RETURN(config.backend, cameras.Get<std::string>("backend"));
   if (cameras.Has("calibration") && cameras.Has("ring"))
     return cameras.Error("give either calibration or ring, not both");
@@ -229,8 +218,8 @@ StatusOr<CaptureConfig> LoadCaptureConfig(const std::string& path) {
   } else if (cameras.Has("ring")) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode ring_node, cameras.Child("ring"));
     FACEDYN_RETURN_IF_ERROR(
-        CheckFields(ring_node, {"count", "width_px", "height_px", "focal_px", "distance_mm",
-                                "span_deg", "elevation_deg", "target_mm", "k1", "k2"}));
+        ring_node.CheckFields({"count", "width_px", "height_px", "focal_px", "distance_mm",
+                               "span_deg", "elevation_deg", "target_mm", "k1", "k2"}));
     CameraRing ring;
     FACEDYN_ASSIGN_OR_RETURN(ring.count, ring_node.GetOr<int>("count", ring.count));
     FACEDYN_ASSIGN_OR_RETURN(ring.width_px, ring_node.GetOr<int>("width_px", ring.width_px));
@@ -284,8 +273,8 @@ StatusOr<CaptureConfig> LoadCaptureConfig(const std::string& path) {
   }
   if (root.Has("platform")) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode platform, root.Child("platform"));
-    FACEDYN_RETURN_IF_ERROR(CheckFields(platform, {"rig", "start_simulated_drive", "hz",
-                                                   "settle_timeout_s", "telemetry_period_s"}));
+    FACEDYN_RETURN_IF_ERROR(platform.CheckFields(
+        {"rig", "start_simulated_drive", "hz", "settle_timeout_s", "telemetry_period_s"}));
     FACEDYN_ASSIGN_OR_RETURN(const std::string rig, platform.Get<std::string>("rig"));
     config.platform.rig_path = Resolve(base_dir, rig);
     FACEDYN_ASSIGN_OR_RETURN(config.platform.start_simulated_drive,

@@ -4,6 +4,7 @@
 #include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/parser.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -38,9 +39,12 @@ bool ConvertScalar(const YAML::Node& node, T* out, std::string* expected) {
     *expected = "true or false";
     if (!IsPlainScalar(node)) return false;
     const std::string& s = node.Scalar();
-    if (s == "true") *out = true;
-    else if (s == "false") *out = false;
-    else return false;
+    if (s == "true")
+      *out = true;
+    else if (s == "false")
+      *out = false;
+    else
+      return false;
     return true;
   } else if constexpr (std::is_floating_point_v<T>) {
     *expected = "a number";
@@ -144,8 +148,7 @@ class StrictYamlCheck : public YAML::EventHandler {
   void Count(const YAML::Mark& mark) {
     last_mark_ = mark;
     if (++events_ <= max_events_) return;
-    Fail(mark,
-         "syntax error: the YAML parser makes no progress here (a ',' outside [ ] or { }?)");
+    Fail(mark, "syntax error: the YAML parser makes no progress here (a ',' outside [ ] or { }?)");
     throw NotProgressing{};
   }
 
@@ -171,8 +174,8 @@ class StrictYamlCheck : public YAML::EventHandler {
     if (!is_key || scalar == nullptr) return;
     const auto [it, inserted] = map.key_lines.emplace(*scalar, mark.line + 1);
     if (!inserted) {
-      Fail(mark, fmt::format("duplicate key '{}' (first on line {}): say it once", *scalar,
-                             it->second));
+      Fail(mark,
+           fmt::format("duplicate key '{}' (first on line {}): say it once", *scalar, it->second));
     }
   }
   void Push(const YAML::Mark&, bool is_map) {
@@ -234,7 +237,8 @@ std::string ConfigNode::ChildPath(const std::string& key) const {
 }
 
 StatusOr<ConfigNode> ConfigNode::Child(const std::string& key) const {
-  if (!node_.IsMap()) return Error(fmt::format("expected a map with field '{}', got {}", key, Describe(node_)));
+  if (!node_.IsMap())
+    return Error(fmt::format("expected a map with field '{}', got {}", key, Describe(node_)));
   const YAML::Node child = node_[key];
   if (!child.IsDefined() || child.IsNull()) return Error(key, "required field is missing");
   return ConfigNode(source_, child, ChildPath(key));
@@ -290,6 +294,17 @@ StatusOr<double> ConfigNode::GetInRange(const std::string& key, double min, doub
   return value;
 }
 
+Status ConfigNode::CheckFields(const std::vector<std::string>& allowed) const {
+  for (const std::string& key : Keys()) {
+    if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
+      std::string list;
+      for (const std::string& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      return Error(key, "unknown field (allowed: " + list + ")");
+    }
+  }
+  return Status::Ok();
+}
+
 Status ConfigNode::Error(const std::string& key, const std::string& message) const {
   const YAML::Node child = node_.IsMap() ? node_[key] : YAML::Node();
   const int at_line = child.IsDefined() ? child.Mark().line + 1 : line();
@@ -298,8 +313,10 @@ Status ConfigNode::Error(const std::string& key, const std::string& message) con
 }
 
 Status ConfigNode::Error(const std::string& message) const {
-  if (path_.empty()) return InvalidArgumentError(fmt::format("{}:{}: {}", *source_, line(), message));
-  return InvalidArgumentError(fmt::format("{}:{}: field '{}': {}", *source_, line(), path_, message));
+  if (path_.empty())
+    return InvalidArgumentError(fmt::format("{}:{}: {}", *source_, line(), message));
+  return InvalidArgumentError(
+      fmt::format("{}:{}: field '{}': {}", *source_, line(), path_, message));
 }
 
 Json ConfigNode::ToJson() const {
@@ -313,7 +330,8 @@ Json ConfigNode::ToJson() const {
   }
   if (node_.IsSequence()) {
     Json array = Json::array();
-    for (size_t i = 0; i < node_.size(); ++i) array.push_back(ConfigNode(source_, node_[i], "").ToJson());
+    for (size_t i = 0; i < node_.size(); ++i)
+      array.push_back(ConfigNode(source_, node_[i], "").ToJson());
     return array;
   }
   if (!node_.IsDefined() || node_.IsNull()) return nullptr;
@@ -329,9 +347,9 @@ Json ConfigNode::ToJson() const {
   return node_.Scalar();
 }
 
-#define FACEDYN_INSTANTIATE(T)                                              \
-  template StatusOr<T> ConfigNode::As<T>() const;                            \
-  template StatusOr<T> ConfigNode::Get<T>(const std::string&) const;         \
+#define FACEDYN_INSTANTIATE(T)                                       \
+  template StatusOr<T> ConfigNode::As<T>() const;                    \
+  template StatusOr<T> ConfigNode::Get<T>(const std::string&) const; \
   template StatusOr<T> ConfigNode::GetOr<T>(const std::string&, T) const;
 FACEDYN_INSTANTIATE(double)
 FACEDYN_INSTANTIATE(float)

@@ -7,14 +7,14 @@
 // the parsed document.
 #pragma once
 
+#include <yaml-cpp/yaml.h>
+
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "core/json_io.h"
-#include <yaml-cpp/yaml.h>
-
 #include "core/status.h"
 
 namespace facedyn {
@@ -53,6 +53,9 @@ class ConfigNode {
   // Required number within [min, max].
   StatusOr<double> GetInRange(const std::string& key, double min, double max) const;
 
+  // OK when every key of this map is in `allowed`; otherwise an error naming the first unknown
+  // field and the allowed ones (a misspelt option must not be silently ignored).
+  Status CheckFields(const std::vector<std::string>& allowed) const;
   // "<source>:<line>: field '<path>.<key>': <message>" as an InvalidArgument status.
   Status Error(const std::string& key, const std::string& message) const;
   // Same, for this node itself.

@@ -12,17 +12,6 @@
 namespace facedyn::sim {
 namespace {
 
-Status CheckFields(const ConfigNode& node, const std::vector<std::string>& allowed) {
-  for (const std::string& key : node.Keys()) {
-    if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
-      std::string list;
-      for (const std::string& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      return node.Error(key, "unknown field (allowed: " + list + ")");
-    }
-  }
-  return Status::Ok();
-}
-
 Json RenderOptionsToJson(const RenderOptions& r) {
   return Json{{"skin_albedo", r.skin_albedo},
               {"marker_albedo", r.marker_albedo},
@@ -52,8 +41,8 @@ Status SimCaptureOptions::Check() const {
 StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node,
                                                    const std::string& base_dir) {
   FACEDYN_RETURN_IF_ERROR(
-      CheckFields(node, {"face", "expression", "motion", "platform_hz", "amplitude_mm", "lead_in_s",
-                         "seed", "render", "faults"}));
+      node.CheckFields({"face", "expression", "motion", "platform_hz", "amplitude_mm", "lead_in_s",
+                        "seed", "render", "faults"}));
   SimCaptureOptions options;
   FACEDYN_ASSIGN_OR_RETURN(options.face, node.GetOr<std::string>("face", "procedural"));
   if (options.face != "procedural" && !options.face.empty() && options.face[0] != '/') {
@@ -76,9 +65,9 @@ StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node,
   options.render.seed = static_cast<uint64_t>(seed);
   if (node.Has("render")) {
     FACEDYN_ASSIGN_OR_RETURN(const ConfigNode render, node.Child("render"));
-    FACEDYN_RETURN_IF_ERROR(CheckFields(
-        render, {"skin_albedo", "marker_albedo", "background", "ambient", "gain", "read_noise_dn",
-                 "shot_noise_gain", "blur_sigma_px", "motion_blur_samples", "supersample"}));
+    FACEDYN_RETURN_IF_ERROR(render.CheckFields(
+        {"skin_albedo", "marker_albedo", "background", "ambient", "gain", "read_noise_dn",
+         "shot_noise_gain", "blur_sigma_px", "motion_blur_samples", "supersample"}));
     RenderOptions& r = options.render;
     FACEDYN_ASSIGN_OR_RETURN(r.skin_albedo, render.GetOr<double>("skin_albedo", r.skin_albedo));
     FACEDYN_ASSIGN_OR_RETURN(r.marker_albedo,
@@ -103,7 +92,7 @@ StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node,
     for (const std::string& camera : faults.Keys()) {
       FACEDYN_ASSIGN_OR_RETURN(const ConfigNode entry, faults.Child(camera));
       FACEDYN_RETURN_IF_ERROR(
-          CheckFields(entry, {"drop", "duplicate", "late", "timestamp_offset_ns"}));
+          entry.CheckFields({"drop", "duplicate", "late", "timestamp_offset_ns"}));
       SimCameraFaults f;
       for (const char* key : {"drop", "duplicate", "late"}) {
         FACEDYN_ASSIGN_OR_RETURN(const std::vector<int> list,

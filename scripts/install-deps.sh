@@ -34,6 +34,9 @@ packages=(
   chromium
   # Blender reads back the exported OBJ, PC2, MDD and glTF (tests/export/blender_test)
   blender python3-numpy  # numpy: Blender's glTF importer needs it
+  # the Slurm test peer (issue 25): a private munged + slurmctld + slurmd on localhost
+  # (tests/support/slurm_cluster.h)
+  slurm-wlm munge
   # `make fuzz`: clang with libFuzzer and the sanitizer runtimes (fuzz/)
   clang libclang-rt-14-dev
 )

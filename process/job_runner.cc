@@ -58,15 +58,19 @@ Status WriteState(const JobGraph& graph, const Job& job, const JobState& state) 
   return WriteJsonFile(path, StateToJson(job, state));
 }
 
-// The last non-empty line of a log, for a failure's one-line reason.
-std::string LastLogLine(const std::string& path) {
+// The last two non-empty lines of a log, for a failure's one-line reason (one line is often
+// only "Run with --help for more information.").
+std::string LastLogLines(const std::string& path) {
   std::ifstream in(path);
-  std::string line, last;
+  std::string line, previous, last;
   while (std::getline(in, line)) {
-    if (line.find_first_not_of(" \t\r") != std::string::npos) last = line;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    previous = last;
+    last = line;
   }
-  if (last.size() > 300) last = last.substr(0, 300) + "...";
-  return last;
+  std::string text = previous.empty() ? last : previous + " / " + last;
+  if (text.size() > 400) text = text.substr(0, 400) + "...";
+  return text;
 }
 
 std::string SlurmJobName() {
@@ -244,7 +248,7 @@ JobResult RunJob(const JobGraph& graph, const Job& job, const RunContext& contex
     }
     if (*code != 0) {
       close(log_fd);
-      const std::string last = LastLogLine(log_path);
+      const std::string last = LastLogLines(log_path);
       return fail("facedyn " + CommandName(command) + " exited with " + std::to_string(*code) +
                   (last.empty() ? "" : ": " + last) + " (log: " + log_path + ")");
     }

@@ -17,7 +17,10 @@ namespace {
 
 enum class Phase { kPending, kRunning, kFinished };
 
-StatusOr<pid_t> SpawnWorker(const std::string& executable, const std::vector<std::string>& args) {
+// The worker's own messages (not its command's: those are in the job's log) go to
+// `output_path`, so that a worker that cannot even start its command leaves a trace.
+StatusOr<pid_t> SpawnWorker(const std::string& executable, const std::vector<std::string>& args,
+                            const std::string& output_path) {
   std::vector<char*> argv;
   argv.push_back(const_cast<char*>(executable.c_str()));
   for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
@@ -30,6 +33,11 @@ StatusOr<pid_t> SpawnWorker(const std::string& executable, const std::vector<std
     // `facedyn process` stops everything it started, and the next run redoes what was cut.
     prctl(PR_SET_PDEATHSIG, SIGTERM);
     if (getppid() != parent) _exit(125);
+    const int fd = open(output_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd >= 0) {
+      dup2(fd, STDOUT_FILENO);
+      dup2(fd, STDERR_FILENO);
+    }
     execv(executable.c_str(), argv.data());
     _exit(127);
   }
@@ -128,7 +136,9 @@ StatusOr<RunSummary> RunLocal(const JobGraph& graph, const RunContext& context,
       std::vector<std::string> args = worker_args;
       args.push_back(job.id);
       if (options.force) args.push_back("--force");
-      FACEDYN_ASSIGN_OR_RETURN(const pid_t pid, SpawnWorker(context.executable, args));
+      FACEDYN_ASSIGN_OR_RETURN(
+          const pid_t pid,
+          SpawnWorker(context.executable, args, LogPath(graph.out_dir, job.id) + ".worker"));
       running[pid] = i;
       started[i] = std::chrono::steady_clock::now();
       phase[i] = Phase::kRunning;
@@ -158,9 +168,10 @@ StatusOr<RunSummary> RunLocal(const JobGraph& graph, const RunContext& context,
     } else {
       std::string reason = state.status == "failed" ? state.reason : std::string();
       if (reason.empty()) {
-        reason = WIFSIGNALED(status)
-                     ? fmt::format("the worker was killed by signal {}", WTERMSIG(status))
-                     : fmt::format("the worker exited with {}", WEXITSTATUS(status));
+        reason = (WIFSIGNALED(status)
+                      ? fmt::format("the worker was killed by signal {}", WTERMSIG(status))
+                      : fmt::format("the worker exited with {}", WEXITSTATUS(status))) +
+                 " (see " + LogPath(graph.out_dir, graph.jobs[i].id) + ".worker)";
       }
       finish(i, "failed", reason, elapsed);
     }

@@ -22,6 +22,7 @@ packages=(
   nlohmann-json3-dev       # JSON output
   libspdlog-dev libfmt-dev # logging and formatting
   libtinygltf-dev          # glTF 2.0 export (export/gltf_export)
+  libssl-dev               # SHA-256 of a job's inputs (process/content_hash)
   libjs-three              # three.js, inlined into `facedyn view` pages (report/take_viewer)
   libgtest-dev libgmock-dev libbenchmark-dev  # tests and benchmarks
   # test-only peers: an independent Modbus implementation, pty pairs for RTU, USB replay

@@ -57,7 +57,7 @@ class ChildProcess {
   int pid_ = -1;
 };
 
-// Writes bytes to a file (for crafting corrupt inputs).
+// Writes bytes to a file (for crafting corrupt inputs), creating its folder.
 void WriteBytes(const std::string& path, const std::string& bytes);
 std::string ReadBytes(const std::string& path);
 

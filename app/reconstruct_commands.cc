@@ -3,6 +3,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -94,15 +95,35 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
       report["cameras"] = Json::array();
       for (const auto& camera : input.cameras) report["cameras"].push_back(camera.name);
       report["take_problems"] = input.take_problems;
-      report["jaw"] = result.jaw_status.ok()
-                          ? Json(result.take.skull_from_jaw.empty() ? "rig has no jaw" : "estimated")
-                          : Json("not estimated: " + result.jaw_status.message());
+      report["jaw"] =
+          result.jaw_status.ok()
+              ? Json(result.take.skull_from_jaw.empty() ? "rig has no jaw" : "estimated")
+              : Json("not estimated: " + result.jaw_status.message());
       report["frames"] = result.take.frame_count();
       report["seconds"] = {{"detect", input.detect_s},
                            {"triangulate", result.timings.triangulate_s},
                            {"track", result.timings.track_s},
                            {"skull", result.timings.skull_s},
                            {"dense", result.timings.dense_s}};
+      // Where detection spends its time on this take's images (reconstruct_bench reports the
+      // same per image for its own rendered frames): counters per image, CPU ms per stage.
+      {
+        const auto& t = input.detection_totals;
+        const double n = std::max<int64_t>(1, input.images_detected);
+        report["seconds"]["detect_cpu_ms_per_image"] = {
+            {"candidates", t.candidates_ms / n},
+            {"fits", t.fit_ms / n},
+            {"occlusion_and_merge", t.occlusion_ms / n}};
+        report["detection"] = {
+            {"images", input.images_detected},
+            {"candidates_per_image", t.candidates / n},
+            {"accepted_per_image", t.accepted / n},
+            {"iterations_per_fit", t.fit_iterations / std::max(1.0, double(t.candidates))},
+            {"window_pixels_per_evaluation",
+             t.fit_pixel_evaluations / std::max(1.0, double(t.fit_evaluations))},
+            {"occlusion_fits_per_image", t.occlusion_fits / n},
+            {"occlusion_refits_kept_per_image", t.refitted_for_occlusion / n}};
+      }
       int problem_frames = 0;
       double mean_reprojection = 0.0, mean_labelled = 0.0, mean_fit = 0.0;
       for (size_t f = 0; f < result.quality.size(); ++f) {

@@ -6,10 +6,28 @@
 
 #include <cerrno>
 #include <filesystem>
+#include <fstream>
 
 #include "process/slurm.h"
 
 namespace facedyn::process {
+
+namespace {
+
+// A process that exists and is not a zombie (a worker whose scheduler was killed is re-parented;
+// where nothing reaps it, it lingers as a zombie but runs nothing).
+bool ProcessAlive(int64_t pid) {
+  if (pid <= 0) return false;
+  if (kill(static_cast<pid_t>(pid), 0) != 0 && errno != EPERM) return false;
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string text;
+  std::getline(stat, text);
+  const size_t paren = text.rfind(')');
+  if (paren == std::string::npos || paren + 2 >= text.size()) return true;
+  return text[paren + 2] != 'Z';
+}
+
+}  // namespace
 
 int ProcessStatus::Count(const std::string& state) const {
   int n = 0;
@@ -87,8 +105,8 @@ StatusOr<ProcessStatus> ReadProcessStatus(const std::string& out_dir, const RunC
       js.detail = state.reason;
     } else if (state.status == "running") {
       // Alive when Slurm still lists it, or when it ran here and its pid is alive.
-      const bool local_alive = state.slurm_job.empty() && state.host == host && state.pid > 0 &&
-                               (kill(static_cast<pid_t>(state.pid), 0) == 0 || errno == EPERM);
+      const bool local_alive =
+          state.slurm_job.empty() && state.host == host && ProcessAlive(state.pid);
       if (q != queued.end() || local_alive) {
         js.state = "running";
         js.detail = "on " + state.host +

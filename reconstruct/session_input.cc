@@ -188,7 +188,30 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
         images[c] = cv::Mat();
       }
     }
-    const auto found = DetectMarkersInImages(images, options.detection);
+    std::vector<MarkerDetectionSummary> summaries;
+    const auto found = DetectMarkersInImages(images, options.detection, 0, &summaries);
+    for (size_t c = 0; c < summaries.size(); ++c) {
+      if (images[c].empty()) continue;
+      const MarkerDetectionSummary& s = summaries[c];
+      MarkerDetectionSummary& total = out.detection_totals;
+      ++out.images_detected;
+      total.candidates += s.candidates;
+      total.accepted += s.accepted;
+      total.rejected_fit += s.rejected_fit;
+      total.rejected_size += s.rejected_size;
+      total.rejected_contrast += s.rejected_contrast;
+      total.rejected_quality += s.rejected_quality;
+      total.duplicates += s.duplicates;
+      total.fit_iterations += s.fit_iterations;
+      total.fit_evaluations += s.fit_evaluations;
+      total.fit_pixel_evaluations += s.fit_pixel_evaluations;
+      total.occlusion_fits += s.occlusion_fits;
+      total.occlusion_iterations += s.occlusion_iterations;
+      total.refitted_for_occlusion += s.refitted_for_occlusion;
+      total.candidates_ms += s.candidates_ms;
+      total.fit_ms += s.fit_ms;
+      total.occlusion_ms += s.occlusion_ms;
+    }
     for (size_t c = 0; c < out.cameras.size(); ++c) {
       if (images[c].empty()) continue;
       if (!found[c].ok()) {

@@ -42,6 +42,10 @@ struct SessionDetections {
   std::vector<std::vector<std::string>> frame_problems;  // per frame
   std::vector<std::string> take_problems;                // cameras left out, ...
   double detect_s = 0.0;
+  // The detector's counters and per-stage CPU time summed over every image of the take (what
+  // reconstruct_bench reports per image, here for a real session's images).
+  MarkerDetectionSummary detection_totals;
+  int64_t images_detected = 0;
 };
 
 StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,

@@ -86,6 +86,11 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
       if (input.hold_start_s) result.take.info.hold_start_s = input.hold_start_s;
       result.take.info.metadata["session"] = options->session;
       result.take.info.metadata["session_take"] = options->take;
+      // The labelled markers themselves, before take.json (written last by SaveTake).
+      result.take.info.metadata["marker_tracks"] = {{"world", kMarkerTracksFile},
+                                                    {"skull", kMarkerTracksSkullFile}};
+      FACEDYN_RETURN_IF_ERROR(SaveMarkerTracks(reconstruct::MarkerTracksOf(rig, result),
+                                               result.take.world_from_skull, options->out));
       FACEDYN_RETURN_IF_ERROR(SaveTake(result.take, options->out));
 
       Json report;

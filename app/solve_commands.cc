@@ -122,6 +122,7 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
     std::string take;
     std::string rig = "procedural";
     std::string channel;
+    std::string from = "auto";
     std::string model;
     std::string out;
     int anchor = -1;
@@ -145,6 +146,12 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
   run->add_option("--channel", run_options->channel,
                   "With --take: solve a channel of the take (e.g. a removal's output) instead of "
                   "its positions");
+  run->add_option("--from", run_options->from,
+                  "With --take: 'tracks' (the reconstruction's labelled markers, "
+                  "marker_tracks.csv), 'mesh' (the markers' points on the fitted mesh) or 'auto' "
+                  "(tracks when the take has them and no --channel is given)")
+      ->check(CLI::IsMember({"auto", "tracks", "mesh"}))
+      ->capture_default_str();
   run->add_option("--model", run_options->model, "Solver folder (facedyn solve train --out)")
       ->required();
   run->add_option("--out", run_options->out,
@@ -172,9 +179,31 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
       if (!o.take.empty()) {
         FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(o.rig));
         FACEDYN_ASSIGN_OR_RETURN(const Take take, LoadTake(o.take));
-        FACEDYN_ASSIGN_OR_RETURN(frames, solve::MarkersFromTake(puppet, rig, take, o.channel));
+        if (o.from == "tracks" && !o.channel.empty()) {
+          return InvalidArgumentError(
+              "--from tracks solves the labelled markers; --channel is "
+              "for --from mesh");
+        }
+        const auto tracks = LoadMarkerTracks(o.take);
+        if (!tracks.ok() &&
+            (o.from == "tracks" || tracks.status().code() != StatusCode::kNotFound)) {
+          return tracks.status();
+        }
+        if (tracks.ok() && (o.from == "tracks" || (o.from == "auto" && o.channel.empty()))) {
+          if (tracks->frame_count() != take.frame_count()) {
+            return InvalidArgumentError(fmt::format("{}: marker tracks have {} frames, the take {}",
+                                                    o.take, tracks->frame_count(),
+                                                    take.frame_count()));
+          }
+          spdlog::info("solving the take's labelled marker tracks ({})", kMarkerTracksFile);
+          FACEDYN_ASSIGN_OR_RETURN(
+              frames, solve::MarkersFromTracks(puppet, *tracks, take.world_from_skull));
+        } else {
+          FACEDYN_ASSIGN_OR_RETURN(frames, solve::MarkersFromTake(puppet, rig, take, o.channel));
+        }
       } else {
         if (!o.channel.empty()) return InvalidArgumentError("--channel needs --take");
+        if (o.from != "auto") return InvalidArgumentError("--from needs --take");
         FACEDYN_ASSIGN_OR_RETURN(frames, solve::ReadMarkersCsv(o.markers, puppet));
       }
       const std::string source = o.take.empty() ? o.markers : o.take;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include "core/progress.h"
 
@@ -199,6 +200,30 @@ StatusOr<Reconstruction> ReconstructTake(
   out.take.SetUniformTimes();
   FACEDYN_RETURN_IF_ERROR(out.take.Validate().WithContext("reconstructed take"));
   return out;
+}
+
+MarkerTracks MarkerTracksOf(const FaceRig& rig, const Reconstruction& reconstruction) {
+  MarkerTracks tracks;
+  const int m = static_cast<int>(rig.markers.size());
+  const int n = static_cast<int>(reconstruction.tracked.size());
+  for (const auto& marker : rig.markers) tracks.names.push_back(marker.name);
+  tracks.time_s = reconstruction.take.time_s;
+  tracks.time_s.resize(n);
+  tracks.world_mm.setConstant(3 * m, n, std::numeric_limits<double>::quiet_NaN());
+  tracks.confidence.setZero(m, n);
+  tracks.state.assign(n, std::vector<MarkerTrackState>(m, MarkerTrackState::kMissing));
+  for (int f = 0; f < n; ++f) {
+    const TrackedFrame& t = reconstruction.tracked[f];
+    for (int i = 0; i < m && i < static_cast<int>(t.states.size()); ++i) {
+      if (t.states[i] == MarkerState::kMissing) continue;
+      tracks.state[f][i] = t.states[i] == MarkerState::kObserved ? MarkerTrackState::kObserved
+                                                                 : MarkerTrackState::kBridged;
+      tracks.world_mm.block(3 * i, f, 3, 1) = t.positions_in_world.col(i);
+      tracks.confidence(i, f) =
+          i < static_cast<int>(t.confidence.size()) ? std::clamp(t.confidence[i], 0.0, 1.0) : 0.0;
+    }
+  }
+  return tracks;
 }
 
 }  // namespace facedyn::reconstruct

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "core/face_rig.h"
+#include "core/marker_tracks.h"
 #include "core/status.h"
 #include "core/take.h"
 #include "reconstruct/camera.h"
@@ -74,6 +75,12 @@ struct Reconstruction {
   // and take.info.metadata["jaw"] says so too).
   Status jaw_status;
 };
+
+// The labelled markers of a reconstruction as a take's marker tracks (core/marker_tracks.h): per
+// frame and rig marker, the triangulated position (world frame), observed / bridged / missing and
+// the tracker's confidence. Missing markers have no position (the tracker's prediction is not
+// data).
+MarkerTracks MarkerTracksOf(const FaceRig& rig, const Reconstruction& reconstruction);
 
 // detections[f][c]: camera c's marker detections in frame f (pixels, weight = quality).
 StatusOr<Reconstruction> ReconstructTake(

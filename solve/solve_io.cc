@@ -205,4 +205,39 @@ StatusOr<MarkerFrames> MarkersFromTake(const Puppet& puppet, const FaceRig& rig,
   return frames;
 }
 
+StatusOr<MarkerFrames> MarkersFromTracks(const Puppet& puppet, const MarkerTracks& tracks,
+                                         const std::vector<Rigid3>& world_from_skull) {
+  const int n = tracks.frame_count();
+  if (static_cast<int>(world_from_skull.size()) != n) {
+    return InvalidArgumentError(fmt::format(
+        "marker tracks have {} frames, the take's skull motion {}", n, world_from_skull.size()));
+  }
+  std::vector<int> track_of(puppet.marker_count(), -1);
+  for (int m = 0; m < puppet.marker_count(); ++m) {
+    for (int i = 0; i < tracks.marker_count(); ++i) {
+      if (tracks.names[i] == puppet.marker_names[m]) track_of[m] = i;
+    }
+    if (track_of[m] < 0) {
+      return InvalidArgumentError(
+          fmt::format("the marker tracks have no marker '{}' of puppet '{}'",
+                      puppet.marker_names[m], puppet.rig_name));
+    }
+  }
+  MarkerFrames frames;
+  frames.time_s = tracks.time_s;
+  frames.markers_in_skull.setZero(3 * puppet.marker_count(), n);
+  frames.present = MarkerPresence::Constant(puppet.marker_count(), n, false);
+  for (int f = 0; f < n; ++f) {
+    const Rigid3 skull_from_world = world_from_skull[f].Inverse();
+    for (int m = 0; m < puppet.marker_count(); ++m) {
+      const int i = track_of[m];
+      if (!tracks.present(i, f)) continue;
+      frames.markers_in_skull.block(3 * m, f, 3, 1) =
+          skull_from_world * Eigen::Vector3d(tracks.world_mm.block(3 * i, f, 3, 1));
+      frames.present(m, f) = true;
+    }
+  }
+  return frames;
+}
+
 }  // namespace facedyn::solve

@@ -14,6 +14,7 @@
 
 #include "core/blendshape_weights.h"
 #include "core/face_rig.h"
+#include "core/marker_tracks.h"
 #include "core/status.h"
 #include "core/take.h"
 #include "solve/marker_fit.h"
@@ -57,5 +58,12 @@ Status WriteMarkersCsv(const std::string& path, const Puppet& puppet, const Mark
 // never feed a method.
 StatusOr<MarkerFrames> MarkersFromTake(const Puppet& puppet, const FaceRig& rig, const Take& take,
                                        const std::string& channel = "");
+
+// The puppet's markers from a take's labelled marker tracks (core/marker_tracks.h, written by
+// `facedyn reconstruct`): the triangulated markers themselves, not the fitted mesh, in the skull
+// frame of `world_from_skull` (one pose per frame); a missing marker is absent, a bridged one
+// present. Errors: a puppet marker the tracks do not have (named), frame counts that disagree.
+StatusOr<MarkerFrames> MarkersFromTracks(const Puppet& puppet, const MarkerTracks& tracks,
+                                         const std::vector<Rigid3>& world_from_skull);
 
 }  // namespace facedyn::solve

@@ -188,5 +188,68 @@ TEST(MarkersFromTake, SkullFrameMarkersOfAPosedMovingHead) {
   EXPECT_NE(foreign.status().message().find("topology"), std::string::npos);
 }
 
+TEST(MarkersFromTracks, SkullFrameMarkersFromTheTracksFileWithMissingAndBridged) {
+  const Puppet& puppet = testing::ProceduralPuppet();
+  Eigen::VectorXd weights = Eigen::VectorXd::Zero(puppet.channel_count());
+  weights[0] = 0.5;
+  const Eigen::VectorXd in_skull = puppet.StackedMarkers(weights);
+  const int m = puppet.marker_count();
+  // Tracks with one extra marker the puppet does not know, in reversed order.
+  MarkerTracks tracks;
+  tracks.names.push_back("extra_dot");
+  for (int i = m - 1; i >= 0; --i) tracks.names.push_back(puppet.marker_names[i]);
+  tracks.time_s = {0.0, 0.1};
+  tracks.world_mm.setConstant(3 * (m + 1), 2, std::nan(""));
+  tracks.confidence.setZero(m + 1, 2);
+  tracks.state.assign(2, std::vector<MarkerTrackState>(m + 1, MarkerTrackState::kObserved));
+  std::vector<Rigid3> world_from_skull;
+  for (int f = 0; f < 2; ++f) {
+    world_from_skull.push_back(
+        Rigid3(Eigen::Quaterniond(Eigen::AngleAxisd(0.3 * f + 0.1, Eigen::Vector3d::UnitY())),
+               Eigen::Vector3d(5.0 * f, 1.0, -2.0)));
+    tracks.world_mm.block(0, f, 3, 1) = Eigen::Vector3d(1, 2, 3);
+    for (int i = 0; i < m; ++i) {
+      const int t = 1 + (m - 1 - i);
+      tracks.world_mm.block(3 * t, f, 3, 1) =
+          world_from_skull[f] * Eigen::Vector3d(in_skull.segment<3>(3 * i));
+      tracks.confidence(t, f) = 0.9;
+    }
+  }
+  tracks.state[1][1] = MarkerTrackState::kMissing;  // puppet marker m - 1, frame 1
+  tracks.world_mm.block(3, 1, 3, 1).setConstant(std::nan(""));
+  tracks.state[1][2] = MarkerTrackState::kBridged;  // puppet marker m - 2, frame 1
+  TempDir dir;
+  ASSERT_TRUE(SaveMarkerTracks(tracks, world_from_skull, dir.path()).ok());
+  const auto loaded = LoadMarkerTracks(dir.path());
+  ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+  const auto frames = MarkersFromTracks(puppet, *loaded, world_from_skull);
+  ASSERT_TRUE(frames.ok()) << frames.status().message();
+  EXPECT_FALSE(frames->present(m - 1, 1));
+  EXPECT_TRUE(frames->present(m - 2, 1));
+  EXPECT_EQ(frames->present.count(), 2 * m - 1);
+  for (int f = 0; f < 2; ++f) {
+    for (int i = 0; i < m; ++i) {
+      if (!frames->present(i, f)) continue;
+      EXPECT_LT((frames->markers_in_skull.block(3 * i, f, 3, 1) - in_skull.segment<3>(3 * i))
+                    .cwiseAbs()
+                    .maxCoeff(),
+                1e-5);
+    }
+  }
+  // The skull-frame file is the labelled-markers CSV a solver reads: the same markers.
+  const auto csv = ReadMarkersCsv(dir.Join(kMarkerTracksSkullFile), puppet);
+  ASSERT_TRUE(csv.ok()) << csv.status().message();
+  EXPECT_TRUE((csv->present.array() == frames->present.array()).all());
+  EXPECT_LT((csv->markers_in_skull - frames->markers_in_skull).cwiseAbs().maxCoeff(), 1e-5);
+
+  // A puppet marker the tracks lack is named; frame counts must agree.
+  MarkerTracks fewer = *loaded;
+  fewer.names[1] = "renamed";
+  const auto lacking = MarkersFromTracks(puppet, fewer, world_from_skull);
+  ASSERT_FALSE(lacking.ok());
+  EXPECT_TRUE(Contains(lacking.status(), puppet.marker_names[m - 1]));
+  EXPECT_FALSE(MarkersFromTracks(puppet, *loaded, {world_from_skull[0]}).ok());
+}
+
 }  // namespace
 }  // namespace facedyn::solve

@@ -26,6 +26,7 @@
 #include "app/reconstruct_demo.h"
 #include "report/report.h"
 #include "app/rig_demo.h"
+#include "app/solve_demo.h"
 #include "core/file_util.h"
 #include "core/json_io.h"
 #include "core/mesh_primitives.h"
@@ -266,6 +267,13 @@ Status RunDemo(const DemoOptions& options) {
     clock.Lap(fmt::format("dynamics replicates ({} more seeds)", options.seeds.size() - 1));
   }
   metrics["dynamics"] = dynamics_metrics;
+  // Rig solving (FDLS) of the reconstructed performance, before and after removal.
+  FACEDYN_ASSIGN_OR_RETURN(
+      metrics["solve"],
+      RunSolveDemoStage(face, artifacts,
+                        SolveDemoOptions::ForDemo(options.quick, options.seeds.front()),
+                        options.out_dir));
+  clock.Lap("rig solving (FDLS)");
   FACEDYN_ASSIGN_OR_RETURN(metrics["renders"],
                            RenderDemoDynamics(face, artifacts, options.out_dir));
   clock.Lap("renders");

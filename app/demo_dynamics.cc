@@ -457,6 +457,12 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
         eval::CompareRemovalOnReconstruction(f_model, reference_removal, extra_specs[i].name, extra.simulated[i],
                        extra.reconstructed[i], face, skip, nullptr));
   }
+  if (artifacts != nullptr && options.performance_expression != "") {
+    artifacts->performance_simulated = extra.simulated.back();
+    artifacts->performance_reconstructed = extra.reconstructed.back();
+    FACEDYN_ASSIGN_OR_RETURN(artifacts->performance_removed,
+                             dynamics::RemoveDynamics(f_model, extra.reconstructed.back(), face));
+  }
   result["removal_walk"]["step_hz"] = options.test_walk_step_hz;
   result["removal_walk"]["training_walk_step_hz"] = options.training_walk_step_hz;
   Take walk_truth = std::move(extra.simulated.front());

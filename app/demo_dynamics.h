@@ -109,6 +109,11 @@ struct DemoDynamicsArtifacts {
   Take retarget_truth;        // B simulated walking A's walk
   Take retargeted;            // B's H on B's quasistatic under A's walk
   Take naive;                 // NaiveDeltaTransfer of A's walk offsets onto B
+  // The performance on the held-out frequency (options.performance_expression; empty takes when
+  // there is none): as simulated (exact channels), reconstructed, and after F's removal.
+  Take performance_simulated;
+  Take performance_reconstructed;
+  Take performance_removed;
 };
 
 // Runs the stage for subject `face` (A) with the calibrated `cameras`; `test_simulated` and

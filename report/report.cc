@@ -13,8 +13,8 @@
 #include <utility>
 #include <vector>
 
-#include "report/face_render.h"
 #include "core/json_io.h"
+#include "report/face_render.h"
 
 namespace facedyn::report {
 
@@ -144,8 +144,8 @@ std::string SvgLinePlot(const std::string& title, const std::string& x_label,
       "<text x=\"{}\" y=\"{}\" font-size=\"12\" text-anchor=\"middle\">{}</text>"
       "<text x=\"14\" y=\"{}\" font-size=\"12\" text-anchor=\"middle\" "
       "transform=\"rotate(-90 14 {})\">{}</text>",
-      left, top, plot_w, plot_h, left + plot_w / 2, height - 8, EscapeHtml(x_label), top + plot_h / 2,
-      top + plot_h / 2, EscapeHtml(y_label));
+      left, top, plot_w, plot_h, left + plot_w / 2, height - 8, EscapeHtml(x_label),
+      top + plot_h / 2, top + plot_h / 2, EscapeHtml(y_label));
   int legend_row = 0;
   for (const SvgSeries& line : series) {
     const size_t n = std::min(line.x.size(), line.y.size());
@@ -212,11 +212,12 @@ std::string FieldTable(const Json& object, const std::vector<std::string>& keys)
   for (const std::string& key : keys) {
     if (!object.is_object() || !object.contains(key)) continue;
     const Json& value = object[key];
-    table += "<tr><td>" + EscapeHtml(key) + "</td><td>" +
-             (value.is_number_float() ? fmt::format("{:.4g}", value.get<double>())
-              : value.is_string()     ? EscapeHtml(value.get<std::string>())
-                                  : EscapeHtml(value.dump(-1, ' ', false, kJsonReplaceInvalidUtf8))) +
-             "</td></tr>";
+    table +=
+        "<tr><td>" + EscapeHtml(key) + "</td><td>" +
+        (value.is_number_float() ? fmt::format("{:.4g}", value.get<double>())
+         : value.is_string()     ? EscapeHtml(value.get<std::string>())
+                             : EscapeHtml(value.dump(-1, ' ', false, kJsonReplaceInvalidUtf8))) +
+        "</td></tr>";
   }
   return table + "</table>";
 }
@@ -330,7 +331,8 @@ std::string DynamicsSection(const Json& dynamics) {
             "reference is Eq. 7 with the exact offsets applied in the skull frame the "
             "reconstruction estimated: what a perfect F would leave. The low-pass cutoff is set "
             "by a rule that needs no truth; lowpass_oracle is the best cutoff against the truth, "
-            "which no user could set. These bars are one seed: a difference here is not a comparison.</p>" +
+            "which no user could set. These bars are one seed: a difference here is not a "
+            "comparison.</p>" +
             SvgBarChart(Text(removal, "take") + RemovalChartNote(removal),
                         MethodBars(Field(removal, "methods"), "jiggle_mean_mm"), "mm");
   }
@@ -429,10 +431,11 @@ std::string ReplicatesSection(const Json& replicates) {
                                        Text(v, "method") + " " + Text(v, "error_is");
       }
       for (const auto& [method, spread] : Field(take, "methods").items()) {
-        html += fmt::format("<tr><td>{}</td><td>{:.4f}</td><td>{:.4f}</td><td>{}</td><td>{}</td></tr>",
-                            EscapeHtml(method), Number(spread, "mean_mm"), Number(spread, "sd_mm"),
-                            EscapeHtml(Text(spread, "replicates")),
-                            EscapeHtml(verdict.count(method) ? verdict[method] : ""));
+        html +=
+            fmt::format("<tr><td>{}</td><td>{:.4f}</td><td>{:.4f}</td><td>{}</td><td>{}</td></tr>",
+                        EscapeHtml(method), Number(spread, "mean_mm"), Number(spread, "sd_mm"),
+                        EscapeHtml(Text(spread, "replicates")),
+                        EscapeHtml(verdict.count(method) ? verdict[method] : ""));
       }
       html += "</table>";
     }
@@ -470,6 +473,52 @@ std::string ReferenceSection(const Json& reference) {
                           100 * Number(entry, "relative_to_offset"));
     }
     html += "</table>";
+  }
+  return html;
+}
+
+// Rig solving (FDLS) of the reconstructed performance: weight error against the reference per
+// marker source and method, and the weight curves of the most active channels.
+std::string SolveSection(const Json& solve) {
+  std::string html =
+      "<h2>Rig solving (FDLS): the reconstructed performance into the puppet's controls</h2><p>" +
+      EscapeHtml(Text(solve, "note")) +
+      " Reference: " + EscapeHtml(Text(Field(solve, "reference"), "what")) +
+      ". Step RMS: frame-to-frame change of the weights, where picked-up jiggle shows.</p>"
+      "<table><tr><th>markers from</th><th>method</th><th>weight RMSE</th><th>jaw weight "
+      "RMSE</th><th>marker RMSE (mm)</th><th>weight step RMS</th></tr>";
+  for (const auto& [key, label] :
+       {std::pair<const char*, const char*>{"from_reconstructed", "reconstructed (with jiggle)"},
+        {"from_removed", "after removal (F)"}}) {
+    for (const char* method : {"network", "network_finetuned"}) {
+      const Json& f = Field(Field(solve, key), method);
+      html += fmt::format(
+          "<tr><td>{}</td><td>{}</td><td>{:.4f}</td><td>{:.4f}</td><td>{:.3f}</td><td>{:.4f}</td>"
+          "</tr>",
+          label, method, Number(f, "weight_rmse"), Number(f, "jaw_weight_rmse"),
+          Number(f, "marker_rmse_mm"), Number(f, "weight_step_rms"));
+    }
+  }
+  html += fmt::format(
+      "<tr><td>reference</td><td></td><td></td><td></td><td></td><td>{:.4f}</td>"
+      "</tr></table>",
+      Number(Field(solve, "reference"), "weight_step_rms"));
+  const Json& curves = Field(solve, "curves");
+  const std::vector<double> t = Numbers(Field(curves, "time_s"));
+  for (const Json& channel : Field(curves, "channels")) {
+    html += SvgLinePlot("Weight of '" + Text(channel, "channel") + "' (after fine-tuning)",
+                        "time (s)", "weight",
+                        {SvgSeries{"reference (exact quasistatic)", "#222", t,
+                                   Numbers(Field(channel, "reference")), true, 1.5},
+                         SvgSeries{"from the reconstructed take", "#c0392b", t,
+                                   Numbers(Field(channel, "from_reconstructed")), false, 1.2},
+                         SvgSeries{"after removal (F)", "#2e86c1", t,
+                                   Numbers(Field(channel, "from_removed")), false, 1.5}});
+  }
+  if (solve.contains("driven")) {
+    html += "<p>Second character: " + EscapeHtml(Text(solve["driven"], "rig")) +
+            " driven by the weights solved after removal, take " +
+            EscapeHtml(Text(solve["driven"], "take")) + ".</p>";
   }
   return html;
 }
@@ -532,6 +581,7 @@ Status WriteDemoReport(const Json& metrics, const std::string& path, const std::
          "dynamic_offset_correlation", "triangulate_fps", "dense_fit_fps"});
   }
   if (metrics.contains("dynamics")) html += DynamicsSection(metrics["dynamics"]);
+  if (metrics.contains("solve")) html += SolveSection(metrics["solve"]);
   if (metrics.contains("renders")) {
     const Json& renders = metrics["renders"];
     html +=
@@ -554,9 +604,10 @@ Status WriteDemoReport(const Json& metrics, const std::string& path, const std::
         const double range_mm = std::isfinite(Number(image, "range_mm"))
                                     ? Number(image, "range_mm")
                                     : Number(renders, "range_mm");
-        html += (last_row.empty() ? "" : "</tr>") +
-                fmt::format("<tr><td>{}{}frame {}<br>&plusmn;{:g} mm</td>", EscapeHtml(group),
-                            group.empty() ? "" : "<br>", EscapeHtml(Text(image, "frame")), range_mm);
+        html +=
+            (last_row.empty() ? "" : "</tr>") +
+            fmt::format("<tr><td>{}{}frame {}<br>&plusmn;{:g} mm</td>", EscapeHtml(group),
+                        group.empty() ? "" : "<br>", EscapeHtml(Text(image, "frame")), range_mm);
         last_row = row;
       }
       html += fmt::format(
@@ -567,15 +618,16 @@ Status WriteDemoReport(const Json& metrics, const std::string& path, const std::
     if (!last_row.empty()) html += "</tr>";
     html += "</table>";
     // Viewer pages are too large to inline: linked relative to the report, wherever it is.
-    if (renders.contains("viewers") && renders["viewers"].is_array() && !renders["viewers"].empty()) {
+    if (renders.contains("viewers") && renders["viewers"].is_array() &&
+        !renders["viewers"].empty()) {
       html += "<p>Play these takes in the browser (facedyn view; drag to orbit):</p><ul>";
       const std::filesystem::path report_dir = std::filesystem::absolute(path).parent_path();
       for (const Json& viewer : renders["viewers"]) {
         std::filesystem::path page(Text(viewer, "path"));
         if (page.is_relative()) page = std::filesystem::absolute(base / page);
         const std::string link = page.lexically_relative(report_dir).generic_string();
-        html += fmt::format("<li><a href=\"{}\">{}</a> ({:.1f} MB){}</li>", EscapeHtml(link), EscapeHtml(Text(viewer, "title")),
-                            Number(viewer, "megabytes"),
+        html += fmt::format("<li><a href=\"{}\">{}</a> ({:.1f} MB){}</li>", EscapeHtml(link),
+                            EscapeHtml(Text(viewer, "title")), Number(viewer, "megabytes"),
                             std::filesystem::exists(page) ? "" : " &mdash; <em>missing</em>");
       }
       html += "</ul>";

@@ -240,4 +240,40 @@ StatusOr<MarkerFrames> MarkersFromTracks(const Puppet& puppet, const MarkerTrack
   return frames;
 }
 
+StatusOr<Take> DriveRig(const FaceRig& rig, const BlendshapeWeightsTrack& track,
+                        const std::string& source) {
+  FACEDYN_RETURN_IF_ERROR(track.Validate().WithContext(source));
+  std::vector<int> column_channel;
+  for (size_t column = 0; column < track.names.size(); ++column) {
+    const int k = rig.BlendshapeIndex(track.names[column]);
+    if (k < 0) {
+      return InvalidArgumentError(fmt::format("{}: column {} '{}' is not a blendshape of rig '{}'",
+                                              source, column + 2, track.names[column], rig.name));
+    }
+    column_channel.push_back(k);
+  }
+  if (track.sample_count() < 2) return InvalidArgumentError(source + ": needs at least 2 frames");
+  Take take;
+  take.info.fps = (track.sample_count() - 1) / (track.time_s.back() - track.time_s.front());
+  take.info.subject = rig.name;
+  take.info.expression = "solved";
+  take.info.motion = "none";
+  take.info.source = "solve apply";
+  take.topology = rig.neutral;
+  take.positions.vertex_count = rig.vertex_count();
+  take.positions.positions.resize(3 * rig.vertex_count(), track.sample_count());
+  for (int f = 0; f < track.sample_count(); ++f) {
+    Eigen::VectorXd w =
+        Eigen::VectorXd::Zero(static_cast<Eigen::Index>(rig.blendshape_names.size()));
+    for (size_t column = 0; column < column_channel.size(); ++column) {
+      w[column_channel[column]] = track.weights(f, static_cast<Eigen::Index>(column));
+    }
+    take.positions.Frame(f) = rig.Evaluate(w).cast<float>();
+    take.time_s.push_back(track.time_s[f] - track.time_s.front());
+    take.world_from_skull.push_back(Rigid3::Identity());
+  }
+  FACEDYN_RETURN_IF_ERROR(take.Validate());
+  return take;
+}
+
 }  // namespace facedyn::solve

@@ -66,4 +66,12 @@ StatusOr<MarkerFrames> MarkersFromTake(const Puppet& puppet, const FaceRig& rig,
 StatusOr<MarkerFrames> MarkersFromTracks(const Puppet& puppet, const MarkerTracks& tracks,
                                          const std::vector<Rigid3>& world_from_skull);
 
+// A rig driven by a weights track (`facedyn solve apply`): one frame per sample, the rig's
+// blendshapes at the track's weights, head still (identity skull pose), times from 0. Columns are
+// matched to the rig's blendshapes by name, so a track solved on one face drives any rig with the
+// same channel names (another identity, the procedural face); the rig's other channels stay 0.
+// Errors name `source` and the column the rig lacks; fewer than 2 samples is an error.
+StatusOr<Take> DriveRig(const FaceRig& rig, const BlendshapeWeightsTrack& track,
+                        const std::string& source);
+
 }  // namespace facedyn::solve

@@ -251,5 +251,37 @@ TEST(MarkersFromTracks, SkullFrameMarkersFromTheTracksFileWithMissingAndBridged)
   EXPECT_FALSE(MarkersFromTracks(puppet, *loaded, {world_from_skull[0]}).ok());
 }
 
+TEST(DriveRig, EvaluatesTheRigAtTheTrackAndNamesAForeignColumn) {
+  const FaceRig& rig = testing::ProceduralRig();
+  BlendshapeWeightsTrack track;
+  track.names = {"smile", "jaw_open"};
+  track.time_s = {1.0, 1.5, 2.0};
+  track.weights.resize(3, 2);
+  track.weights << 0.0, 0.0, 0.5, 0.2, 1.0, 0.0;
+  const auto take = DriveRig(rig, track, "w.csv");
+  ASSERT_TRUE(take.ok()) << take.status().message();
+  ASSERT_EQ(take->frame_count(), 3);
+  EXPECT_DOUBLE_EQ(take->time_s.front(), 0.0);
+  EXPECT_DOUBLE_EQ(take->info.fps, 2.0);
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(rig.blendshape_names.size()));
+  w[rig.BlendshapeIndex("smile")] = 0.5;
+  w[rig.BlendshapeIndex("jaw_open")] = 0.2;
+  const Eigen::Matrix3Xd expected = rig.Evaluate(w);
+  EXPECT_LT((take->positions.Frame(1).cast<double>() - expected).cwiseAbs().maxCoeff(), 1e-3);
+  EXPECT_LT((take->positions.Frame(0).cast<double>() - rig.neutral.positions_mm)
+                .cwiseAbs()
+                .maxCoeff(),
+            1e-3);
+
+  track.names[1] = "eyeBlinkLeft";
+  const auto foreign = DriveRig(rig, track, "w.csv");
+  ASSERT_FALSE(foreign.ok());
+  EXPECT_TRUE(Contains(foreign.status(), "w.csv: column 3 'eyeBlinkLeft'"));
+  track.names[1] = "jaw_open";
+  track.time_s.resize(1);
+  track.weights.conservativeResize(1, 2);
+  EXPECT_FALSE(DriveRig(rig, track, "w.csv").ok());
+}
+
 }  // namespace
 }  // namespace facedyn::solve

@@ -17,6 +17,8 @@
 #include "core/file_util.h"
 #include "dynamics/baselines.h"
 #include "dynamics/features.h"
+#include "dynamics/modal_synthesis.h"
+#include "dynamics/quasistatic.h"
 #include "learn/mlp.h"
 #include "dynamics/synthesis_model.h"
 #include "eval/dynamics_study.h"
@@ -251,6 +253,39 @@ StatusOr<dynamics::SynthesisModel> TrainH(const std::vector<Take>& decomposed, c
   spdlog::info("training {} on {} takes decomposed by F ({} epochs)", label, decomposed.size(),
                epochs);
   return dynamics::TrainSynthesis(training, options, summary);
+}
+
+// The modal synthesis (dynamics/modal_synthesis.h) on a subject's reconstructed held takes,
+// each decomposed by its held mean (quasistatic.h): no network and no ground truth.
+StatusOr<dynamics::ModalSynthesisModel> TrainModal(const std::vector<Take>& reconstructed,
+                                                   const FaceRig& face, uint64_t seed,
+                                                   const std::string& label, Json* fit_json) {
+  dynamics::QuasistaticOptions held;
+  held.method = dynamics::QuasistaticMethod::kHeldMean;
+  std::vector<Take> decomposed;
+  for (const Take& take : reconstructed) {
+    FACEDYN_ASSIGN_OR_RETURN(Take one, dynamics::ExtractQuasistatic(take, held));
+    decomposed.push_back(std::move(one));
+  }
+  std::vector<dynamics::TrainingTake> training;
+  for (const Take& take : decomposed) training.push_back({&take, &face});
+  dynamics::ModalSynthesisOptions options;
+  options.seed = seed;
+  dynamics::ModalSynthesisFit fit;
+  FACEDYN_ASSIGN_OR_RETURN(dynamics::ModalSynthesisModel model,
+                           dynamics::ModalSynthesisModel::Train(training, options, &fit));
+  spdlog::info("{}: modal synthesis on {} held takes, ridge {:g} chosen on {} validation frames",
+               label, reconstructed.size(), fit.chosen_ridge, fit.validation_frames);
+  *fit_json = {{"decomposition", "held mean (quasistatic.h), reconstructed takes"},
+               {"takes", reconstructed.size()},
+               {"resonator_hz", options.resonator_hz},
+               {"resonator_damping", options.resonator_damping},
+               {"ridge_tried", options.ridge},
+               {"validation_rms_mm", fit.validation_rms_mm},
+               {"chosen_ridge", fit.chosen_ridge},
+               {"training_frames", fit.training_frames},
+               {"validation_frames", fit.validation_frames}};
+  return model;
 }
 
 }  // namespace
@@ -571,6 +606,14 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   FACEDYN_ASSIGN_OR_RETURN(walk_methods["H"],
                            eval::SynthesisErrors(walk_synthesised, walk_truth, walk_jiggle, skip));
   FACEDYN_ASSIGN_OR_RETURN(
+      const dynamics::ModalSynthesisModel modal_a,
+      TrainModal(a.reconstructed, face, options.seed, "modal_A", &training["modal_A"]));
+  FACEDYN_ASSIGN_OR_RETURN(
+      const Take walk_modal,
+      modal_a.Synthesize(walk_quasistatic, walk_truth.world_from_skull, "walk", face));
+  FACEDYN_ASSIGN_OR_RETURN(walk_methods["modal"],
+                           eval::SynthesisErrors(walk_modal, walk_truth, walk_jiggle, skip));
+  FACEDYN_ASSIGN_OR_RETURN(
       walk_methods["no_dynamics"],
       eval::NoDynamicsErrors(walk_quasistatic, walk_truth, walk_jiggle, skip));
   synthesis["walk"] = {{"take", test_simulated.info.expression + " walking, subject A"},
@@ -614,13 +657,17 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
       Simulate(face_b, "neutral", walk, options.walk_seconds, tissue_b, options.seed + 50));
   const Take b_quasistatic =
       dynamics::HeldShapeTake(face_b, shape_b, walk_truth.world_from_skull, fps);
+  FACEDYN_ASSIGN_OR_RETURN(
+      const dynamics::ModalSynthesisModel modal_b,
+      TrainModal(b.reconstructed, face_b, options.seed, "modal_B", &training["modal_B"]));
   FACEDYN_ASSIGN_OR_RETURN(eval::RetargetingResult retargeting,
                            eval::ScoreRetargeting(hb_model, walk_truth, face, retarget_truth,
-                                                  face_b, b_quasistatic, skip));
+                                                  face_b, b_quasistatic, skip, &modal_b));
   const Json retarget_methods = retargeting.figures["methods"];
   const double b_offset_mm = retargeting.figures["mean_dynamic_offset_mm"].get<double>();
   Take retargeted = std::move(retargeting.retargeted);
   Take naive = std::move(retargeting.naive);
+  Take retargeted_modal = std::move(retargeting.modal);
   result["retarget"] = {
       {"source", "subject A walking (head motion)"},
       {"target",
@@ -685,6 +732,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
     artifacts->retarget_truth = std::move(retarget_truth);
     artifacts->retargeted = std::move(retargeted);
     artifacts->naive = std::move(naive);
+    artifacts->retargeted_modal = std::move(retargeted_modal);
   }
   return Status::Ok();
 }
@@ -807,6 +855,7 @@ StatusOr<Json> RenderDemoDynamics(const FaceRig& face, const DemoDynamicsArtifac
                    retarget_frames, [&](int t) {
                      return std::vector<View>{
                          offset_view("B's H (dynamic offset)", artifacts.retargeted, t),
+                         offset_view("B's modal synthesis", artifacts.retargeted_modal, t),
                          offset_view("naive transfer of A's offsets", artifacts.naive, t),
                          offset_view("B simulated walking (truth)", artifacts.retarget_truth, t)};
                    }));
@@ -834,6 +883,7 @@ StatusOr<Json> RenderDemoDynamics(const FaceRig& face, const DemoDynamicsArtifac
        {"simulated (truth, with its exact quasistatic)", artifacts.test_simulated}}));
   FACEDYN_RETURN_IF_ERROR(write_viewer("retargeting.html", "A's walk retargeted to subject B",
                                        {{"B's H", artifacts.retargeted},
+                                        {"B's modal synthesis", artifacts.retargeted_modal},
                                         {"naive transfer of A's offsets", artifacts.naive},
                                         {"B simulated walking (truth)", artifacts.retarget_truth}}));
   return Json{{"range_mm", 5.0}, {"groups", groups}, {"images", images}, {"viewers", viewers}};

@@ -109,6 +109,7 @@ struct DemoDynamicsArtifacts {
   Take retarget_truth;        // B simulated walking A's walk
   Take retargeted;            // B's H on B's quasistatic under A's walk
   Take naive;                 // NaiveDeltaTransfer of A's walk offsets onto B
+  Take retargeted_modal;      // B's modal synthesis (dynamics/modal_synthesis.h) under A's walk
   // The performance on the held-out frequency (options.performance_expression; empty takes when
   // there is none): as simulated (exact channels), reconstructed, and after F's removal.
   Take performance_simulated;

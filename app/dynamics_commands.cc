@@ -46,8 +46,10 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
   quasistatic
       ->add_option("--method", quasistatic_options->method,
                    "moving-average (the paper's Eq. 5) or platform-synchronous (least-squares "
-                   "fit at the platform frequency; exact for a steady sinusoid)")
-      ->check(CLI::IsMember({"moving-average", "platform-synchronous"}))
+                   "fit at the platform frequency; exact for a steady sinusoid) or held-mean "
+                   "(the held part's mean shape in the skull frame; held expressions only, any "
+                   "head motion)")
+      ->check(CLI::IsMember({"moving-average", "platform-synchronous", "held-mean"}))
       ->capture_default_str();
   quasistatic->add_option("--platform-hz", quasistatic_options->platform_hz,
                           "Platform frequency for platform-synchronous (default: the take's own "
@@ -71,6 +73,8 @@ void AddDynamicsCommands(CLI::App& app, CommandRunner* selected) {
       }
       if (quasistatic_options->method == "platform-synchronous") {
         options.method = dynamics::QuasistaticMethod::kPlatformSynchronous;
+      } else if (quasistatic_options->method == "held-mean") {
+        options.method = dynamics::QuasistaticMethod::kHeldMean;
       }
       options.trend_degree = quasistatic_options->trend_degree;
       options.min_periods = quasistatic_options->min_periods;

@@ -9,8 +9,15 @@
 namespace facedyn::dynamics {
 
 const char* QuasistaticMethodName(QuasistaticMethod method) {
-  return method == QuasistaticMethod::kPlatformSynchronous ? "platform-synchronous"
-                                                           : "moving-average";
+  switch (method) {
+    case QuasistaticMethod::kPlatformSynchronous:
+      return "platform-synchronous";
+    case QuasistaticMethod::kHeldMean:
+      return "held-mean";
+    case QuasistaticMethod::kMovingAverage:
+      break;
+  }
+  return "moving-average";
 }
 
 Status QuasistaticOptions::Check() const {
@@ -218,6 +225,25 @@ StatusOr<Take> ExtractQuasistatic(const Take& take, const QuasistaticOptions& op
                                    options.trend_degree));
     FACEDYN_ASSIGN_OR_RETURN(quasistatic,
                              WeightedAverageInSkull(take.positions, take.world_from_skull, weights));
+  } else if (options.method == QuasistaticMethod::kHeldMean) {
+    if (static_cast<int>(take.world_from_skull.size()) != take.frame_count()) {
+      return InvalidArgumentError("held mean: the take does not have one skull pose per frame");
+    }
+    const int first = FirstHeldFrame(take);
+    if (first >= take.frame_count()) {
+      return FailedPreconditionError(
+          "held mean: the take has no held frame (hold_start_s is at or after its end)");
+    }
+    Eigen::Matrix3Xd sum = Eigen::Matrix3Xd::Zero(3, take.vertex_count());
+    for (int t = first; t < take.frame_count(); ++t) {
+      sum += take.world_from_skull[t].Inverse().Apply(take.FramePositions(t));
+    }
+    const Eigen::Matrix3Xd mean_in_skull = sum / (take.frame_count() - first);
+    quasistatic = take.positions;
+    for (int t = 0; t < take.frame_count(); ++t) {
+      quasistatic.Frame(t) = take.world_from_skull[t].Apply(mean_in_skull).cast<float>();
+    }
+    window_frames = 0;
   } else {
     FACEDYN_ASSIGN_OR_RETURN(
         quasistatic, MovingAverageInSkull(take.positions, take.world_from_skull, window_frames));
@@ -230,7 +256,9 @@ StatusOr<Take> ExtractQuasistatic(const Take& take, const QuasistaticOptions& op
   result.info.metadata["quasistatic_method"] = QuasistaticMethodName(options.method);
   // The half-window actually used (the platform-synchronous fit may have widened it).
   result.info.metadata["quasistatic_window_s"] =
-      platform_hz ? window_frames / take.info.fps : options.window_s;
+      options.method == QuasistaticMethod::kHeldMean ? 0.0
+      : platform_hz                                  ? window_frames / take.info.fps
+                                                     : options.window_s;
   result.info.metadata["quasistatic_window_frames"] = window_frames;
   if (platform_hz) result.info.metadata["quasistatic_platform_hz"] = *platform_hz;
   result.info.metadata["quasistatic_input_source"] = take.info.source;

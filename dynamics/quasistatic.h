@@ -20,6 +20,14 @@
 // fit is linear with fixed basis, so it is a fixed FIR filter: weights h = A (A^T A)^-1 e_0 with
 // A the (2w+1) x (1 + 2H) basis matrix of frame offsets -w..w; it passes a constant exactly and
 // removes the platform frequency and its first H-1 harmonics exactly, whatever the window.
+//
+// Held mean (QuasistaticMethod::kHeldMean): the whole held part of the take (frames from
+// FirstHeldFrame on) has one quasistatic, its mean shape in the skull frame. That is the
+// definition of a held expression, so it is exact up to the mean of the jiggle itself (near
+// zero for a motion without a mean acceleration), whatever the head motion: a walk as well as
+// the platform, where a window of 2w+1 frames either cannot span the motion's period (a step
+// at 1.5 steps/s is 0.67 s) or, as the zero-phase low-pass, rings at the take's ends. Valid only
+// for held takes: a performance's changing expression would be read as dynamics.
 #pragma once
 
 #include <optional>
@@ -37,9 +45,10 @@ namespace facedyn::dynamics {
 enum class QuasistaticMethod {
   kMovingAverage,        // Eq. (5), the paper's
   kPlatformSynchronous,  // least-squares fit at the known platform frequency (above)
+  kHeldMean,             // the held part's mean shape in the skull frame (above)
 };
 
-// "moving-average", "platform-synchronous".
+// "moving-average", "platform-synchronous", "held-mean".
 const char* QuasistaticMethodName(QuasistaticMethod method);
 
 struct QuasistaticOptions {
@@ -84,8 +93,8 @@ StatusOr<PointCache> MovingAverageInSkull(const PointCache& positions,
 StatusOr<PointCache> DynamicOffsets(const PointCache& positions, const PointCache& quasistatic,
                                     const std::vector<Rigid3>& world_from_skull);
 
-// The whole take: a copy of `take` whose positions are y (Eq. 5, or the platform-synchronous
-// fit) for every vertex, whose only channel is "dynamic_offset" = dx (Eq. 6), with info.source
+// The whole take: a copy of `take` whose positions are y (Eq. 5, the platform-synchronous
+// fit or the held mean; before the hold starts the held mean is used too) for every vertex, whose only channel is "dynamic_offset" = dx (Eq. 6), with info.source
 // "dynamics quasistatic" and the method and window recorded in metadata ("quasistatic_method",
 // "quasistatic_window_s", "quasistatic_window_frames", "quasistatic_platform_hz"). A
 // platform-synchronous request on a take without a platform frequency (and none in the options)

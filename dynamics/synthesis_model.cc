@@ -37,20 +37,6 @@ StatusOr<Eigen::MatrixXf> SynthesisFeatures(const Take& quasistatic,
   return features;
 }
 
-// Per-sample offsets of a per-vertex offset cache, one frame per column: 3S x F.
-Eigen::MatrixXf SampleOffsetsByFrame(const PointCache& offsets,
-                                     const std::vector<SurfacePoint>& samples) {
-  const int sample_count = static_cast<int>(samples.size());
-  Eigen::MatrixXf out(3 * sample_count, offsets.frame_count());
-  for (int t = 0; t < offsets.frame_count(); ++t) {
-    const auto frame = offsets.Frame(t);
-    for (int i = 0; i < sample_count; ++i) {
-      out.col(t).segment<3>(3 * i) = samples[i].Evaluate(frame).cast<float>();
-    }
-  }
-  return out;
-}
-
 // Rows are frames: take * F_max + frame.
 class SynthesisDataset final : public learn::MlpDataset {
  public:
@@ -92,6 +78,41 @@ PointCache Repose(const Take& quasistatic, const std::vector<Rigid3>& world_from
 
 }  // namespace
 
+Eigen::MatrixXf SampleOffsetsByFrame(const PointCache& offsets,
+                                     const std::vector<SurfacePoint>& samples) {
+  const int sample_count = static_cast<int>(samples.size());
+  Eigen::MatrixXf out(3 * sample_count, offsets.frame_count());
+  for (int t = 0; t < offsets.frame_count(); ++t) {
+    const auto frame = offsets.Frame(t);
+    for (int i = 0; i < sample_count; ++i) {
+      out.col(t).segment<3>(3 * i) = samples[i].Evaluate(frame).cast<float>();
+    }
+  }
+  return out;
+}
+
+Take ComposeSynthesis(const Take& quasistatic, const std::vector<Rigid3>& world_from_skull,
+                      const std::string& source, const std::string& motion_name,
+                      const SamplePropagation& propagation, const Eigen::MatrixXf& by_frame) {
+  // Same memory as 3 x F*S with column t * S + i: the layout ComposeOffsets reads.
+  const Eigen::Map<const Eigen::MatrixXf> sample_offsets(by_frame.data(), 3, by_frame.size() / 3);
+  Take result;
+  result.info = quasistatic.info;
+  result.info.source = source;
+  result.info.motion = motion_name;
+  result.topology = quasistatic.topology;
+  result.time_s = quasistatic.time_s;
+  result.world_from_skull = world_from_skull;
+  result.skull_from_jaw = quasistatic.skull_from_jaw;
+  result.positions = Repose(quasistatic, world_from_skull);
+  PointCache offsets, positions;
+  ComposeOffsets(result, propagation, sample_offsets, +1.0f, &offsets, &positions);
+  result.channels["quasistatic"] = std::move(result.positions);
+  result.positions = std::move(positions);
+  result.channels["dynamic_offset"] = std::move(offsets);
+  return result;
+}
+
 SynthesisConfig SynthesisConfig::ForRig(const FaceRig& rig, double fps) {
   SynthesisConfig config;
   static_cast<FeatureSpec&>(config) = FeatureSpec::ForRig(rig, fps);
@@ -110,6 +131,7 @@ StatusOr<SynthesisModel> SynthesisModel::Create(const SynthesisConfig& config, u
   shape.input_size = config.input_size();
   shape.hidden_units = config.hidden_units;
   shape.output_size = config.output_size();
+  shape.linear_skip = config.linear_skip;
   SynthesisModel model;
   model.config_ = config;
   FACEDYN_ASSIGN_OR_RETURN(model.mlp_, learn::Mlp::Create(shape, seed));
@@ -125,6 +147,7 @@ StatusOr<SynthesisModel> SynthesisModel::Load(const std::string& path) {
   FACEDYN_ASSIGN_OR_RETURN(model.mlp_, LoadFeatureModel(path, kKind, kSynthesisFormatVersion,
                                                         &model.config_, &model.propagation_));
   model.config_.hidden_units = model.mlp_.shape().hidden_units;
+  model.config_.linear_skip = model.mlp_.shape().linear_skip;
   FACEDYN_RETURN_IF_ERROR(CheckNetworkSizes(path, model.mlp_.shape(), model.config_.input_size(),
                                             model.config_.output_size()));
   return model;
@@ -163,6 +186,26 @@ StatusOr<Take> DecomposeExact(const Take& simulated) {
   return out;
 }
 
+Status CheckDecomposed(const Take& take, const std::string& context) {
+  if (take.channels.count("dynamic_offset") == 0) {
+    return FailedPreconditionError(context +
+                                   ": no dynamic_offset channel (train on the output of "
+                                   "`dynamics remove`, or on simulated takes with --exact)");
+  }
+  // A simulated dynamic take also carries a dynamic_offset channel, but its positions are
+  // the dynamic skin: training on it would teach a model to add dynamics to dynamics.
+  if (const auto quasistatic = take.channels.find("quasistatic");
+      quasistatic != take.channels.end() &&
+      (quasistatic->second.positions - take.positions.positions).cwiseAbs().maxCoeff() > 1e-3f) {
+    return FailedPreconditionError(
+        context +
+        ": its positions are not quasistatic (they differ from its quasistatic "
+        "channel: a simulated dynamic take?); decompose it first (DecomposeExact, "
+        "`train-synthesis --exact`, or `--removal-model F.pt`)");
+  }
+  return Status::Ok();
+}
+
 StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decomposed,
                                         const SynthesisTrainOptions& options,
                                         learn::MlpTrainSummary* summary) {
@@ -177,6 +220,7 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   config.features.window_s = options.window_s;
   config.features.stretch_step_mm = options.stretch_step_mm;
   config.hidden_units = options.hidden_units;
+  config.linear_skip = options.linear_skip;
   FACEDYN_ASSIGN_OR_RETURN(SynthesisModel model,
                            SynthesisModel::Create(config, options.train.seed));
   FACEDYN_ASSIGN_OR_RETURN(const StretchStencil stencil,
@@ -204,23 +248,8 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
     if (Status status = model.CheckCompatible(take, rig); !status.ok()) {
       return status.WithContext(context);
     }
+    FACEDYN_RETURN_IF_ERROR(CheckDecomposed(take, context));
     const auto offsets = take.channels.find("dynamic_offset");
-    if (offsets == take.channels.end()) {
-      return FailedPreconditionError(context +
-                                     ": no dynamic_offset channel (train on the output of "
-                                     "`dynamics remove`, or on simulated takes with --exact)");
-    }
-    // A simulated dynamic take also carries a dynamic_offset channel, but its positions are
-    // the dynamic skin: training on it would teach H to add dynamics to dynamics.
-    if (const auto quasistatic = take.channels.find("quasistatic");
-        quasistatic != take.channels.end() &&
-        (quasistatic->second.positions - take.positions.positions).cwiseAbs().maxCoeff() > 1e-3f) {
-      return FailedPreconditionError(
-          context +
-          ": its positions are not quasistatic (they differ from its quasistatic "
-          "channel: a simulated dynamic take?); decompose it first (DecomposeExact, "
-          "`train-synthesis --exact`, or `--removal-model F.pt`)");
-    }
     StatusOr<Eigen::MatrixXf> features =
         SynthesisFeatures(take, take.world_from_skull, rig, config, stencil);
     if (!features.ok()) return features.status().WithContext(context);
@@ -277,29 +306,14 @@ StatusOr<Take> SynthesizeDynamics(const SynthesisModel& model, const Take& quasi
   FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXf features,
                            SynthesisFeatures(quasistatic, world_from_skull, rig, config, stencil));
   const Eigen::MatrixXf by_frame = model.Predict(features);  // 3S x F
-  // Same memory as 3 x F*S with column t * S + i: the layout ComposeOffsets reads.
-  const Eigen::MatrixXf sample_offsets =
-      Eigen::Map<const Eigen::MatrixXf>(by_frame.data(), 3, by_frame.size() / 3);
   const double predict_s = SecondsSince(start);
 
   const auto propagate_start = std::chrono::steady_clock::now();
   std::optional<SamplePropagation> built;
   FACEDYN_ASSIGN_OR_RETURN(propagation,
                            SelectPropagation(model.propagation(), propagation, rig, &built));
-  Take result;
-  result.info = quasistatic.info;
-  result.info.source = "dynamics synthesize";
-  result.info.motion = motion_name;
-  result.topology = quasistatic.topology;
-  result.time_s = quasistatic.time_s;
-  result.world_from_skull = world_from_skull;
-  result.skull_from_jaw = quasistatic.skull_from_jaw;
-  result.positions = Repose(quasistatic, world_from_skull);
-  PointCache offsets, positions;
-  ComposeOffsets(result, *propagation, sample_offsets, +1.0f, &offsets, &positions);
-  result.channels["quasistatic"] = std::move(result.positions);
-  result.positions = std::move(positions);
-  result.channels["dynamic_offset"] = std::move(offsets);
+  Take result = ComposeSynthesis(quasistatic, world_from_skull, "dynamics synthesize",
+                                 motion_name, *propagation, by_frame);
   if (summary != nullptr) {
     summary->predict_s = predict_s;
     summary->propagate_s = SecondsSince(propagate_start);
@@ -364,23 +378,9 @@ StatusOr<Take> NaiveDeltaTransfer(const Take& source, const FaceRig& source_rig,
     FACEDYN_ASSIGN_OR_RETURN(built, SamplePropagation::Build(target_rig));
     target_propagation = &*built;
   }
-  const Eigen::MatrixXf by_frame = SampleOffsetsByFrame(offsets->second, source_rig.skin_samples);
-  const Eigen::MatrixXf sample_offsets =
-      Eigen::Map<const Eigen::MatrixXf>(by_frame.data(), 3, by_frame.size() / 3);
-  Take result;
-  result.info = target_quasistatic.info;
-  result.info.source = "naive delta transfer";
-  result.info.motion = source.info.motion;
-  result.topology = target_quasistatic.topology;
-  result.time_s = target_quasistatic.time_s;
-  result.world_from_skull = source.world_from_skull;
-  result.positions = Repose(target_quasistatic, source.world_from_skull);
-  PointCache vertex_offsets, positions;
-  ComposeOffsets(result, *target_propagation, sample_offsets, +1.0f, &vertex_offsets, &positions);
-  result.channels["quasistatic"] = std::move(result.positions);
-  result.positions = std::move(positions);
-  result.channels["dynamic_offset"] = std::move(vertex_offsets);
-  return result;
+  return ComposeSynthesis(target_quasistatic, source.world_from_skull, "naive delta transfer",
+                          source.info.motion, *target_propagation,
+                          SampleOffsetsByFrame(offsets->second, source_rig.skin_samples));
 }
 
 }  // namespace facedyn::dynamics

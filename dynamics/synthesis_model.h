@@ -37,6 +37,7 @@ namespace facedyn::dynamics {
 
 struct SynthesisConfig : FeatureSpec {
   int hidden_units = 256;
+  bool linear_skip = false;  // learn::MlpShape::linear_skip
 
   static SynthesisConfig ForRig(const FaceRig& rig, double fps);
   int input_size() const { return skull_descriptor_size() + 2 * sample_count; }
@@ -78,6 +79,8 @@ struct SynthesisTrainOptions {
   learn::MlpTrainOptions train = Defaults();
   double validation_fraction = 0.1;  // fraction of usable frames held out (blocks, with a gap)
   int hidden_units = 256;
+  // H plus a linear map of its inputs (learn::MlpShape::linear_skip); false is the paper's network.
+  bool linear_skip = false;
   double window_s = 0.08;
   double stretch_step_mm = 2.0;  // Eq. (8)'s ~2 mm uv steps
   // Fit the propagation to the training takes' per-vertex dynamic offsets and keep it in the
@@ -100,6 +103,10 @@ struct SynthesisTrainOptions {
 // decomposed take: positions = the exact quasistatic, channel dynamic_offset = the exact dx.
 // Errors when either channel is missing.
 StatusOr<Take> DecomposeExact(const Take& simulated);
+
+// FailedPrecondition (prefixed by `context`) unless `take` is a decomposed take: a
+// "dynamic_offset" channel, and positions equal to its "quasistatic" channel when it has one.
+Status CheckDecomposed(const Take& take, const std::string& context);
 
 // Trains H on decomposed takes (positions quasistatic, channel "dynamic_offset"). Frames within
 // the feature window of either end, or of the first frame, or before the take's hold_start_s,
@@ -137,6 +144,18 @@ Eigen::Matrix3Xd MeanShapeInSkull(const Take& take, int skip);
 // take of a subject holding one expression under a given head motion.
 Take HeldShapeTake(const FaceRig& rig, const Eigen::Matrix3Xd& shape_in_skull,
                    const std::vector<Rigid3>& world_from_skull, double fps);
+
+// Per-sample values of a per-vertex cache (3V x F): 3S x F, rows 3i..3i+2 = sample i.
+Eigen::MatrixXf SampleOffsetsByFrame(const PointCache& offsets,
+                                     const std::vector<SurfacePoint>& samples);
+
+// A synthesised take from per-sample offsets (3S x F, skull frame, mm, as SampleOffsetsByFrame):
+// positions T(t) (T_q(t)^-1 y(t) + d(t)) with d the offsets propagated to every vertex, channels
+// "quasistatic" and "dynamic_offset"; info.source `source`, info.motion `motion_name`.
+// Preconditions (checked by the callers): one pose per frame, the propagation's rig.
+Take ComposeSynthesis(const Take& quasistatic, const std::vector<Rigid3>& world_from_skull,
+                      const std::string& source, const std::string& motion_name,
+                      const SamplePropagation& propagation, const Eigen::MatrixXf& by_frame);
 
 // Paper Fig. 10(b): the source's per-sample dynamic offsets (channel "dynamic_offset" of a
 // decomposed or simulated source take, sampled at the source rig's samples) copied sample by

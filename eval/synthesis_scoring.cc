@@ -106,7 +106,8 @@ StatusOr<Json> ResynthesisFigures(const std::string& take_name, const Take& simu
 StatusOr<RetargetingResult> ScoreRetargeting(const dynamics::SynthesisModel& target_synthesis,
                                              const Take& source_truth, const FaceRig& source_rig,
                                              const Take& target_truth, const FaceRig& target_rig,
-                                             const Take& target_quasistatic, int window_frames) {
+                                             const Take& target_quasistatic, int window_frames,
+                                             const dynamics::ModalSynthesisModel* target_modal) {
   FACEDYN_RETURN_IF_ERROR(HasOffsets(source_truth, "retargeting: the source's truth"));
   FACEDYN_RETURN_IF_ERROR(HasOffsets(target_truth, "retargeting: the target's truth"));
   if (source_truth.frame_count() != target_truth.frame_count() ||
@@ -146,6 +147,14 @@ StatusOr<RetargetingResult> ScoreRetargeting(const dynamics::SynthesisModel& tar
                            SynthesisErrors(result.retargeted, target_truth, jiggle, window_frames));
   FACEDYN_ASSIGN_OR_RETURN(methods["naive_delta_transfer"],
                            SynthesisErrors(result.naive, target_truth, jiggle, window_frames));
+  if (target_modal != nullptr) {
+    FACEDYN_ASSIGN_OR_RETURN(result.modal,
+                             target_modal->Synthesize(target_quasistatic,
+                                                      source_truth.world_from_skull,
+                                                      source_truth.info.motion, target_rig));
+    FACEDYN_ASSIGN_OR_RETURN(methods["modal_B_retarget"],
+                             SynthesisErrors(result.modal, target_truth, jiggle, window_frames));
+  }
   FACEDYN_ASSIGN_OR_RETURN(
       methods["no_dynamics"],
       NoDynamicsErrors(target_quasistatic, target_truth, jiggle, window_frames));

@@ -14,6 +14,7 @@
 #include "core/json_io.h"
 #include "core/status.h"
 #include "core/take.h"
+#include "dynamics/modal_synthesis.h"
 #include "dynamics/synthesis_model.h"
 
 namespace facedyn::eval {
@@ -47,14 +48,19 @@ StatusOr<Json> ResynthesisFigures(const std::string& take_name, const Take& simu
 // under the same head motion (checked frame by frame: InvalidArgument otherwise). Scores H_B,
 // the naive delta transfer of the source's exact offsets (given the most it could have) and no
 // dynamics against the target's truth. *retargeted and *naive (may be null) receive the takes.
+// With `target_modal` (may be null), the target's modal synthesis (dynamics/modal_synthesis.h)
+// is scored too, as "modal_B_retarget", and its take returned in `modal`.
 struct RetargetingResult {
   Json figures;  // "jiggle_vertices", "mean_dynamic_offset_mm", "methods"
   Take retargeted;
   Take naive;
+  Take modal;  // empty without a modal model
 };
 StatusOr<RetargetingResult> ScoreRetargeting(const dynamics::SynthesisModel& target_synthesis,
                                              const Take& source_truth, const FaceRig& source_rig,
                                              const Take& target_truth, const FaceRig& target_rig,
-                                             const Take& target_quasistatic, int window_frames);
+                                             const Take& target_quasistatic, int window_frames,
+                                             const dynamics::ModalSynthesisModel* target_modal =
+                                                 nullptr);
 
 }  // namespace facedyn::eval

@@ -135,6 +135,23 @@ TEST(ScoreRetargeting, RefusesTruthsUnderDifferentHeadMotions) {
               scored->figures["mean_dynamic_offset_mm"].get<double>(), 1e-3);
   EXPECT_GT(scored->figures["mean_dynamic_offset_mm"].get<double>(), 0.0);
   EXPECT_EQ(scored->retargeted.frame_count(), source->frame_count());
+  EXPECT_EQ(scored->figures["methods"].count("modal_B_retarget"), 0u);
+  EXPECT_EQ(scored->modal.frame_count(), 0);
+  // With a modal model (trained here on the source's exact decomposition) it is scored too.
+  const Take decomposed = dynamics::DecomposeExact(*source).value();
+  dynamics::ModalSynthesisOptions modal_options;
+  modal_options.margin_s = 0.0;  // a 0.4 s take
+  modal_options.resonator_hz = {6.0, 9.0, 13.0};
+  modal_options.resonator_damping = 1.0;  // settles in 0.02 s
+  auto modal = dynamics::ModalSynthesisModel::Train({{&decomposed, &*face}}, modal_options);
+  ASSERT_TRUE(modal.ok()) << modal.status().message();
+  auto with_modal = ScoreRetargeting(*model, *source, *face, *source, *face, Quasistatic(*source),
+                                     2, &*modal);
+  ASSERT_TRUE(with_modal.ok()) << with_modal.status().message();
+  EXPECT_EQ(with_modal->modal.frame_count(), source->frame_count());
+  // Trained on the very offsets it is scored against: well below no dynamics.
+  EXPECT_LT(with_modal->figures["methods"]["modal_B_retarget"]["offset_mean_mm"].get<double>(),
+            0.5 * with_modal->figures["mean_dynamic_offset_mm"].get<double>());
 }
 
 // The held shape of a constant shape carried by any rigid motion is that shape; the scaled

@@ -1,0 +1,334 @@
+#include "dynamics/modal_synthesis.h"
+
+#include <fmt/format.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+#include "core/check.h"
+#include "core/json_io.h"
+#include "dynamics/feature_spec.h"
+#include "dynamics/synthesis_model.h"
+#include "dynamics/training_frames.h"
+
+namespace facedyn::dynamics {
+namespace {
+
+constexpr int kInputs = 6;  // a (3) and alpha (3)
+
+int RegressorCount(int resonators) { return kInputs * (2 * resonators + 1) + 1; }
+
+// One resonator w^2 / (s^2 + 2 z w s + w^2) by the bilinear transform prewarped at w, run over
+// `input` from rest at input(0) (the filter's steady state for a constant input, gain 1).
+Eigen::VectorXd Resonate(const Eigen::VectorXd& input, double hz, double damping, double fps) {
+  const double w = 2.0 * M_PI * hz;
+  const double k = w / std::tan(w / (2.0 * fps));
+  const double a0 = k * k + 2.0 * damping * w * k + w * w;
+  const double a1 = (2.0 * w * w - 2.0 * k * k) / a0;
+  const double a2 = (k * k - 2.0 * damping * w * k + w * w) / a0;
+  const double b0 = w * w / a0, b1 = 2.0 * b0, b2 = b0;
+  Eigen::VectorXd out(input.size());
+  if (input.size() == 0) return out;
+  double u1 = input(0), u2 = input(0), y1 = input(0), y2 = input(0);
+  for (Eigen::Index t = 0; t < input.size(); ++t) {
+    const double u = input(t);
+    const double y = b0 * u + b1 * u1 + b2 * u2 - a1 * y1 - a2 * y2;
+    out(t) = y;
+    u2 = u1;
+    u1 = u;
+    y2 = y1;
+    y1 = y;
+  }
+  return out;
+}
+
+// Rotation vector (rad) of a unit quaternion, shortest way.
+Eigen::Vector3d RotationVector(Eigen::Quaterniond q) {
+  if (q.w() < 0) q.coeffs() = -q.coeffs();
+  const Eigen::AngleAxisd aa(q);
+  return aa.angle() * aa.axis();
+}
+
+}  // namespace
+
+Status ModalSynthesisOptions::Check() const {
+  if (resonator_hz.empty()) return InvalidArgumentError("resonator_hz: at least one frequency");
+  for (double hz : resonator_hz) {
+    if (!(hz > 0 && hz < 1000)) {
+      return InvalidArgumentError(fmt::format("resonator_hz: {} not in (0, 1000)", hz));
+    }
+  }
+  if (!(resonator_damping > 0 && resonator_damping <= 2)) {
+    return InvalidArgumentError("resonator_damping must be in (0, 2]");
+  }
+  if (ridge.empty()) return InvalidArgumentError("ridge: at least one weight");
+  for (double r : ridge) {
+    if (!(r > 0 && std::isfinite(r))) {
+      return InvalidArgumentError(fmt::format("ridge: {} is not a positive weight", r));
+    }
+  }
+  if (!(validation_fraction > 0 && validation_fraction <= 0.9)) {
+    return InvalidArgumentError("validation_fraction must be in (0, 0.9]");
+  }
+  if (!(margin_s >= 0 && margin_s <= 1)) return InvalidArgumentError("margin_s must be in [0, 1]");
+  if (Status status = propagation.Check(); !status.ok()) return status.WithContext("propagation");
+  return Status::Ok();
+}
+
+StatusOr<Eigen::MatrixXd> SkullInertialInputs(const std::vector<Rigid3>& world_from_skull,
+                                              double fps) {
+  if (!(fps > 0)) return InvalidArgumentError("skull inertial inputs: fps must be > 0");
+  const int n = static_cast<int>(world_from_skull.size());
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(kInputs, n);
+  if (n < 3) return out;
+  auto pose = [&](int t) -> const Rigid3& { return world_from_skull[std::clamp(t, 0, n - 1)]; };
+  // Body angular velocity between frames t and t + 1, rad/s, in the skull frame at t.
+  auto omega = [&](int t) {
+    const Eigen::Quaterniond step = pose(t).rotation().conjugate() * pose(t + 1).rotation();
+    return Eigen::Vector3d(RotationVector(step) * fps);
+  };
+  for (int t = 0; t < n; ++t) {
+    const Eigen::Vector3d accel_world =
+        (pose(t + 1).translation() - 2.0 * pose(t).translation() + pose(t - 1).translation()) *
+        fps * fps;
+    out.col(t).head<3>() = pose(t).rotation().conjugate() * accel_world;
+    // omega(t - 1) is in the frame at t - 1: bring it to t before differencing.
+    const Eigen::Vector3d previous =
+        pose(t).rotation().conjugate() * (pose(t - 1).rotation() * omega(t - 1));
+    out.col(t).tail<3>() = (omega(t) - previous) * fps;
+  }
+  // At the two end frames a clamped difference reads the take's cut as the head stopping dead:
+  // an acceleration spike that never happened, which would ring through every resonator. The
+  // end frames repeat their neighbours' values instead.
+  out.col(0) = out.col(1);
+  out.col(n - 1) = out.col(n - 2);
+  return out;
+}
+
+StatusOr<Eigen::MatrixXd> ModalSynthesisModel::Regressors(
+    const std::vector<Rigid3>& world_from_skull) const {
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd inputs,
+                           SkullInertialInputs(world_from_skull, fps_));
+  const int frames = static_cast<int>(inputs.cols());
+  const int k_count = static_cast<int>(resonator_hz_.size());
+  Eigen::MatrixXd x(RegressorCount(k_count), frames);
+  int row = 0;
+  for (int i = 0; i < kInputs; ++i) {
+    const Eigen::VectorXd u = inputs.row(i).transpose() / input_scale_(i);
+    for (int k = 0; k < k_count; ++k) {
+      const Eigen::VectorXd y = Resonate(u, resonator_hz_[k], resonator_damping_, fps_);
+      x.row(row++) = y.transpose();
+      // The previous frame's value (the mode's velocity, with the current one).
+      for (int t = 0; t < frames; ++t) x(row, t) = y(std::max(t - 1, 0));
+      ++row;
+    }
+    x.row(row++) = u.transpose();
+  }
+  x.row(row++).setOnes();
+  FACEDYN_CHECK(row == x.rows(), "ModalSynthesisModel: regressor count");
+  return x;
+}
+
+StatusOr<ModalSynthesisModel> ModalSynthesisModel::Train(
+    const std::vector<TrainingTake>& decomposed, const ModalSynthesisOptions& options,
+    ModalSynthesisFit* fit) {
+  FACEDYN_RETURN_IF_ERROR(options.Check());
+  if (decomposed.empty()) return InvalidArgumentError("modal synthesis: no training takes");
+  for (const TrainingTake& training : decomposed) {
+    FACEDYN_CHECK(training.take != nullptr && training.rig != nullptr,
+                  "ModalSynthesisModel::Train: training take without take or rig");
+  }
+  const FaceRig& rig = *decomposed.front().rig;
+  ModalSynthesisModel model;
+  model.fps_ = decomposed.front().take->info.fps;
+  model.resonator_hz_ = options.resonator_hz;
+  model.resonator_damping_ = options.resonator_damping;
+  model.sample_count_ = static_cast<int>(rig.skin_samples.size());
+  model.samples_hash_ = HashSurfacePoints(rig.skin_samples);
+  for (double hz : options.resonator_hz) {
+    if (hz >= model.fps_ / 2) {
+      return InvalidArgumentError(fmt::format(
+          "modal synthesis: resonator {} Hz is not below the takes' Nyquist frequency ({} Hz)", hz,
+          model.fps_ / 2));
+    }
+  }
+  const int margin = WindowFrames(options.margin_s, model.fps_);
+  // The resonators start from rest at the first frame's input, not from the motion's true
+  // history: their state is unreliable until the slowest has decayed by e (1 / (z w_min)).
+  const double slowest_hz =
+      *std::min_element(options.resonator_hz.begin(), options.resonator_hz.end());
+  const int settle = static_cast<int>(
+      std::ceil(model.fps_ / (options.resonator_damping * 2.0 * M_PI * slowest_hz)));
+
+  // The inputs' scales first (over every take's usable frames), so the ridge sees regressors
+  // of comparable size.
+  std::vector<Eigen::MatrixXd> inputs;
+  std::vector<FrameRange> ranges;
+  Eigen::VectorXd sum_sq = Eigen::VectorXd::Zero(kInputs);
+  long usable = 0;
+  for (size_t n = 0; n < decomposed.size(); ++n) {
+    const Take& take = *decomposed[n].take;
+    const std::string context =
+        fmt::format("modal synthesis: training take {}{}", n,
+                    take.info.expression.empty() ? "" : " (" + take.info.expression + ")");
+    FACEDYN_RETURN_IF_ERROR(CheckDecomposed(take, context));
+    if (std::abs(take.info.fps - model.fps_) > 1e-6 * model.fps_) {
+      return FailedPreconditionError(
+          fmt::format("{}: {} fps, the first take {} fps", context, take.info.fps, model.fps_));
+    }
+    if (HashSurfacePoints(decomposed[n].rig->skin_samples) != model.samples_hash_ ||
+        take.vertex_count() != rig.vertex_count()) {
+      return FailedPreconditionError(context + ": another rig than the first take's");
+    }
+    if (static_cast<int>(take.world_from_skull.size()) != take.frame_count()) {
+      return FailedPreconditionError(context + ": not one skull pose per frame");
+    }
+    FACEDYN_ASSIGN_OR_RETURN(Eigen::MatrixXd u,
+                             SkullInertialInputs(take.world_from_skull, model.fps_));
+    FrameRange range = UsableFrames(take, margin, true);
+    range.begin = std::max(range.begin, settle);
+    for (int t = range.begin; t < range.end; ++t) sum_sq += u.col(t).cwiseAbs2();
+    usable += range.size();
+    inputs.push_back(std::move(u));
+    ranges.push_back(range);
+  }
+  if (usable == 0) {
+    return FailedPreconditionError(fmt::format(
+        "modal synthesis: no take has a frame {} frames from its end, {} from its start and "
+        "after its hold start",
+        margin, settle));
+  }
+  model.input_scale_ = (sum_sq / static_cast<double>(usable)).cwiseSqrt();
+  for (int i = 0; i < kInputs; ++i) {
+    // A motion without this component (e.g. no rotation): any scale keeps the zeros zero.
+    if (!(model.input_scale_(i) > 1e-12)) model.input_scale_(i) = 1.0;
+  }
+
+  // Regressors and targets of every usable frame; validation blocks as the networks draw them.
+  const FrameSplit split =
+      SplitByBlocks(ranges, options.validation_fraction, ValidationBlockFrames(margin),
+                    ValidationGapFrames(margin), options.seed);
+  const int p = RegressorCount(static_cast<int>(options.resonator_hz.size()));
+  const int outputs = 3 * model.sample_count_;
+  Eigen::MatrixXd gram_train = Eigen::MatrixXd::Zero(p, p), gram_all = gram_train;
+  Eigen::MatrixXd cross_train = Eigen::MatrixXd::Zero(p, outputs), cross_all = cross_train;
+  std::vector<Eigen::MatrixXd> regressors(decomposed.size());
+  std::vector<Eigen::MatrixXd> targets(decomposed.size());
+  std::optional<PropagationLearner> learner;
+  if (options.learn_propagation) {
+    FACEDYN_ASSIGN_OR_RETURN(learner, PropagationLearner::ForRig(rig, options.propagation));
+  }
+  for (size_t n = 0; n < decomposed.size(); ++n) {
+    const Take& take = *decomposed[n].take;
+    FACEDYN_ASSIGN_OR_RETURN(regressors[n], model.Regressors(take.world_from_skull));
+    const PointCache& offsets = take.channels.at("dynamic_offset");
+    targets[n] = SampleOffsetsByFrame(offsets, rig.skin_samples).cast<double>();
+    if (learner && !ranges[n].empty()) {
+      FACEDYN_RETURN_IF_ERROR(learner->Add(offsets, ranges[n].begin, ranges[n].end));
+    }
+  }
+  std::vector<std::vector<bool>> is_validation(decomposed.size());
+  for (size_t n = 0; n < decomposed.size(); ++n) {
+    is_validation[n].assign(decomposed[n].take->frame_count(), false);
+  }
+  for (const TakeFrame& frame : split.validation) is_validation[frame.first][frame.second] = true;
+  for (size_t n = 0; n < decomposed.size(); ++n) {
+    for (int t = ranges[n].begin; t < ranges[n].end; ++t) {
+      const auto x = regressors[n].col(t);
+      const auto y = targets[n].col(t);
+      gram_all.noalias() += x * x.transpose();
+      cross_all.noalias() += x * y.transpose();
+      if (!is_validation[n][t]) {
+        gram_train.noalias() += x * x.transpose();
+        cross_train.noalias() += x * y.transpose();
+      }
+    }
+  }
+  // The constant (last) regressor is not penalised.
+  auto solve = [&](const Eigen::MatrixXd& gram, const Eigen::MatrixXd& cross, double ridge) {
+    Eigen::MatrixXd a = gram;
+    const double scale = gram.diagonal().head(p - 1).mean();
+    a.diagonal().head(p - 1).array() += ridge * std::max(scale, 1e-12);
+    a(p - 1, p - 1) += 1e-12 * std::max(scale, 1.0);
+    return Eigen::MatrixXd(a.ldlt().solve(cross));
+  };
+  ModalSynthesisFit result;
+  result.validation_frames = static_cast<long>(split.validation.size());
+  result.training_frames = usable - result.validation_frames;
+  double best = std::numeric_limits<double>::infinity();
+  result.chosen_ridge = options.ridge.front();
+  if (!split.validation.empty() && result.training_frames > 0) {
+    for (double ridge : options.ridge) {
+      const Eigen::MatrixXd w = solve(gram_train, cross_train, ridge);
+      double sq = 0.0;
+      for (const TakeFrame& frame : split.validation) {
+        sq += (w.transpose() * regressors[frame.first].col(frame.second) -
+               targets[frame.first].col(frame.second))
+                  .squaredNorm();
+      }
+      const double rms =
+          std::sqrt(sq / (static_cast<double>(split.validation.size()) * model.sample_count_));
+      result.validation_rms_mm.push_back(rms);
+      if (rms < best) {
+        best = rms;
+        result.chosen_ridge = ridge;
+      }
+    }
+  }
+  model.weights_ = solve(gram_all, cross_all, result.chosen_ridge);
+  if (!model.weights_.allFinite()) {
+    return InternalError("modal synthesis: the ridge solve gave non-finite weights");
+  }
+  if (learner) {
+    FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, learner->Fit());
+    model.propagation_ = std::move(learned);
+  }
+  if (fit != nullptr) *fit = result;
+  return model;
+}
+
+Status ModalSynthesisModel::CheckRig(const FaceRig& rig) const {
+  if (static_cast<int>(rig.skin_samples.size()) != sample_count_ ||
+      HashSurfacePoints(rig.skin_samples) != samples_hash_) {
+    return FailedPreconditionError(fmt::format(
+        "modal synthesis: the rig's skin samples ({}) are not the model's ({}, another rig?)",
+        rig.skin_samples.size(), sample_count_));
+  }
+  return Status::Ok();
+}
+
+StatusOr<Eigen::MatrixXf> ModalSynthesisModel::PredictSampleOffsets(
+    const std::vector<Rigid3>& world_from_skull) const {
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd x, Regressors(world_from_skull));
+  return Eigen::MatrixXf((weights_.transpose() * x).cast<float>());
+}
+
+StatusOr<Take> ModalSynthesisModel::Synthesize(const Take& quasistatic,
+                                               const std::vector<Rigid3>& world_from_skull,
+                                               const std::string& motion_name,
+                                               const FaceRig& rig) const {
+  FACEDYN_RETURN_IF_ERROR(CheckRig(rig));
+  if (std::abs(quasistatic.info.fps - fps_) > 1e-6 * fps_) {
+    return FailedPreconditionError(
+        fmt::format("modal synthesis: the take is at {} fps, the model was trained at {} fps",
+                    quasistatic.info.fps, fps_));
+  }
+  if (static_cast<int>(world_from_skull.size()) != quasistatic.frame_count()) {
+    return InvalidArgumentError(
+        fmt::format("modal synthesis: the head motion has {} poses, the quasistatic take {} frames",
+                    world_from_skull.size(), quasistatic.frame_count()));
+  }
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXf by_frame, PredictSampleOffsets(world_from_skull));
+  std::optional<SamplePropagation> built;
+  FACEDYN_ASSIGN_OR_RETURN(
+      const SamplePropagation* propagation,
+      SelectPropagation(propagation_ ? &*propagation_ : nullptr, nullptr, rig, &built));
+  return ComposeSynthesis(quasistatic, world_from_skull, "dynamics modal synthesis", motion_name,
+                          *propagation, by_frame);
+}
+
+}  // namespace facedyn::dynamics

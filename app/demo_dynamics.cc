@@ -280,8 +280,10 @@ StatusOr<dynamics::ModalSynthesisModel> TrainModal(const std::vector<Take>& reco
                {"takes", reconstructed.size()},
                {"resonator_hz", options.resonator_hz},
                {"resonator_damping", options.resonator_damping},
+               {"validation", fit.validation},
                {"ridge_tried", options.ridge},
                {"validation_rms_mm", fit.validation_rms_mm},
+               {"validation_relative", fit.validation_relative},
                {"chosen_ridge", fit.chosen_ridge},
                {"training_frames", fit.training_frames},
                {"validation_frames", fit.validation_frames}};

@@ -27,6 +27,7 @@
 #include <fmt/format.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <sstream>
 #include <string>
@@ -283,6 +284,21 @@ int main(int argc, char** argv) {
                                                                dyn::ScoredFrames(b_walk, skip));
         const Json errors =
             OrDie(eval::SynthesisErrors(synthesised, b_walk, jiggle, skip), "score");
+        if (std::getenv("RIDGE_SWEEP") != nullptr) {
+          for (size_t r = 0; r < options.ridge.size(); ++r) {
+            dyn::ModalSynthesisOptions fixed = options;
+            fixed.ridge = {options.ridge[r]};
+            const dyn::ModalSynthesisModel m =
+                OrDie(dyn::ModalSynthesisModel::Train(training, fixed), "modal");
+            const Take one =
+                OrDie(m.Synthesize(b_quasistatic, a_walk.world_from_skull, "walk", face_b), "m");
+            std::fprintf(
+                stderr, "  ridge %g: validation %.4f relative %.4f, test %.4f mm\n",
+                options.ridge[r], fit.validation_rms_mm[r], fit.validation_relative[r],
+                OrDie(eval::SynthesisErrors(one, b_walk, jiggle, skip), "s")["offset_mean_mm"]
+                    .get<double>());
+          }
+        }
         const std::string key = fmt::format("modal {}", variant);
         const double mm = errors["offset_mean_mm"].get<double>();
         figures[key].push_back(mm);

@@ -208,14 +208,9 @@ StatusOr<ModalSynthesisModel> ModalSynthesisModel::Train(
     if (!(model.input_scale_(i) > 1e-12)) model.input_scale_(i) = 1.0;
   }
 
-  // Regressors and targets of every usable frame; validation blocks as the networks draw them.
-  const FrameSplit split =
-      SplitByBlocks(ranges, options.validation_fraction, ValidationBlockFrames(margin),
-                    ValidationGapFrames(margin), options.seed);
+  // Regressors and targets of every usable frame.
   const int p = RegressorCount(static_cast<int>(options.resonator_hz.size()));
   const int outputs = 3 * model.sample_count_;
-  Eigen::MatrixXd gram_train = Eigen::MatrixXd::Zero(p, p), gram_all = gram_train;
-  Eigen::MatrixXd cross_train = Eigen::MatrixXd::Zero(p, outputs), cross_all = cross_train;
   std::vector<Eigen::MatrixXd> regressors(decomposed.size());
   std::vector<Eigen::MatrixXd> targets(decomposed.size());
   std::optional<PropagationLearner> learner;
@@ -231,20 +226,47 @@ StatusOr<ModalSynthesisModel> ModalSynthesisModel::Train(
       FACEDYN_RETURN_IF_ERROR(learner->Add(offsets, ranges[n].begin, ranges[n].end));
     }
   }
-  std::vector<std::vector<bool>> is_validation(decomposed.size());
+
+  // Validation folds. The model is used on head motions it never saw, so with two or more
+  // takes each take is a fold (leave one take out): a ridge that only interpolates within a
+  // motion scores badly there. With one take, validation blocks as the networks draw them.
+  std::vector<std::vector<int>> fold_of(decomposed.size());  // per frame, -1: no fold
   for (size_t n = 0; n < decomposed.size(); ++n) {
-    is_validation[n].assign(decomposed[n].take->frame_count(), false);
+    fold_of[n].assign(decomposed[n].take->frame_count(), -1);
   }
-  for (const TakeFrame& frame : split.validation) is_validation[frame.first][frame.second] = true;
+  int folds = 0;
+  long takes_with_frames = 0;
+  for (const FrameRange& range : ranges) takes_with_frames += range.empty() ? 0 : 1;
+  ModalSynthesisFit result;
+  if (takes_with_frames >= 2) {
+    for (size_t n = 0; n < decomposed.size(); ++n) {
+      if (ranges[n].empty()) continue;
+      for (int t = ranges[n].begin; t < ranges[n].end; ++t) fold_of[n][t] = folds;
+      ++folds;
+    }
+    result.validation = "leave one take out";
+  } else {
+    const FrameSplit split =
+        SplitByBlocks(ranges, options.validation_fraction, ValidationBlockFrames(margin),
+                      ValidationGapFrames(margin), options.seed);
+    for (const TakeFrame& frame : split.validation) fold_of[frame.first][frame.second] = 0;
+    folds = split.validation.empty() ? 0 : 1;
+    result.validation = "blocks of the one take";
+  }
+  Eigen::MatrixXd gram_all = Eigen::MatrixXd::Zero(p, p);
+  Eigen::MatrixXd cross_all = Eigen::MatrixXd::Zero(p, outputs);
+  std::vector<Eigen::MatrixXd> gram_fold(folds, gram_all);
+  std::vector<Eigen::MatrixXd> cross_fold(folds, cross_all);
   for (size_t n = 0; n < decomposed.size(); ++n) {
     for (int t = ranges[n].begin; t < ranges[n].end; ++t) {
       const auto x = regressors[n].col(t);
       const auto y = targets[n].col(t);
       gram_all.noalias() += x * x.transpose();
       cross_all.noalias() += x * y.transpose();
-      if (!is_validation[n][t]) {
-        gram_train.noalias() += x * x.transpose();
-        cross_train.noalias() += x * y.transpose();
+      if (const int fold = fold_of[n][t]; fold >= 0) {
+        gram_fold[fold].noalias() += x * x.transpose();
+        cross_fold[fold].noalias() += x * y.transpose();
+        ++result.validation_frames;
       }
     }
   }
@@ -256,25 +278,35 @@ StatusOr<ModalSynthesisModel> ModalSynthesisModel::Train(
     a(p - 1, p - 1) += 1e-12 * std::max(scale, 1.0);
     return Eigen::MatrixXd(a.ldlt().solve(cross));
   };
-  ModalSynthesisFit result;
-  result.validation_frames = static_cast<long>(split.validation.size());
-  result.training_frames = usable - result.validation_frames;
+  result.training_frames = usable;
   double best = std::numeric_limits<double>::infinity();
   result.chosen_ridge = options.ridge.front();
-  if (!split.validation.empty() && result.training_frames > 0) {
+  // Each fold needs frames outside it to fit on: two folds or more, or blocks of one take.
+  if (folds >= 2 || (folds == 1 && result.validation_frames < usable)) {
     for (double ridge : options.ridge) {
-      const Eigen::MatrixXd w = solve(gram_train, cross_train, ridge);
-      double sq = 0.0;
-      for (const TakeFrame& frame : split.validation) {
-        sq += (w.transpose() * regressors[frame.first].col(frame.second) -
-               targets[frame.first].col(frame.second))
-                  .squaredNorm();
+      // Each fold's squared error relative to its offsets' energy, averaged over the folds:
+      // every held-out motion counts the same whatever its amplitude (a walk's offsets are a
+      // fifth of a platform take's).
+      double sq = 0.0, relative = 0.0;
+      for (int fold = 0; fold < folds; ++fold) {
+        const Eigen::MatrixXd w =
+            solve(gram_all - gram_fold[fold], cross_all - cross_fold[fold], ridge);
+        double fold_sq = 0.0, fold_energy = 0.0;
+        for (size_t n = 0; n < decomposed.size(); ++n) {
+          for (int t = ranges[n].begin; t < ranges[n].end; ++t) {
+            if (fold_of[n][t] != fold) continue;
+            fold_sq += (w.transpose() * regressors[n].col(t) - targets[n].col(t)).squaredNorm();
+            fold_energy += targets[n].col(t).squaredNorm();
+          }
+        }
+        sq += fold_sq;
+        relative += fold_sq / std::max(fold_energy, 1e-12) / folds;
       }
-      const double rms =
-          std::sqrt(sq / (static_cast<double>(split.validation.size()) * model.sample_count_));
-      result.validation_rms_mm.push_back(rms);
-      if (rms < best) {
-        best = rms;
+      result.validation_rms_mm.push_back(
+          std::sqrt(sq / (static_cast<double>(result.validation_frames) * model.sample_count_)));
+      result.validation_relative.push_back(std::sqrt(relative));
+      if (relative < best) {
+        best = relative;
         result.chosen_ridge = ridge;
       }
     }

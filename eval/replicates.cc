@@ -42,7 +42,7 @@ Json SpreadJson(const Spread& s) {
 }  // namespace
 
 Json SummariseMethodReplicates(const std::vector<Json>& replicates, const std::string& figure,
-                               const std::string& learned_prefix) {
+                               const std::vector<std::string>& learned_prefixes) {
   // take -> method -> values, in first-seen order of takes.
   std::vector<std::string> take_order;
   std::map<std::string, std::map<std::string, std::vector<double>>> values;
@@ -62,7 +62,12 @@ Json SummariseMethodReplicates(const std::vector<Json>& replicates, const std::s
       }
     }
   }
-  auto learned = [&](const std::string& method) { return method.rfind(learned_prefix, 0) == 0; };
+  auto learned = [&](const std::string& method) {
+    for (const std::string& prefix : learned_prefixes) {
+      if (method.rfind(prefix, 0) == 0) return true;
+    }
+    return false;
+  };
   Json takes = Json::array();
   for (const std::string& name : take_order) {
     Json methods = Json::object();
@@ -97,7 +102,7 @@ Json SummariseRemovalReplicates(const std::vector<Json>& studies) {
   }
   return {{"replicates", studies.size()},
           {"rule", "a difference within the larger standard deviation is a tie"},
-          {"removal", SummariseMethodReplicates(replicates, "jiggle_mean_mm", "F")}};
+          {"removal", SummariseMethodReplicates(replicates, "jiggle_mean_mm", {"F"})}};
 }
 
 namespace {
@@ -175,10 +180,10 @@ Json SummariseDemoReplicates(const std::vector<Json>& stages, const std::vector<
   return {{"replicates", stages.size()},
           {"seeds", seeds},
           {"rule", "a difference within the larger standard deviation is a tie"},
-          {"removal", SummariseMethodReplicates(removal, "mm", "F")},
-          {"resynthesis", SummariseMethodReplicates(resynthesis, "mm", "H")},
-          {"new_motion_synthesis", SummariseMethodReplicates(new_motion, "mm", "H")},
-          {"retarget", SummariseMethodReplicates(retarget, "mm", "H")}};
+          {"removal", SummariseMethodReplicates(removal, "mm", {"F"})},
+          {"resynthesis", SummariseMethodReplicates(resynthesis, "mm", {"H"})},
+          {"new_motion_synthesis", SummariseMethodReplicates(new_motion, "mm", {"H", "modal"})},
+          {"retarget", SummariseMethodReplicates(retarget, "mm", {"H", "modal"})}};
 }
 
 void PrintReplicateSummary(const Json& summary) {

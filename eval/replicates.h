@@ -33,10 +33,11 @@ Json SummariseRemovalReplicates(const std::vector<Json>& studies);
 // The general form: `replicates[r]` is replicate r's array of entries {"take", optional
 // "protocol", "methods": {name: {figure: mm}}}; entries are matched by take name. Per take,
 // each method's `figure` as a Spread ("mean_mm", "sd_mm", "min_mm", "max_mm", "replicates"),
-// and each learned method (name starting with `learned_prefix`) against every other method that
-// is not learned, as a verdict (CompareLowerIsBetter). Returns the array of take summaries.
+// and each fitted method (name starting with one of `learned_prefixes`) against every other
+// method that is not fitted, as a verdict (CompareLowerIsBetter). Returns the array of take
+// summaries.
 Json SummariseMethodReplicates(const std::vector<Json>& replicates, const std::string& figure,
-                               const std::string& learned_prefix);
+                               const std::vector<std::string>& learned_prefixes);
 
 // `facedyn demo --seeds`: one demo dynamics stage per seed (app/demo_dynamics.h's JSON: the
 // sections "removal", "removal_performance", "removal_walk", "synthesis" and "retarget"), each
@@ -45,7 +46,7 @@ Json SummariseMethodReplicates(const std::vector<Json>& replicates, const std::s
 // performance, walk) every method's jiggle_mean_mm plus "lower_reference" (Eq. 7 with the exact
 // offsets in the estimated skull frame) with F's verdicts, "resynthesis": Fig. 7's residual
 // against removal without synthesis, "new_motion_synthesis" and "retarget": each method's
-// offset_mean_mm with H's verdicts}. Sections a stage lacks are left out of its replicate.
+// offset_mean_mm with the verdicts of H and of the modal synthesis}. Sections a stage lacks are left out of its replicate.
 Json SummariseDemoReplicates(const std::vector<Json>& stages, const std::vector<uint64_t>& seeds);
 
 // Prints a replicate summary (SummariseDemoReplicates's JSON) as tables on stdout: per section

@@ -372,14 +372,18 @@ std::string DynamicsSection(const Json& dynamics) {
     }
     const Json& walk = Field(synthesis, "walk");
     if (walk.is_object()) {
+      std::vector<std::pair<std::string, double>> bars = {
+          {"H synthesised", Number(Field(Field(walk, "methods"), "H"), "offset_mean_mm")}};
+      if (Field(walk, "methods").contains("modal")) {
+        bars.emplace_back("modal synthesis",
+                          Number(Field(Field(walk, "methods"), "modal"), "offset_mean_mm"));
+      }
+      bars.emplace_back("no dynamics",
+                        Number(Field(Field(walk, "methods"), "no_dynamics"), "offset_mean_mm"));
       html += "<br>" +
-              SvgBarChart(
-                  "New head motion: " + Text(walk, "take") +
-                      ", dynamic-offset error vs simulated truth",
-                  {{"H synthesised", Number(Field(Field(walk, "methods"), "H"), "offset_mean_mm")},
-                   {"no dynamics",
-                    Number(Field(Field(walk, "methods"), "no_dynamics"), "offset_mean_mm")}},
-                  "mm");
+              SvgBarChart("New head motion: " + Text(walk, "take") +
+                              ", dynamic-offset error vs simulated truth",
+                          bars, "mm");
     }
   }
   const Json& retarget = Field(dynamics, "retarget");
@@ -387,7 +391,10 @@ std::string DynamicsSection(const Json& dynamics) {
     html += "<h3>Root-motion retargeting to a second subject (paper Figs. 9-10)</h3><p>" +
             EscapeHtml(Text(retarget, "target")) +
             ", with its own F and H trained on its own reconstructed takes, driven by subject A's "
-            "walk; compared with subject B simulated walking the same walk.</p>";
+            "walk; compared with subject B simulated walking the same walk. modal_B_retarget is "
+            "B's modal synthesis: a linear response to the skull's accelerations through a fixed "
+            "resonator bank, fitted to B's reconstructed held takes (each decomposed by its held "
+            "mean), no network.</p>";
     std::vector<std::pair<std::string, double>> bars;
     for (const auto& [name, figures] : Field(retarget, "methods").items()) {
       bars.emplace_back(name, Number(figures, "offset_mean_mm"));

@@ -213,13 +213,14 @@ TEST(Cli, DemoMetricsAndReport) {
   // Resynthesis restores dynamics: closer to the input than the removed take is.
   EXPECT_LT(synthesis["resynthesis"]["resynthesis_residual_mm"].get<double>(),
             synthesis["resynthesis"]["removed_without_synthesis_mm"].get<double>());
-  for (const char* method : {"H", "no_dynamics"}) {
+  for (const char* method : {"H", "modal", "no_dynamics"}) {
     EXPECT_TRUE(synthesis["walk"]["methods"].contains(method)) << method;
   }
-  for (const char* method : {"H_B_retarget", "naive_delta_transfer", "no_dynamics"}) {
+  for (const char* method :
+       {"H_B_retarget", "modal_B_retarget", "naive_delta_transfer", "no_dynamics"}) {
     EXPECT_TRUE(dynamics["retarget"]["methods"].contains(method)) << method;
   }
-  for (const char* model : {"F", "H", "F_B", "H_B"}) {
+  for (const char* model : {"F", "H", "F_B", "H_B", "modal_A", "modal_B"}) {
     EXPECT_TRUE(dynamics["training"].contains(model)) << model;
   }
   for (const char* model : {"F.pt", "H.pt", "H_B.pt"}) {

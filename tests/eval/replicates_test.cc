@@ -75,6 +75,7 @@ TEST(SummariseDemoReplicates, EverySectionPerProtocolWithVerdicts) {
         {"walk", {{"methods", {{"H", {{"offset_mean_mm", 0.2}}}, {"no_dynamics", {{"offset_mean_mm", 0.21}}}}}}}};
     stage["retarget"] = {{"methods",
                           {{"H_B_retarget", {{"offset_mean_mm", 0.40 + 5 * d}}},
+                           {"modal_B_retarget", {{"offset_mean_mm", 0.15 + d}}},
                            {"naive_delta_transfer", {{"offset_mean_mm", 0.30}}},
                            {"no_dynamics", {{"offset_mean_mm", 0.70}}}}}};
     stages.push_back(stage);
@@ -107,7 +108,10 @@ TEST(SummariseDemoReplicates, EverySectionPerProtocolWithVerdicts) {
   const auto retarget = verdicts(summary["retarget"][0]);
   EXPECT_EQ(retarget.at("H_B_retarget vs naive_delta_transfer"), "higher");  // 0.45 +- 0.05
   EXPECT_EQ(retarget.at("H_B_retarget vs no_dynamics"), "lower");
-  EXPECT_EQ(retarget.size(), 2u);  // only the learned method is judged
+  // The modal synthesis is a fitted method too: it gets verdicts, and is not a baseline of H's.
+  EXPECT_EQ(retarget.at("modal_B_retarget vs naive_delta_transfer"), "lower");
+  EXPECT_EQ(retarget.count("H_B_retarget vs modal_B_retarget"), 0u);
+  EXPECT_EQ(retarget.size(), 4u);  // only the two fitted methods are judged
 }
 
 }  // namespace

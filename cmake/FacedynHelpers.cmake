@@ -88,6 +88,14 @@ function(facedyn_add_test module name)
                                           GTest::gtest GTest::gmock)
   target_compile_definitions(${target} PRIVATE FACEDYN_TEST_SKIP_CODE=${FACEDYN_TEST_SKIP_CODE})
   _facedyn_common_options(${target})
+  # A test's own source only sets up, calls and checks: the code under test is in the libraries,
+  # built as the build type says. In a Release build the test sources get -O1 (after the
+  # type's -O3 on the command line, so it wins): measured on three test sources, 42 -> 35 s,
+  # 17.6 -> 12.6 s and 11.6 -> 9.8 s to compile, and test sources are about half of what a
+  # fresh `make test` compiles.
+  if(CMAKE_BUILD_TYPE STREQUAL "Release")
+    target_compile_options(${target} PRIVATE -O1)
+  endif()
   if(NOT ARG_TIMEOUT)
     set(ARG_TIMEOUT 300)
   endif()

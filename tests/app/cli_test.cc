@@ -228,9 +228,10 @@ TEST(Cli, DemoMetricsAndReport) {
         << model;
   }
 
-  // Renders: the held-out take (3 views), the walk (2) and the retargeting (3), two frames each.
+  // Renders: the held-out take (3 views), the walk (2) and the retargeting (4: B's H, B's modal
+  // synthesis, naive transfer, the truth), two frames each.
   EXPECT_EQ(metrics["renders"]["groups"].size(), 3u);
-  EXPECT_EQ(metrics["renders"]["images"].size(), 16u);
+  EXPECT_EQ(metrics["renders"]["images"].size(), 18u);
   // Named relative to the output folder, so the folder can move.
   for (const auto& image : metrics["renders"]["images"]) {
     EXPECT_TRUE(std::filesystem::path(image["path"].get<std::string>()).is_relative());

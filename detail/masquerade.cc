@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 
+#include "core/binary_io.h"
 #include "core/file_util.h"
 
 namespace facedyn::detail {
@@ -19,85 +20,6 @@ constexpr char kTrailer[4] = {'E', 'N', 'D', '.'};
 // Sanity bounds on counts read from a file, so a corrupted count is an error, not a huge
 // allocation.
 constexpr int64_t kMaxCount = 50'000'000;
-
-class Writer {
- public:
-  template <typename T>
-  void Pod(const T& value) {
-    bytes_.append(reinterpret_cast<const char*>(&value), sizeof(T));
-  }
-  void Str(const std::string& s) {
-    Pod<uint32_t>(static_cast<uint32_t>(s.size()));
-    bytes_.append(s);
-  }
-  void Doubles(const double* data, int64_t n) {
-    Pod<int64_t>(n);
-    bytes_.append(reinterpret_cast<const char*>(data), sizeof(double) * static_cast<size_t>(n));
-  }
-  void Ints(const int* data, int64_t n) {
-    Pod<int64_t>(n);
-    bytes_.append(reinterpret_cast<const char*>(data), sizeof(int) * static_cast<size_t>(n));
-  }
-  void Raw(const char* data, size_t n) { bytes_.append(data, n); }
-  const std::string& bytes() const { return bytes_; }
-
- private:
-  std::string bytes_;
-};
-
-class Reader {
- public:
-  Reader(std::string bytes, std::string path) : bytes_(std::move(bytes)), path_(std::move(path)) {}
-
-  Status Take(void* out, size_t n, const char* what) {
-    if (bytes_.size() - pos_ < n) {
-      return DataLossError(
-          fmt::format("{}: truncated at byte {} while reading {}", path_, pos_, what));
-    }
-    std::memcpy(out, bytes_.data() + pos_, n);
-    pos_ += n;
-    return Status::Ok();
-  }
-  template <typename T>
-  Status Pod(T* value, const char* what) {
-    return Take(value, sizeof(T), what);
-  }
-  Status Str(std::string* s, const char* what) {
-    uint32_t n = 0;
-    FACEDYN_RETURN_IF_ERROR(Pod(&n, what));
-    if (n > bytes_.size() - pos_)
-      return DataLossError(fmt::format("{}: truncated in {}", path_, what));
-    s->assign(bytes_.data() + pos_, n);
-    pos_ += n;
-    return Status::Ok();
-  }
-  // A counted array of exactly `expected` entries (or any count when expected < 0).
-  template <typename T>
-  Status Array(std::vector<T>* out, int64_t expected, const char* what) {
-    int64_t n = 0;
-    FACEDYN_RETURN_IF_ERROR(Pod(&n, what));
-    if (n < 0 || n > kMaxCount || (expected >= 0 && n != expected)) {
-      return DataLossError(
-          fmt::format("{}: {} has {} entries, expected {}", path_, what, n,
-                      expected >= 0 ? std::to_string(expected) : std::string("a sane count")));
-    }
-    out->resize(static_cast<size_t>(n));
-    return Take(out->data(), sizeof(T) * static_cast<size_t>(n), what);
-  }
-  Status Count(int64_t* n, int64_t max, const char* what) {
-    FACEDYN_RETURN_IF_ERROR(Pod(n, what));
-    if (*n < 0 || *n > max)
-      return DataLossError(fmt::format("{}: {} is {}, out of range", path_, what, *n));
-    return Status::Ok();
-  }
-  bool AtEnd() const { return pos_ == bytes_.size(); }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string bytes_;
-  std::string path_;
-  size_t pos_ = 0;
-};
 
 Status CheckMarkers(const Eigen::Matrix3Xd& markers_mm, int expected) {
   if (markers_mm.cols() != expected) {
@@ -345,7 +267,7 @@ size_t MasqueradeModel::MemoryBytes() const {
 }
 
 Status MasqueradeModel::Save(const std::string& path) const {
-  Writer w;
+  BinaryWriter w;
   w.Raw(kMagic, sizeof(kMagic));
   w.Pod<uint32_t>(kDetailModelFormatVersion);
   w.Str(subject_);
@@ -389,7 +311,7 @@ Status MasqueradeModel::Save(const std::string& path) const {
 
 StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
   FACEDYN_ASSIGN_OR_RETURN(std::string bytes, ReadFileToString(path));
-  Reader r(std::move(bytes), path);
+  BinaryReader r(std::move(bytes), path, kMaxCount);
   char magic[8];
   FACEDYN_RETURN_IF_ERROR(r.Take(magic, sizeof(magic), "the magic"));
   if (std::memcmp(magic, kMagic, sizeof(kMagic)) != 0) {

@@ -274,8 +274,11 @@ StatusOr<dynamics::ModalSynthesisModel> TrainModal(const std::vector<Take>& reco
   dynamics::ModalSynthesisFit fit;
   FACEDYN_ASSIGN_OR_RETURN(dynamics::ModalSynthesisModel model,
                            dynamics::ModalSynthesisModel::Train(training, options, &fit));
-  spdlog::info("{}: modal synthesis on {} held takes, ridge {:g} chosen on {} validation frames",
-               label, reconstructed.size(), fit.chosen_ridge, fit.validation_frames);
+  spdlog::info(
+      "{}: modal synthesis on {} held takes, ridge {:g} chosen on {} validation frames "
+      "(expected residual {:.3f} of a new motion's offsets)",
+      label, reconstructed.size(), fit.chosen_ridge, fit.validation_frames,
+      model.validation_residual());
   *fit_json = {{"decomposition", "held mean (quasistatic.h), reconstructed takes"},
                {"takes", reconstructed.size()},
                {"resonator_hz", options.resonator_hz},
@@ -285,6 +288,7 @@ StatusOr<dynamics::ModalSynthesisModel> TrainModal(const std::vector<Take>& reco
                {"validation_rms_mm", fit.validation_rms_mm},
                {"validation_relative", fit.validation_relative},
                {"chosen_ridge", fit.chosen_ridge},
+               {"validation_residual", model.validation_residual()},
                {"training_frames", fit.training_frames},
                {"validation_frames", fit.validation_frames}};
   return model;
@@ -444,11 +448,38 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   FACEDYN_RETURN_IF_ERROR(f_model.Save(JoinPath(models_dir, "F.pt")));
   training["F"] = TrainingJson(f_summary, options.removal_epochs);
 
+  // The modal model (dynamics/modal_synthesis.h) on the same held takes, decomposed by their held
+  // mean: a removal by synthesis from the skull's motion beside F, and A's synthesis in section 3.
+  FACEDYN_ASSIGN_OR_RETURN(
+      const dynamics::ModalSynthesisModel modal_a,
+      TrainModal(a.reconstructed, face, options.seed, "modal_A", &training["modal_A"]));
+  // The modal model's removals of `reconstructed`, named as the comparison reports them: alone,
+  // and followed by the low-pass its own validation error calls for (cutoff in *cutoff_hz).
+  auto modal_removals = [&](const Take& reconstructed, std::vector<Take>* storage,
+                            double* cutoff_hz) -> StatusOr<std::vector<eval::NamedRemoval>> {
+    storage->clear();
+    FACEDYN_ASSIGN_OR_RETURN(Take modal, modal_a.Remove(reconstructed, face));
+    FACEDYN_ASSIGN_OR_RETURN(Take filtered,
+                             modal_a.RemoveThenLowPass(reconstructed, face, cutoff_hz));
+    storage->push_back(std::move(modal));
+    storage->push_back(std::move(filtered));
+    return std::vector<eval::NamedRemoval>{{"modal", &(*storage)[0]},
+                                           {"modal_lowpass", &(*storage)[1]}};
+  };
+
   Take removed;
+  std::vector<Take> modal_storage;
   const std::string test_name = TakeName(test_simulated.info.expression, test_hz);
-  FACEDYN_ASSIGN_OR_RETURN(result["removal"],
-                           eval::CompareRemovalOnReconstruction(f_model, reference_removal, test_name, test_simulated,
-                                          test_reconstructed, face, skip, &removed));
+  {
+    double cutoff_hz = 0.0;
+    FACEDYN_ASSIGN_OR_RETURN(const std::vector<eval::NamedRemoval> others,
+                             modal_removals(test_reconstructed, &modal_storage, &cutoff_hz));
+    FACEDYN_ASSIGN_OR_RETURN(result["removal"],
+                             eval::CompareRemovalOnReconstruction(
+                                 f_model, reference_removal, test_name, test_simulated,
+                                 test_reconstructed, face, skip, &removed, others));
+    result["removal"]["methods"]["modal_lowpass"]["cutoff_hz"] = Round4(cutoff_hz);
+  }
   result["removal"]["F_targets"] = dynamics::RemovalTargetsName(options.removal_targets);
   const dynamics::FrameRange test_scored = dynamics::ScoredFrames(test_simulated, skip);
   const std::vector<int> jiggle =
@@ -489,10 +520,15 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
                                                  static_cast<int>(extra_specs.size()), &extra));
   for (size_t i = 0; i < extra_specs.size(); ++i) {
     reconstruction.push_back(extra.reconstruction[i]);
+    double cutoff_hz = 0.0;
+    FACEDYN_ASSIGN_OR_RETURN(const std::vector<eval::NamedRemoval> others,
+                             modal_removals(extra.reconstructed[i], &modal_storage, &cutoff_hz));
     FACEDYN_ASSIGN_OR_RETURN(
         result[extra_sections[i]],
-        eval::CompareRemovalOnReconstruction(f_model, reference_removal, extra_specs[i].name, extra.simulated[i],
-                       extra.reconstructed[i], face, skip, nullptr));
+        eval::CompareRemovalOnReconstruction(f_model, reference_removal, extra_specs[i].name,
+                                             extra.simulated[i], extra.reconstructed[i], face,
+                                             skip, nullptr, others));
+    result[extra_sections[i]]["methods"]["modal_lowpass"]["cutoff_hz"] = Round4(cutoff_hz);
   }
   if (artifacts != nullptr && options.performance_expression != "") {
     artifacts->performance_simulated = extra.simulated.back();
@@ -607,9 +643,6 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
   Json walk_methods;
   FACEDYN_ASSIGN_OR_RETURN(walk_methods["H"],
                            eval::SynthesisErrors(walk_synthesised, walk_truth, walk_jiggle, skip));
-  FACEDYN_ASSIGN_OR_RETURN(
-      const dynamics::ModalSynthesisModel modal_a,
-      TrainModal(a.reconstructed, face, options.seed, "modal_A", &training["modal_A"]));
   FACEDYN_ASSIGN_OR_RETURN(
       const Take walk_modal,
       modal_a.Synthesize(walk_quasistatic, walk_truth.world_from_skull, "walk", face));

@@ -1,6 +1,9 @@
-// `facedyn dynamics train-removal | remove | train-synthesis | synthesize | retarget`: the
-// networks of Zoss et al. 2020 on Take folders (dynamics/removal_model.h, synthesis_model.h).
+// `facedyn dynamics train-removal | remove | train-synthesis | synthesize | retarget |
+// train-modal`: the networks of Zoss et al. 2020 on Take folders (dynamics/removal_model.h,
+// synthesis_model.h) and the modal model (dynamics/modal_synthesis.h), which `remove`,
+// `synthesize` and `retarget` take under the same --model (told apart by the file's magic).
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
@@ -14,7 +17,9 @@
 #include "core/face_rig.h"
 #include "core/json_io.h"
 #include "core/take.h"
+#include "dynamics/modal_synthesis.h"
 #include "dynamics/propagation.h"
+#include "dynamics/quasistatic.h"
 #include "dynamics/removal_model.h"
 #include "dynamics/synthesis_model.h"
 #include "sim/expressions.h"
@@ -70,6 +75,18 @@ void TrimTake(int frames, Take* take) {
   take->world_from_skull.resize(frames);
   if (!take->skull_from_jaw.empty()) take->skull_from_jaw.resize(frames);
   take->time_s.resize(frames);
+}
+
+// A synthesis model file: the modal model's (by its magic) or H's.
+Status LoadSynthesisModel(const std::string& path,
+                          std::optional<dynamics::ModalSynthesisModel>* modal,
+                          std::optional<dynamics::SynthesisModel>* network) {
+  if (dynamics::IsModalModelFile(path)) {
+    FACEDYN_ASSIGN_OR_RETURN(*modal, dynamics::ModalSynthesisModel::Load(path));
+  } else {
+    FACEDYN_ASSIGN_OR_RETURN(*network, dynamics::SynthesisModel::Load(path));
+  }
+  return Status::Ok();
 }
 
 }  // namespace
@@ -163,22 +180,56 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
   // --- remove ---
   struct RemoveCommand {
     std::string take, model, face = "procedural", out;
+    bool lowpass_after = false;
     bool json = false;
   };
   auto remove = std::make_shared<RemoveCommand>();
   auto* remove_cmd = dynamics->add_subcommand(
       "remove",
-      "Remove secondary dynamics from a take with a trained F (Eq. 7), propagated to "
-      "every vertex; writes the quasistatic take with channel dynamic_offset");
+      "Remove secondary dynamics from a take with a trained F (Eq. 7) or a modal model (the "
+      "offsets it predicts from the take's head motion), propagated to every vertex; writes the "
+      "quasistatic take with channel dynamic_offset");
   remove_cmd->add_option("--take", remove->take, "Dynamic take folder")->required();
-  remove_cmd->add_option("--model", remove->model, "Removal model (train-removal --out)")
+  remove_cmd
+      ->add_option("--model", remove->model,
+                   "Removal model (train-removal --out) or modal model (train-modal --out)")
       ->required();
+  remove_cmd->add_flag("--lowpass-after", remove->lowpass_after,
+                       "Modal model only: follow the removal with the skull-frame low-pass whose "
+                       "cutoff the model's validation error calls for (recorded in the take's "
+                       "metadata as removal_lowpass_hz)");
   remove_cmd->add_option("--face", remove->face, "FaceRig folder, or 'procedural'")
       ->capture_default_str();
   remove_cmd->add_option("--out", remove->out, "Output take folder")->required();
   remove_cmd->add_flag("--json", remove->json, "Print timings as JSON");
   remove_cmd->callback([remove, selected] {
     *selected = [remove]() -> Status {
+      if (dynamics::IsModalModelFile(remove->model)) {
+        FACEDYN_ASSIGN_OR_RETURN(const dynamics::ModalSynthesisModel modal,
+                                 dynamics::ModalSynthesisModel::Load(remove->model));
+        FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(remove->face));
+        FACEDYN_ASSIGN_OR_RETURN(const Take take, LoadTake(remove->take));
+        double cutoff_hz = 0.0;
+        StatusOr<Take> removed = remove->lowpass_after
+                                     ? modal.RemoveThenLowPass(take, rig, &cutoff_hz)
+                                     : modal.Remove(take, rig);
+        if (!removed.ok()) return removed.status().WithContext(remove->take);
+        FACEDYN_RETURN_IF_ERROR(SaveTake(*removed, remove->out));
+        spdlog::info("wrote {} ({} frames, modal removal{})", remove->out, removed->frame_count(),
+                     remove->lowpass_after ? fmt::format(", low-pass at {:.2f} Hz", cutoff_hz)
+                                           : std::string());
+        if (remove->json) {
+          Json json = {{"frames", removed->frame_count()}, {"model", "modal"}};
+          if (remove->lowpass_after) json["lowpass_hz"] = cutoff_hz;
+          std::printf("%s\n", json.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
+        }
+        return Status::Ok();
+      }
+      if (remove->lowpass_after) {
+        return InvalidArgumentError(
+            "remove: --lowpass-after needs a modal model (train-modal --out); " + remove->model +
+            " is not one");
+      }
       FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel model,
                                dynamics::RemovalModel::Load(remove->model));
       FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(remove->face));
@@ -300,15 +351,17 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
                    "New head motion: a take folder or a skull.csv file")
       ->required();
   synthesize_cmd
-      ->add_option("--model", synthesize->model, "Synthesis model (train-synthesis --out)")
+      ->add_option("--model", synthesize->model,
+                   "Synthesis model (train-synthesis --out) or modal model (train-modal --out)")
       ->required();
   synthesize_cmd->add_option("--face", synthesize->face, "FaceRig folder, or 'procedural'")
       ->capture_default_str();
   synthesize_cmd->add_option("--out", synthesize->out, "Output take folder")->required();
   synthesize_cmd->callback([synthesize, selected] {
     *selected = [synthesize]() -> Status {
-      FACEDYN_ASSIGN_OR_RETURN(const dynamics::SynthesisModel model,
-                               dynamics::SynthesisModel::Load(synthesize->model));
+      std::optional<dynamics::ModalSynthesisModel> modal;
+      std::optional<dynamics::SynthesisModel> network;
+      FACEDYN_RETURN_IF_ERROR(LoadSynthesisModel(synthesize->model, &modal, &network));
       FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(synthesize->face));
       FACEDYN_ASSIGN_OR_RETURN(Take quasistatic, LoadTake(synthesize->take));
       FACEDYN_ASSIGN_OR_RETURN(std::vector<Rigid3> motion, LoadMotion(synthesize->motion));
@@ -321,8 +374,10 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
         TrimTake(frames, &quasistatic);
         motion.resize(frames);
       }
-      StatusOr<Take> result =
-          dynamics::SynthesizeDynamics(model, quasistatic, motion, synthesize->motion, rig);
+      StatusOr<Take> result = modal
+                                  ? modal->Synthesize(quasistatic, motion, synthesize->motion, rig)
+                                  : dynamics::SynthesizeDynamics(*network, quasistatic, motion,
+                                                                 synthesize->motion, rig);
       if (!result.ok()) return result.status().WithContext(synthesize->take);
       FACEDYN_RETURN_IF_ERROR(SaveTake(*result, synthesize->out));
       spdlog::info("wrote {} ({} frames)", synthesize->out, result->frame_count());
@@ -342,7 +397,9 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       ->required();
   retarget_cmd->add_option("--face", retarget->face, "Target FaceRig folder, or 'procedural'")
       ->capture_default_str();
-  retarget_cmd->add_option("--model", retarget->model, "The target subject's synthesis model")
+  retarget_cmd
+      ->add_option("--model", retarget->model,
+                   "The target subject's synthesis model or modal model (train-modal --out)")
       ->required();
   auto* take_option = retarget_cmd->add_option(
       "--take", retarget->take, "Target quasistatic take (default: the target holds --expression)");
@@ -359,8 +416,9 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       ->capture_default_str();
   retarget_cmd->callback([retarget, selected] {
     *selected = [retarget]() -> Status {
-      FACEDYN_ASSIGN_OR_RETURN(const dynamics::SynthesisModel model,
-                               dynamics::SynthesisModel::Load(retarget->model));
+      std::optional<dynamics::ModalSynthesisModel> modal;
+      std::optional<dynamics::SynthesisModel> network;
+      FACEDYN_RETURN_IF_ERROR(LoadSynthesisModel(retarget->model, &modal, &network));
       FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(retarget->face));
       FACEDYN_ASSIGN_OR_RETURN(const Take source, LoadTake(retarget->motion));
       Take target;
@@ -381,8 +439,11 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
                                          source.info.fps);
         target.info.expression = expression;
       }
-      StatusOr<Take> result = dynamics::SynthesizeDynamics(
-          model, target, source.world_from_skull, "retargeted from " + retarget->motion, rig);
+      const std::string motion_name = "retargeted from " + retarget->motion;
+      StatusOr<Take> result =
+          modal ? modal->Synthesize(target, source.world_from_skull, motion_name, rig)
+                : dynamics::SynthesizeDynamics(*network, target, source.world_from_skull,
+                                               motion_name, rig);
       if (!result.ok()) return result.status().WithContext(retarget->motion);
       FACEDYN_RETURN_IF_ERROR(SaveTake(*result, retarget->out));
       spdlog::info("wrote {} ({} frames)", retarget->out, result->frame_count());
@@ -392,6 +453,84 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
                                  dynamics::NaiveDeltaTransfer(source, source_rig, target, rig));
         FACEDYN_RETURN_IF_ERROR(SaveTake(naive, retarget->naive_out));
         spdlog::info("wrote the naive transfer to {}", retarget->naive_out);
+      }
+      return Status::Ok();
+    };
+  });
+
+  // --- train-modal ---
+  struct TrainModalCommand {
+    std::vector<std::string> takes;
+    std::string face = "procedural", out;
+    std::string decomposition = "held-mean";
+    dynamics::ModalSynthesisOptions options;
+    bool json = false;
+  };
+  auto train_modal = std::make_shared<TrainModalCommand>();
+  auto* train_modal_cmd = dynamics->add_subcommand(
+      "train-modal",
+      "Train the modal model (dynamics/modal_synthesis.h): a subject's dynamics as a fixed bank "
+      "of damped resonators driven by the skull's acceleration and one ridge-fitted linear map, "
+      "from held takes decomposed by their held mean; for remove, synthesize and retarget");
+  train_modal_cmd->add_option("--takes", train_modal->takes, "Training take folders")
+      ->required()
+      ->expected(1, -1);
+  train_modal_cmd->add_option("--face", train_modal->face, "FaceRig folder, or 'procedural'")
+      ->capture_default_str();
+  train_modal_cmd->add_option("--out", train_modal->out, "Model file to write (e.g. modal.bin)")
+      ->required();
+  train_modal_cmd
+      ->add_option("--decomposition", train_modal->decomposition,
+                   "held-mean: captured held takes, each decomposed by its held part's mean shape "
+                   "in the skull frame (no truth); decomposed: takes that already carry a "
+                   "dynamic_offset channel (the output of `dynamics remove` or `dynamics "
+                   "quasistatic`)")
+      ->check(CLI::IsMember({"held-mean", "decomposed"}))
+      ->capture_default_str();
+  train_modal_cmd
+      ->add_option("--resonator-damping", train_modal->options.resonator_damping,
+                   "Damping ratio of the resonator bank")
+      ->capture_default_str();
+  train_modal_cmd
+      ->add_option("--seed", train_modal->options.seed,
+                   "Seed of the validation blocks (used with a single take)")
+      ->capture_default_str();
+  train_modal_cmd->add_flag("--json", train_modal->json, "Print the fit's summary as JSON");
+  train_modal_cmd->callback([train_modal, selected] {
+    *selected = [train_modal]() -> Status {
+      if (Status status = train_modal->options.Check(); !status.ok()) {
+        return InvalidArgumentError("train-modal: " + status.message());
+      }
+      FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(train_modal->face));
+      FACEDYN_ASSIGN_OR_RETURN(std::vector<Take> takes, LoadTakes(train_modal->takes));
+      if (train_modal->decomposition == "held-mean") {
+        dynamics::QuasistaticOptions held;
+        held.method = dynamics::QuasistaticMethod::kHeldMean;
+        for (size_t k = 0; k < takes.size(); ++k) {
+          StatusOr<Take> decomposed = dynamics::ExtractQuasistatic(takes[k], held);
+          if (!decomposed.ok()) return decomposed.status().WithContext(train_modal->takes[k]);
+          takes[k] = std::move(decomposed).value();
+        }
+      }
+      dynamics::ModalSynthesisFit fit;
+      StatusOr<dynamics::ModalSynthesisModel> model =
+          dynamics::ModalSynthesisModel::Train(AsTraining(takes, rig), train_modal->options, &fit);
+      if (!model.ok()) return model.status().WithContext("train-modal");
+      FACEDYN_RETURN_IF_ERROR(model->Save(train_modal->out));
+      spdlog::info(
+          "wrote {} ({} training frames; ridge {:g} chosen by {}, expected residual {:.3f} of a "
+          "new motion's offsets)",
+          train_modal->out, fit.training_frames, fit.chosen_ridge, fit.validation,
+          model->validation_residual());
+      if (train_modal->json) {
+        const Json json = {{"training_frames", fit.training_frames},
+                           {"validation", fit.validation},
+                           {"validation_frames", fit.validation_frames},
+                           {"ridge_tried", train_modal->options.ridge},
+                           {"validation_relative", fit.validation_relative},
+                           {"chosen_ridge", fit.chosen_ridge},
+                           {"validation_residual", model->validation_residual()}};
+        std::printf("%s\n", json.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       }
       return Status::Ok();
     };

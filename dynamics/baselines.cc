@@ -167,6 +167,17 @@ double LowPassCutoffByRule(const Take& take) {
   return std::clamp(dominant / 3.0, 0.25, nyquist_cap);
 }
 
+double LowPassCutoffAfterRemoval(const Take& take, double residual_fraction) {
+  const double nyquist_cap = 0.45 * take.info.fps;
+  const double rule = LowPassCutoffByRule(take);
+  const double dominant = DominantHeadMotionHz(take);
+  if (!(dominant > 0) || !std::isfinite(residual_fraction)) return rule;
+  constexpr double kBudget = 1.0 + 3.0 * 3.0 * 3.0 * 3.0;  // 82: the rule's 1 / (1 + 3^4)
+  const double excess = kBudget * std::max(residual_fraction, 0.0) - 1.0;
+  if (excess <= 0.0) return nyquist_cap;  // the removal alone meets the budget
+  return std::clamp(dominant / std::pow(excess, 0.25), rule, nyquist_cap);
+}
+
 StatusOr<PointCache> ComputeBaseline(const Take& take, BaselineKind kind,
                                      const BaselineOptions& options) {
   FACEDYN_RETURN_IF_ERROR(options.Check());

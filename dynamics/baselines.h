@@ -64,6 +64,17 @@ double DominantHeadMotionHz(const Take& take);
 // beside it, labelled an oracle.
 double LowPassCutoffByRule(const Take& take);
 
+// The low-pass that follows a removal which already took away all but `residual_fraction` of
+// the jiggle (its relative RMS error on takes it did not train on, e.g. the modal model's
+// leave-one-take-out figure): the cutoff at which the filter leaves the same share of a steady
+// jiggle at the dominant frequency f as LowPassCutoffByRule leaves of an untouched one,
+// 1 / (1 + 3^4) = 1/82. With the filter's response 1 / (1 + (f / fc)^4) that is
+// (f / fc)^4 = 82 r - 1, fc = f / (82 r - 1)^(1/4): r >= 1 gives the rule's f / 3, r = 0.3 about
+// f / 2.2, r = 0.05 about f / 1.3; r <= 1/82 (the removal alone meets the budget) gives 0.45 fps,
+// i.e. almost no filtering. No constant is fitted to any take: the budget is the rule's.
+// Clamped as the rule, and never below it.
+double LowPassCutoffAfterRemoval(const Take& take, double residual_fraction);
+
 // Low-pass baseline positions (world frame) for all vertices of `take`.
 StatusOr<PointCache> LowPassBaseline(const Take& take, double cutoff_hz);
 

@@ -6,11 +6,15 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <limits>
 
+#include "core/binary_io.h"
 #include "core/check.h"
+#include "core/file_util.h"
 #include "core/json_io.h"
+#include "dynamics/baselines.h"
 #include "dynamics/feature_spec.h"
 #include "dynamics/synthesis_model.h"
 #include "dynamics/training_frames.h"
@@ -19,6 +23,12 @@ namespace facedyn::dynamics {
 namespace {
 
 constexpr int kInputs = 6;  // a (3) and alpha (3)
+constexpr char kMagic[8] = {'F', 'D', 'M', 'O', 'D', 'A', 'L', '\0'};
+constexpr char kTrailer[4] = {'E', 'N', 'D', '.'};
+constexpr uint32_t kModalFormatVersion = 1;
+constexpr int64_t kMaxResonators = 1000;
+constexpr int64_t kMaxSamples = 1'000'000;
+constexpr int64_t kMaxVertices = 10'000'000;
 
 int RegressorCount(int resonators) { return kInputs * (2 * resonators + 1) + 1; }
 
@@ -144,6 +154,7 @@ StatusOr<ModalSynthesisModel> ModalSynthesisModel::Train(
   }
   const FaceRig& rig = *decomposed.front().rig;
   ModalSynthesisModel model;
+  model.rig_name_ = rig.name;
   model.fps_ = decomposed.front().take->info.fps;
   model.resonator_hz_ = options.resonator_hz;
   model.resonator_damping_ = options.resonator_damping;
@@ -308,6 +319,7 @@ StatusOr<ModalSynthesisModel> ModalSynthesisModel::Train(
       if (relative < best) {
         best = relative;
         result.chosen_ridge = ridge;
+        model.validation_residual_ = std::sqrt(relative);
       }
     }
   }
@@ -327,8 +339,9 @@ Status ModalSynthesisModel::CheckRig(const FaceRig& rig) const {
   if (static_cast<int>(rig.skin_samples.size()) != sample_count_ ||
       HashSurfacePoints(rig.skin_samples) != samples_hash_) {
     return FailedPreconditionError(fmt::format(
-        "modal synthesis: the rig's skin samples ({}) are not the model's ({}, another rig?)",
-        rig.skin_samples.size(), sample_count_));
+        "modal synthesis: the rig \"{}\"'s skin samples ({}) are not the model's ({}, trained "
+        "on rig \"{}\")",
+        rig.name, rig.skin_samples.size(), sample_count_, rig_name_));
   }
   return Status::Ok();
 }
@@ -361,6 +374,160 @@ StatusOr<Take> ModalSynthesisModel::Synthesize(const Take& quasistatic,
       SelectPropagation(propagation_ ? &*propagation_ : nullptr, nullptr, rig, &built));
   return ComposeSynthesis(quasistatic, world_from_skull, "dynamics modal synthesis", motion_name,
                           *propagation, by_frame);
+}
+
+StatusOr<Take> ModalSynthesisModel::Remove(const Take& captured, const FaceRig& rig) const {
+  FACEDYN_RETURN_IF_ERROR(CheckRig(rig));
+  if (std::abs(captured.info.fps - fps_) > 1e-6 * fps_) {
+    return FailedPreconditionError(
+        fmt::format("modal removal: the take is at {} fps, the model was trained at {} fps",
+                    captured.info.fps, fps_));
+  }
+  if (static_cast<int>(captured.world_from_skull.size()) != captured.frame_count()) {
+    return FailedPreconditionError(
+        fmt::format("modal removal: the take has {} skull poses for {} frames",
+                    captured.world_from_skull.size(), captured.frame_count()));
+  }
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXf by_frame,
+                           PredictSampleOffsets(captured.world_from_skull));
+  std::optional<SamplePropagation> built;
+  FACEDYN_ASSIGN_OR_RETURN(
+      const SamplePropagation* propagation,
+      SelectPropagation(propagation_ ? &*propagation_ : nullptr, nullptr, rig, &built));
+  // 3S x F is the memory of 3 x F*S with column t * S + i, the layout ComposeOffsets reads.
+  const Eigen::Map<const Eigen::MatrixXf> sample_offsets(by_frame.data(), 3, by_frame.size() / 3);
+  return RemoveSampleOffsets(captured, *propagation, sample_offsets, "dynamics modal removal");
+}
+
+StatusOr<Take> ModalSynthesisModel::RemoveThenLowPass(const Take& captured, const FaceRig& rig,
+                                                      double* cutoff_hz) const {
+  FACEDYN_ASSIGN_OR_RETURN(Take removed, Remove(captured, rig));
+  const double cutoff = LowPassCutoffAfterRemoval(captured, validation_residual_);
+  FACEDYN_ASSIGN_OR_RETURN(PointCache filtered, LowPassBaseline(removed, cutoff));
+  // The offset channel follows: what was taken away in all, removal and filter.
+  PointCache& offsets = removed.channels.at("dynamic_offset");
+  for (int t = 0; t < removed.frame_count(); ++t) {
+    const Eigen::Matrix3f to_skull =
+        removed.world_from_skull[t].RotationMatrix().transpose().cast<float>();
+    offsets.Frame(t) += to_skull * (removed.positions.Frame(t) - filtered.Frame(t));
+  }
+  removed.positions = std::move(filtered);
+  removed.info.source = "dynamics modal removal + low-pass";
+  removed.info.metadata["removal_lowpass_hz"] = cutoff;
+  removed.info.metadata["removal_validation_residual"] = validation_residual_;
+  if (cutoff_hz != nullptr) *cutoff_hz = cutoff;
+  return removed;
+}
+
+bool IsModalModelFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[sizeof(kMagic)] = {};
+  return in.read(magic, sizeof(magic)) && std::memcmp(magic, kMagic, sizeof(kMagic)) == 0;
+}
+
+Status ModalSynthesisModel::Save(const std::string& path) const {
+  BinaryWriter w;
+  w.Raw(kMagic, sizeof(kMagic));
+  w.Pod<uint32_t>(kModalFormatVersion);
+  w.Str(rig_name_);
+  w.Pod(fps_);
+  w.Doubles(resonator_hz_.data(), static_cast<int64_t>(resonator_hz_.size()));
+  w.Pod(resonator_damping_);
+  w.Pod(validation_residual_);
+  w.Doubles(input_scale_.data(), input_scale_.size());
+  w.Pod<int64_t>(sample_count_);
+  w.Pod<uint64_t>(samples_hash_);
+  w.Pod<int64_t>(weights_.rows());
+  w.Doubles(weights_.data(), weights_.size());
+  w.Pod<uint8_t>(propagation_ ? 1 : 0);
+  if (propagation_) {
+    w.Str(propagation_->method());
+    w.Pod<int64_t>(propagation_->vertex_count());
+    const Eigen::MatrixXf& p = propagation_->weights();
+    w.Array(p.data(), p.size());
+  }
+  w.Raw(kTrailer, sizeof(kTrailer));
+  return WriteFileAtomic(path, w.bytes());
+}
+
+StatusOr<ModalSynthesisModel> ModalSynthesisModel::Load(const std::string& path) {
+  FACEDYN_ASSIGN_OR_RETURN(std::string bytes, ReadFileToString(path));
+  BinaryReader r(std::move(bytes), path);
+  FACEDYN_RETURN_IF_ERROR(r.Expect(kMagic, sizeof(kMagic), "the modal model's magic (FDMODAL)"));
+  uint32_t version = 0;
+  FACEDYN_RETURN_IF_ERROR(r.Pod(&version, "the format version"));
+  if (version != kModalFormatVersion) {
+    return DataLossError(fmt::format("{}: modal model format version {}, this facedyn reads {}",
+                                     path, version, kModalFormatVersion));
+  }
+  ModalSynthesisModel model;
+  FACEDYN_RETURN_IF_ERROR(r.Str(&model.rig_name_, "the rig's name"));
+  FACEDYN_RETURN_IF_ERROR(r.Pod(&model.fps_, "fps"));
+  FACEDYN_RETURN_IF_ERROR(r.Array(&model.resonator_hz_, -1, "the resonator frequencies"));
+  FACEDYN_RETURN_IF_ERROR(r.Pod(&model.resonator_damping_, "the resonator damping"));
+  FACEDYN_RETURN_IF_ERROR(r.Pod(&model.validation_residual_, "the validation residual"));
+  std::vector<double> scale;
+  FACEDYN_RETURN_IF_ERROR(r.Array(&scale, kInputs, "the input scales"));
+  int64_t samples = 0;
+  FACEDYN_RETURN_IF_ERROR(r.Count(&samples, kMaxSamples, "the sample count"));
+  FACEDYN_RETURN_IF_ERROR(r.Pod(&model.samples_hash_, "the samples' hash"));
+  int64_t rows = 0;
+  FACEDYN_RETURN_IF_ERROR(r.Count(&rows, kInputs * (2 * kMaxResonators + 1) + 1, "W's rows"));
+  std::vector<double> weights;
+  FACEDYN_RETURN_IF_ERROR(r.Array(&weights, rows * 3 * samples, "W"));
+  uint8_t has_propagation = 0;
+  FACEDYN_RETURN_IF_ERROR(r.Pod(&has_propagation, "the propagation flag"));
+  if (has_propagation > 1) {
+    return DataLossError(fmt::format("{}: the propagation flag is {}", path, has_propagation));
+  }
+  // Values, not only counts: a model that would filter at or above Nyquist, or divide by a
+  // zero scale, is as corrupt as a truncated one.
+  const int resonators = static_cast<int>(model.resonator_hz_.size());
+  if (!(model.fps_ > 0) || !std::isfinite(model.fps_) || resonators == 0 ||
+      resonators > kMaxResonators || !(model.resonator_damping_ > 0) ||
+      !(model.resonator_damping_ <= 2) || !(model.validation_residual_ >= 0) ||
+      !std::isfinite(model.validation_residual_)) {
+    return DataLossError(fmt::format(
+        "{}: bad header (fps {}, {} resonators, damping {}, validation residual {})", path,
+        model.fps_, resonators, model.resonator_damping_, model.validation_residual_));
+  }
+  for (double hz : model.resonator_hz_) {
+    if (!(hz > 0) || !(hz < model.fps_ / 2)) {
+      return DataLossError(
+          fmt::format("{}: resonator at {} Hz, outside (0, {} Hz)", path, hz, model.fps_ / 2));
+    }
+  }
+  if (rows != RegressorCount(resonators) || samples < 1) {
+    return DataLossError(
+        fmt::format("{}: W has {} rows for {} resonators (expected {}), {} samples", path, rows,
+                    resonators, RegressorCount(resonators), samples));
+  }
+  model.input_scale_ = Eigen::Map<const Eigen::VectorXd>(scale.data(), kInputs);
+  model.weights_ = Eigen::Map<const Eigen::MatrixXd>(weights.data(), rows, 3 * samples);
+  if (!model.input_scale_.allFinite() || (model.input_scale_.array() <= 0).any() ||
+      !model.weights_.allFinite()) {
+    return DataLossError(fmt::format("{}: non-finite or non-positive values in the model", path));
+  }
+  model.sample_count_ = static_cast<int>(samples);
+  if (has_propagation == 1) {
+    std::string method;
+    FACEDYN_RETURN_IF_ERROR(r.Str(&method, "the propagation's method"));
+    int64_t vertices = 0;
+    FACEDYN_RETURN_IF_ERROR(r.Count(&vertices, kMaxVertices, "the propagation's vertex count"));
+    std::vector<float> p;
+    FACEDYN_RETURN_IF_ERROR(r.Array(&p, vertices * samples, "the propagation"));
+    auto propagation = SamplePropagation::FromWeights(
+        Eigen::Map<const Eigen::MatrixXf>(p.data(), vertices, samples), method);
+    if (!propagation.ok()) {
+      return DataLossError(fmt::format("{}: {}", path, propagation.status().message()));
+    }
+    model.propagation_ = std::move(propagation).value();
+  }
+  FACEDYN_RETURN_IF_ERROR(r.Expect(kTrailer, sizeof(kTrailer), "the trailer (END.)"));
+  if (!r.AtEnd()) {
+    return DataLossError(fmt::format("{}: {} bytes after the trailer", path, r.remaining()));
+  }
+  return model;
 }
 
 }  // namespace facedyn::dynamics

@@ -102,6 +102,10 @@ struct ModalSynthesisFit {
   long validation_frames = 0;  // frames held out in some fold
 };
 
+// Whether `path` starts with the modal model file's magic (so the CLI can take F, H and modal
+// model files under one --model). False for a missing or short file.
+bool IsModalModelFile(const std::string& path);
+
 class ModalSynthesisModel {
  public:
   // Trains on decomposed takes (positions quasistatic, channel "dynamic_offset"), as
@@ -121,6 +125,39 @@ class ModalSynthesisModel {
   StatusOr<Take> Synthesize(const Take& quasistatic, const std::vector<Rigid3>& world_from_skull,
                             const std::string& motion_name, const FaceRig& rig) const;
 
+  // Removal by synthesis: the captured take minus the offsets this model predicts from the
+  // take's own (estimated) head motion, Eq. 7 with d(t) from the skull's motion rather than from
+  // the face's shape. A copy of `captured` whose positions are the quasistatic estimate and whose
+  // only channel is "dynamic_offset" (skull frame, mm), as RemoveDynamics (removal_model.h), so
+  // everything downstream of F takes it. What it cannot remove: dynamics the head motion does
+  // not explain (the expression's own, and the part of the jiggle that depends on the
+  // expression). Errors: as Synthesize.
+  StatusOr<Take> Remove(const Take& captured, const FaceRig& rig) const;
+
+  // Remove, then the skull-frame zero-phase low-pass (baselines.h) at
+  // LowPassCutoffAfterRemoval(captured, validation_residual()): the filter takes only the share
+  // of the jiggle this model is expected to leave on a motion it did not train on, so its cutoff
+  // sits higher than the plain low-pass's and a performance keeps more of its own motion. The
+  // take's metadata records the cutoff ("removal_lowpass_hz"), and so does *cutoff_hz if given.
+  // Errors: as Remove.
+  StatusOr<Take> RemoveThenLowPass(const Take& captured, const FaceRig& rig,
+                                   double* cutoff_hz = nullptr) const;
+
+  // The leave-one-take-out relative RMS error at the chosen ridge (ModalSynthesisFit's
+  // validation_relative): what share of a new motion's jiggle the model is expected to miss. 1
+  // when training had nothing to validate on.
+  double validation_residual() const { return validation_residual_; }
+  // Model file (binary, little-endian as written by this machine): "FDMODAL" magic and a NUL,
+  // uint32 format version, the rig's name, fps, resonator frequencies and damping, the validation
+  // residual, input scales,
+  // sample count and samples hash, W, the learned propagation if any (method, V x S floats),
+  // "END." trailer. Load checks every count against the ones before it and names what is
+  // truncated or inconsistent (DataLoss starting with the path); applying a loaded model to
+  // another rig fails by name as for a trained one.
+  Status Save(const std::string& path) const;
+  static StatusOr<ModalSynthesisModel> Load(const std::string& path);
+
+  const std::string& rig_name() const { return rig_name_; }
   double fps() const { return fps_; }
   int sample_count() const { return sample_count_; }
   const std::vector<double>& resonator_hz() const { return resonator_hz_; }
@@ -132,9 +169,11 @@ class ModalSynthesisModel {
   // The regressors (P x F) of a head motion.
   StatusOr<Eigen::MatrixXd> Regressors(const std::vector<Rigid3>& world_from_skull) const;
 
+  std::string rig_name_;
   double fps_ = 0.0;
   std::vector<double> resonator_hz_;
   double resonator_damping_ = 0.0;
+  double validation_residual_ = 1.0;
   Eigen::VectorXd input_scale_;  // 6: the training inputs' standard deviations
   Eigen::MatrixXd weights_;      // P x 3S
   int sample_count_ = 0;

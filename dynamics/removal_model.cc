@@ -364,6 +364,23 @@ void ComposeOffsets(const Take& take, const SamplePropagation& propagation,
   }
 }
 
+Take RemoveSampleOffsets(const Take& take, const SamplePropagation& propagation,
+                         const Eigen::Ref<const Eigen::MatrixXf>& sample_offsets,
+                         const std::string& source) {
+  Take result;
+  result.info = take.info;
+  result.info.source = source;
+  result.info.metadata["removal_propagation"] = propagation.method();
+  result.topology = take.topology;
+  result.time_s = take.time_s;
+  result.world_from_skull = take.world_from_skull;
+  result.skull_from_jaw = take.skull_from_jaw;
+  PointCache offsets;
+  ComposeOffsets(take, propagation, sample_offsets, -1.0f, &offsets, &result.positions);
+  result.channels["dynamic_offset"] = std::move(offsets);
+  return result;
+}
+
 StatusOr<Take> RemoveDynamics(const RemovalModel& model, const Take& take, const FaceRig& rig,
                               const SamplePropagation* propagation, RemovalSummary* summary) {
   const auto start = std::chrono::steady_clock::now();
@@ -375,19 +392,9 @@ StatusOr<Take> RemoveDynamics(const RemovalModel& model, const Take& take, const
   std::optional<SamplePropagation> built;
   FACEDYN_ASSIGN_OR_RETURN(propagation,
                            SelectPropagation(model.propagation(), propagation, rig, &built));
-  Take result;
-  result.info = take.info;
-  result.info.source = "dynamics remove";
+  Take result = RemoveSampleOffsets(take, *propagation, sample_offsets, "dynamics remove");
   result.info.metadata["removal_sample_count"] = model.config().sample_count;
   result.info.metadata["removal_window_frames"] = model.config().features.window_frames();
-  result.info.metadata["removal_propagation"] = propagation->method();
-  result.topology = take.topology;
-  result.time_s = take.time_s;
-  result.world_from_skull = take.world_from_skull;
-  result.skull_from_jaw = take.skull_from_jaw;
-  PointCache offsets;
-  ComposeOffsets(take, *propagation, sample_offsets, -1.0f, &offsets, &result.positions);
-  result.channels["dynamic_offset"] = std::move(offsets);
   const double propagate_s = SecondsSince(propagate_start);
   if (summary != nullptr) {
     summary->predict_s = predict_s;

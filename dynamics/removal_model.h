@@ -177,6 +177,14 @@ StatusOr<Take> RemoveDynamics(const RemovalModel& model, const Take& take, const
                               const SamplePropagation* propagation = nullptr,
                               RemovalSummary* summary = nullptr);
 
+// The removal of per-frame sample offsets (3 x F*S, column t * S + i, skull frame, mm) from
+// `take`: a copy of its header, poses and times whose positions are x - T(t) d(t) propagated to
+// every vertex and whose only channel is "dynamic_offset"; info.source `source`. Shared by F's
+// removal and the modal model's (modal_synthesis.h).
+Take RemoveSampleOffsets(const Take& take, const SamplePropagation& propagation,
+                         const Eigen::Ref<const Eigen::MatrixXf>& sample_offsets,
+                         const std::string& source);
+
 // Per-vertex offsets (3V x F cache, skull frame) for per-frame sample offsets (3 x F*S), and
 // positions = T(t) (stabilised + sign * offsets): shared by removal (sign -1 on the dynamic
 // take) and synthesis (sign +1 on the quasistatic take).

@@ -32,7 +32,8 @@ double MeanOffsetNorm(const PointCache& offsets, const std::vector<int>& vertice
 StatusOr<Json> CompareRemovalOnReconstruction(const dynamics::RemovalModel& f_model,
                               const dynamics::RemovalModel* reference, const std::string& take_name,
                               const Take& simulated, const Take& reconstructed, const FaceRig& face,
-                              int window_frames, Take* removed_out) {
+                              int window_frames, Take* removed_out,
+                              const std::vector<NamedRemoval>& others) {
   for (const char* channel : {"quasistatic", "dynamic_offset"}) {
     if (simulated.channels.count(channel) == 0) {
       return FailedPreconditionError(
@@ -80,6 +81,17 @@ StatusOr<Json> CompareRemovalOnReconstruction(const dynamics::RemovalModel& f_mo
                              Evaluate(by_reference, simulated, nullptr, &face, evaluate));
     add_method("F_exact_targets_simulated", by_reference.positions,
                reference_evaluation.reports.front().face);
+  }
+  for (const NamedRemoval& other : others) {
+    if (other.removed == nullptr || other.removed->frame_count() != reconstructed.frame_count() ||
+        other.removed->vertex_count() != reconstructed.vertex_count()) {
+      return InvalidArgumentError(fmt::format(
+          "{}: the \"{}\" removal is missing or does not match the reconstruction", take_name,
+          other.name));
+    }
+    FACEDYN_ASSIGN_OR_RETURN(const Evaluation other_evaluation,
+                             Evaluate(*other.removed, simulated, nullptr, &face, evaluate));
+    add_method(other.name, other.removed->positions, other_evaluation.reports.front().face);
   }
   for (size_t r = 1; r < evaluation.reports.size(); ++r) {
     const std::string& name = evaluation.reports[r].name;

@@ -17,7 +17,15 @@
 
 namespace facedyn::eval {
 
+// Another removal method's output on the reconstruction (e.g. the modal removal,
+// dynamics/modal_synthesis.h), scored beside F under `name`.
+struct NamedRemoval {
+  std::string name;
+  const Take* removed = nullptr;
+};
+
 // `reference` (may be null): another F (e.g. trained on simulated takes with exact targets).
+// `others`: further methods' removals of `reconstructed`, each scored like F.
 // `window_frames`: the metrics' window margin. *removed_out (may be null): F's removal. The
 // simulated take must have the quasistatic and dynamic_offset channels and the reconstruction
 // its frame and vertex counts (FailedPrecondition naming what is missing).
@@ -25,7 +33,8 @@ StatusOr<Json> CompareRemovalOnReconstruction(const dynamics::RemovalModel& f_mo
                                               const dynamics::RemovalModel* reference,
                                               const std::string& take_name, const Take& simulated,
                                               const Take& reconstructed, const FaceRig& face,
-                                              int window_frames, Take* removed_out);
+                                              int window_frames, Take* removed_out,
+                                              const std::vector<NamedRemoval>& others = {});
 
 // One line of the removal tables: what, method, error (mm), error relative to the offset.
 void PrintMethodRow(const std::string& what, const std::string& method, double mm, double of);

@@ -180,7 +180,7 @@ Json SummariseDemoReplicates(const std::vector<Json>& stages, const std::vector<
   return {{"replicates", stages.size()},
           {"seeds", seeds},
           {"rule", "a difference within the larger standard deviation is a tie"},
-          {"removal", SummariseMethodReplicates(removal, "mm", {"F"})},
+          {"removal", SummariseMethodReplicates(removal, "mm", {"F", "modal"})},
           {"resynthesis", SummariseMethodReplicates(resynthesis, "mm", {"H"})},
           {"new_motion_synthesis", SummariseMethodReplicates(new_motion, "mm", {"H", "modal"})},
           {"retarget", SummariseMethodReplicates(retarget, "mm", {"H", "modal"})}};

@@ -170,3 +170,41 @@ put("detail_model", "version_1_huge_length.bin",
     b"FDDETAIL" + struct.pack("<I", 1) + struct.pack("<Q", 1 << 62) + b"subject")
 put("detail_model", "future_version.bin", b"FDDETAIL" + struct.pack("<I", 99) + b"\0" * 64)
 put("detail_model", "bad_magic.bin", b"FDDETAIX" + struct.pack("<I", 1))
+
+
+# dynamics/modal_synthesis.h: "FDMODAL\0", uint32 format version, rig name, fps, resonator
+# frequencies, damping, validation residual, 6 input scales, sample count and hash, W (rows =
+# 6 (2K + 1) + 1, columns 3S, column-major), propagation flag [method, vertex count, V x S
+# floats], "END.". A real model is ~1 MB; a valid one with one resonator and one sample is small.
+def modal(resonators=(8.0,), samples=1, propagation_vertices=0, version=1, rows=None,
+          fps=128.0, trailer=b"END."):
+    def doubles(values):
+        return struct.pack("<q", len(values)) + struct.pack("<%dd" % len(values), *values)
+    name = b"procedural"
+    k = len(resonators)
+    rows = 6 * (2 * k + 1) + 1 if rows is None else rows
+    out = b"FDMODAL\0" + struct.pack("<I", version) + struct.pack("<I", len(name)) + name
+    out += struct.pack("<d", fps) + doubles(list(resonators)) + struct.pack("<dd", 0.3, 0.4)
+    out += doubles([1.0] * 6) + struct.pack("<qQ", samples, 12345) + struct.pack("<q", rows)
+    out += doubles([0.01 * (i % 5) for i in range(rows * 3 * samples)])
+    if propagation_vertices:
+        method = b"learned"
+        n = propagation_vertices * samples
+        out += struct.pack("<B", 1) + struct.pack("<I", len(method)) + method
+        out += struct.pack("<q", propagation_vertices)
+        out += struct.pack("<q", n) + struct.pack("<%df" % n, *([0.5] * n))
+    else:
+        out += struct.pack("<B", 0)
+    return out + trailer
+
+
+put("modal_model", "valid_1_resonator_1_sample.bin", modal())
+put("modal_model", "valid_with_propagation.bin", modal(resonators=(4.0, 9.0), samples=2,
+                                                         propagation_vertices=3))
+put("modal_model", "truncated.bin", modal()[:-20])
+put("modal_model", "rows_mismatch.bin", modal(rows=7))
+put("modal_model", "resonator_above_nyquist.bin", modal(resonators=(70.0,)))
+put("modal_model", "future_version.bin", modal(version=9))
+put("modal_model", "no_trailer.bin", modal(trailer=b"END!"))
+put("modal_model", "magic_only.bin", b"FDMODAL\0")
+put("modal_model", "huge_length.bin", b"FDMODAL\0" + struct.pack("<I", 1) + struct.pack("<I", 0xFFFFFFF0))

@@ -61,10 +61,12 @@ std::string SvgBarChart(const std::string& title,
     const bool finite = std::isfinite(value) && value >= 0;
     const int w =
         finite ? std::max(1, static_cast<int>(bar_w * std::min(value, max_value) / max_value)) : 0;
-    // The networks (F..., H...) in red, everything they are compared with in grey.
+    // The methods learned from the capture (F..., H..., modal...) in red, everything they are
+    // compared with in grey.
     const std::string& label = bars[k].first;
-    const bool network = (label.rfind("F", 0) == 0 || label.rfind("H", 0) == 0) &&
-                         (label.size() == 1 || label[1] == '_' || label[1] == ' ');
+    const bool network = ((label.rfind("F", 0) == 0 || label.rfind("H", 0) == 0) &&
+                          (label.size() == 1 || label[1] == '_' || label[1] == ' ')) ||
+                         label.rfind("modal", 0) == 0;
     svg += fmt::format(
         "<text x=\"{}\" y=\"{}\" font-size=\"12\" text-anchor=\"end\">{}</text>"
         "<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\"/>"
@@ -260,7 +262,8 @@ std::string RemovalChartNote(const Json& removal) {
   return note + ")";
 }
 
-// Bars for a removal entry's methods; the networks first, then the baselines.
+// Bars for a removal entry's methods; the learned ones (F, the modal model) first, then the
+// baselines.
 std::vector<std::pair<std::string, double>> MethodBars(const Json& methods,
                                                        const std::string& figure) {
   std::vector<std::pair<std::string, double>> bars;
@@ -270,7 +273,7 @@ std::vector<std::pair<std::string, double>> MethodBars(const Json& methods,
   }
   std::stable_sort(bars.begin(), bars.end(), [](const auto& a, const auto& b) {
     auto network = [](const std::string& label) {
-      return label == "F" || label.rfind("F_", 0) == 0;
+      return label == "F" || label.rfind("F_", 0) == 0 || label.rfind("modal", 0) == 0;
     };
     return network(a.first) > network(b.first);
   });
@@ -331,8 +334,11 @@ std::string DynamicsSection(const Json& dynamics) {
             "reference is Eq. 7 with the exact offsets applied in the skull frame the "
             "reconstruction estimated: what a perfect F would leave. The low-pass cutoff is set "
             "by a rule that needs no truth; lowpass_oracle is the best cutoff against the truth, "
-            "which no user could set. These bars are one seed: a difference here is not a "
-            "comparison.</p>" +
+            "which no user could set. modal is the removal by the modal model "
+            "(dynamics/modal_synthesis.h, trained on the same held takes), which predicts the "
+            "offsets from the skull's motion; modal_lowpass follows it with the low-pass whose "
+            "cutoff its own leave-one-take-out error calls for. These bars are one seed: a "
+            "difference here is not a comparison.</p>" +
             SvgBarChart(Text(removal, "take") + RemovalChartNote(removal),
                         MethodBars(Field(removal, "methods"), "jiggle_mean_mm"), "mm");
   }
@@ -584,7 +590,9 @@ Status WriteDemoReport(const Json& metrics, const std::string& path, const std::
     html += FieldTable(
         reconstruct,
         {"calibration_rms_px", "calibration_worst_centre_error_mm", "skull_origin_rms_mm",
-         "skull_origin_max_mm", "skull_rotation_rms_deg", "skull_rotation_max_deg", "sample_rms_mm",
+         "skull_origin_max_mm", "skull_rotation_rms_deg", "skull_rotation_max_deg",
+         "skull_origin_constant_mm", "skull_origin_varying_rms_mm",
+         "skull_rotation_varying_rms_deg", "sample_rms_mm",
          "dynamic_offset_correlation", "triangulate_fps", "dense_fit_fps"});
   }
   if (metrics.contains("dynamics")) html += DynamicsSection(metrics["dynamics"]);

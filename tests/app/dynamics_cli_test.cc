@@ -1,10 +1,12 @@
-// `facedyn dynamics train-removal | remove | train-synthesis | synthesize | retarget | eval`
-// end to end on small simulated takes: exit codes, files, JSON, and bad input.
+// `facedyn dynamics train-removal | remove | train-synthesis | synthesize | retarget | eval |
+// train-modal` end to end on small simulated takes: exit codes, files, JSON, and bad input.
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -98,6 +100,97 @@ TEST(DynamicsCli, TrainRemoveSynthesizeRetargetEvaluate) {
                        &out),
             1);
   EXPECT_THAT(out, HasSubstr("is a synthesis model, expected a removal model"));
+}
+
+// The modal model through the CLI: trained on captured held takes (held-mean decomposition, no
+// truth), then removal with and without the low-pass after it, synthesis and retargeting under
+// the same --model as H, and the errors that name what is wrong.
+TEST(DynamicsCli, ModalTrainRemoveSynthesizeRetarget) {
+  const TempDir& takes = Takes();
+  TempDir dir;
+  std::string out;
+  ASSERT_EQ(RunCommand(Facedyn("dynamics train-modal --takes " + takes.Join("p7") + " " +
+                               takes.Join("p9") + " --out " + dir.Join("modal.bin") + " --json"),
+                       &out),
+            0)
+      << out;
+  const auto fit = nlohmann::json::parse(out.substr(out.find('{')));
+  EXPECT_EQ(fit["validation"], "leave one take out") << out;
+  EXPECT_GT(fit["training_frames"].get<long>(), 0);
+  const double residual = fit["validation_residual"].get<double>();
+  EXPECT_GT(residual, 0.0);
+
+  ASSERT_EQ(RunCommand(Facedyn("dynamics remove --take " + takes.Join("p8") + " --model " +
+                               dir.Join("modal.bin") + " --out " + dir.Join("removed")),
+                       &out),
+            0)
+      << out;
+  ASSERT_EQ(RunCommand(Facedyn("dynamics remove --take " + takes.Join("p8") + " --model " +
+                               dir.Join("modal.bin") + " --lowpass-after --json --out " +
+                               dir.Join("filtered")),
+                       &out),
+            0)
+      << out;
+  const auto filtered = nlohmann::json::parse(out.substr(out.find('{')));
+  // Never below the plain low-pass's rule (8 Hz / 3).
+  EXPECT_GE(filtered["lowpass_hz"].get<double>(), 8.0 / 3 - 1e-9) << out;
+  // 8 Hz lies between the training takes' 7 and 9 Hz: removal must take away most of the offset.
+  for (const char* removed : {"removed", "filtered"}) {
+    ASSERT_EQ(RunCommand(Facedyn("dynamics eval --pred " + dir.Join(removed) + " --truth " +
+                                 takes.Join("p8") + " --input " + takes.Join("p8") + " --json"),
+                         &out),
+              0)
+        << out;
+    const auto evaluation = nlohmann::json::parse(out.substr(out.find('{')));
+    const double predicted = evaluation["reports"]["prediction"]["face"]["mean_mm"].get<double>();
+    const double none = evaluation["reports"]["no_removal"]["face"]["mean_mm"].get<double>();
+    EXPECT_LT(predicted, 0.5 * none) << removed << ": " << out;
+  }
+
+  ASSERT_EQ(RunCommand(Facedyn("dynamics synthesize --take " + dir.Join("removed") + " --motion " +
+                               takes.Join("p9") + " --model " + dir.Join("modal.bin") + " --out " +
+                               dir.Join("synth")),
+                       &out),
+            0)
+      << out;
+  EXPECT_TRUE(std::filesystem::exists(dir.Join("synth/dynamic_offset.pc2")));
+  ASSERT_EQ(RunCommand(Facedyn("dynamics retarget --source " + takes.Join("p9") + " --model " +
+                               dir.Join("modal.bin") + " --expression smile --out " +
+                               dir.Join("retarget")),
+                       &out),
+            0)
+      << out;
+  EXPECT_TRUE(std::filesystem::exists(dir.Join("retarget/take.json")));
+
+  // --lowpass-after belongs to the modal model; a truncated model file is named.
+  ASSERT_EQ(RunCommand(Facedyn("dynamics train-removal --takes " + takes.Join("p7") +
+                               " --targets exact --epochs 1 --batch 4000 --out " +
+                               dir.Join("F.pt")),
+                       &out),
+            0)
+      << out;
+  EXPECT_EQ(RunCommand(Facedyn("dynamics remove --take " + takes.Join("p8") + " --model " +
+                               dir.Join("F.pt") + " --lowpass-after --out " + dir.Join("bad")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("--lowpass-after needs a modal model"));
+  {
+    std::ifstream in(dir.Join("modal.bin"), std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream(dir.Join("cut.bin"), std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  }
+  EXPECT_EQ(RunCommand(Facedyn("dynamics remove --take " + takes.Join("p8") + " --model " +
+                               dir.Join("cut.bin") + " --out " + dir.Join("bad")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("cut.bin: truncated"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("bad")));
+  // A take without a held part cannot be decomposed by its held mean, and train-modal says so.
+  EXPECT_EQ(RunCommand(Facedyn("dynamics train-modal --takes " + dir.Join("missing") + " --out " +
+                               dir.Join("m2.bin")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("missing"));
 }
 
 TEST(DynamicsCli, PlatformSynchronousQuasistaticAndTargets) {

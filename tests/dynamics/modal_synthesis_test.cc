@@ -8,8 +8,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <random>
 
+#include "core/file_util.h"
+#include "dynamics/baselines.h"
 #include "dynamics/quasistatic.h"
 #include "dynamics/synthesis_model.h"
 #include "sim/procedural_face.h"
@@ -231,6 +236,126 @@ TEST(ModalSynthesis, ErrorsNameTheProblem) {
   EXPECT_THAT(
       model->Synthesize(other_take, training.world_from_skull, "x", other).status().message(),
       HasSubstr("skin samples"));
+}
+
+TEST(ModalSynthesis, RemovalTakesAwayExactlyWhatSynthesisAdds) {
+  const int frames = 384;
+  const Take training = OscillatorTake(TrainingMotion(), frames);
+  const auto model = ModalSynthesisModel::Train({{&training, &Face()}}, ModalSynthesisOptions());
+  ASSERT_TRUE(model.ok()) << model.status().message();
+  // A captured take made by the model itself: removal must give back the quasistatic.
+  const Take held_out = OscillatorTake(HeldOutMotion(), frames);
+  const Take quasistatic =
+      HeldShapeTake(Face(), Face().neutral.positions_mm, held_out.world_from_skull, kFps);
+  const Take synthesised =
+      model->Synthesize(quasistatic, held_out.world_from_skull, "held-out", Face()).value();
+  Take captured = synthesised;
+  captured.channels.clear();
+  const auto removed = model->Remove(captured, Face());
+  ASSERT_TRUE(removed.ok()) << removed.status().message();
+  EXPECT_EQ(removed->info.source, "dynamics modal removal");
+  EXPECT_LT((removed->positions.positions - quasistatic.positions.positions).cwiseAbs().maxCoeff(),
+            1e-3f);
+  EXPECT_LT((removed->channels.at("dynamic_offset").positions -
+             synthesised.channels.at("dynamic_offset").positions)
+                .cwiseAbs()
+                .maxCoeff(),
+            1e-5f);
+
+  // On the oscillator's own take (a motion the model never saw), removal leaves the neutral to
+  // within the synthesis's error, and the low-pass after it no more.
+  Take dynamic = held_out;
+  for (int f = 0; f < frames; ++f) {
+    const Eigen::Matrix3f rotation = dynamic.world_from_skull[f].RotationMatrix().cast<float>();
+    dynamic.positions.Frame(f) += rotation * dynamic.channels.at("dynamic_offset").Frame(f);
+  }
+  dynamic.channels.clear();
+  double cutoff = 0;
+  const auto filtered = model->RemoveThenLowPass(dynamic, Face(), &cutoff);
+  ASSERT_TRUE(filtered.ok()) << filtered.status().message();
+  EXPECT_EQ(cutoff, LowPassCutoffAfterRemoval(dynamic, model->validation_residual()));
+  EXPECT_GE(cutoff, LowPassCutoffByRule(dynamic));
+  EXPECT_DOUBLE_EQ(filtered->info.metadata["removal_lowpass_hz"].get<double>(), cutoff);
+  const auto plain = model->Remove(dynamic, Face()).value();
+  double plain_sq = 0, filtered_sq = 0, offset_sq = 0;
+  for (int f = 64; f < frames - 64; ++f) {
+    plain_sq += (plain.positions.Frame(f) - quasistatic.positions.Frame(f)).squaredNorm();
+    filtered_sq += (filtered->positions.Frame(f) - quasistatic.positions.Frame(f)).squaredNorm();
+    offset_sq += held_out.channels.at("dynamic_offset").Frame(f).squaredNorm();
+  }
+  EXPECT_LT(std::sqrt(plain_sq / offset_sq), 0.06);
+  EXPECT_LE(filtered_sq, plain_sq * 1.0001);
+  // What was taken away in all is the offset channel: positions + offsets = the capture.
+  const Eigen::Matrix3Xf back = dynamic.world_from_skull[100].RotationMatrix().cast<float>() *
+                                filtered->channels.at("dynamic_offset").Frame(100);
+  EXPECT_LT(
+      (filtered->positions.Frame(100) + back - dynamic.positions.Frame(100)).cwiseAbs().maxCoeff(),
+      1e-3f);
+}
+
+TEST(ModalSynthesis, SavedModelPredictsTheSameAndCorruptFilesAreNamed) {
+  const int frames = 256;
+  const Take training = OscillatorTake(TrainingMotion(), frames);
+  const auto model = ModalSynthesisModel::Train({{&training, &Face()}}, ModalSynthesisOptions());
+  ASSERT_TRUE(model.ok()) << model.status().message();
+  const std::string dir = testing::TempDir() + "/modal_save";
+  std::filesystem::create_directories(dir);
+  const std::string path = dir + "/modal.bin";
+  ASSERT_TRUE(model->Save(path).ok());
+  const auto loaded = ModalSynthesisModel::Load(path);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+  EXPECT_EQ(loaded->rig_name(), Face().name);
+  EXPECT_EQ(loaded->validation_residual(), model->validation_residual());
+  const std::vector<Rigid3> motion = Poses(HeldOutMotion(), frames);
+  EXPECT_EQ(
+      (loaded->PredictSampleOffsets(motion).value() - model->PredictSampleOffsets(motion).value())
+          .cwiseAbs()
+          .maxCoeff(),
+      0.0f);
+  const Take take = HeldShapeTake(Face(), Face().neutral.positions_mm, motion, kFps);
+  EXPECT_EQ((loaded->Remove(take, Face()).value().positions.positions -
+             model->Remove(take, Face()).value().positions.positions)
+                .cwiseAbs()
+                .maxCoeff(),
+            0.0f);
+
+  const std::string bytes = ReadFileToString(path).value();
+  auto load_bytes = [&](const std::string& content) {
+    const std::string bad = dir + "/bad.bin";
+    EXPECT_TRUE(WriteFileAtomic(bad, content).ok());
+    return ModalSynthesisModel::Load(bad).status();
+  };
+  EXPECT_THAT(load_bytes("not a model").message(), HasSubstr("FDMODAL"));
+  for (size_t cut : {size_t{8}, size_t{20}, bytes.size() / 2, bytes.size() - 3}) {
+    const Status status = load_bytes(bytes.substr(0, cut));
+    EXPECT_EQ(status.code(), StatusCode::kDataLoss) << cut;
+    EXPECT_THAT(status.message(), HasSubstr("bad.bin")) << cut;
+  }
+  EXPECT_THAT(load_bytes(bytes + "x").message(), HasSubstr("after the trailer"));
+  std::string version = bytes;
+  version[8] = 9;
+  EXPECT_THAT(load_bytes(version).message(), HasSubstr("format version 9"));
+  EXPECT_FALSE(ModalSynthesisModel::Load(dir + "/missing.bin").ok());
+}
+
+TEST(LowPassCutoffAfterRemoval, LeavesTheRulesShareOfTheJiggle) {
+  Take take;
+  take.info.fps = kFps;
+  take.info.platform_hz = 10.0;
+  const double f = 10.0;
+  EXPECT_DOUBLE_EQ(LowPassCutoffByRule(take), f / 3);
+  EXPECT_DOUBLE_EQ(LowPassCutoffAfterRemoval(take, 1.0), f / 3);
+  EXPECT_DOUBLE_EQ(LowPassCutoffAfterRemoval(take, 3.0), f / 3);  // never below the rule
+  EXPECT_DOUBLE_EQ(LowPassCutoffAfterRemoval(take, 0.0), 0.45 * kFps);
+  for (double r : {0.5, 0.3, 0.1, 0.05}) {
+    const double fc = LowPassCutoffAfterRemoval(take, r);
+    // The forward-backward 2nd-order Butterworth passes 1 / (1 + (f / fc)^4) of a sine at f;
+    // times what the removal left, that is the rule's 1 / (1 + 3^4) of the jiggle.
+    const double gain = 1.0 / (1.0 + std::pow(f / fc, 4));
+    EXPECT_NEAR(r * gain, 1.0 / 82.0, 1e-12) << r;
+    EXPECT_GT(fc, f / 3);
+  }
+  EXPECT_DOUBLE_EQ(LowPassCutoffAfterRemoval(take, std::nan("")), f / 3);
 }
 
 }  // namespace

@@ -31,6 +31,15 @@ TEST(RunReconstructDemoStage, ReportsErrorsAgainstTruth) {
   // Through a calibration (not the true cameras) errors are larger than the figures of the
   // reconstruction tests, which use the true cameras.
   EXPECT_LT(metrics["skull_origin_rms_mm"].get<double>(), 0.5);
+  // The error splits into its mean over the take and what varies about it: the RMS about the
+  // mean and the mean's size combine to the total RMS (Pythagoras over the frames).
+  const double total = metrics["skull_origin_rms_mm"].get<double>();
+  const double constant = metrics["skull_origin_constant_mm"].get<double>();
+  const double varying = metrics["skull_origin_varying_rms_mm"].get<double>();
+  EXPECT_NEAR(constant * constant + varying * varying, total * total, 1e-9 + 1e-6 * total * total);
+  EXPECT_GE(metrics["skull_rotation_varying_rms_deg"].get<double>(), 0.0);
+  EXPECT_LE(metrics["skull_rotation_varying_rms_deg"].get<double>(),
+            metrics["skull_rotation_rms_deg"].get<double>() + 1e-9);
   EXPECT_LT(metrics["sample_rms_mm"].get<double>(), 0.5);
   EXPECT_GT(metrics["dynamic_offset_correlation"].get<double>(), 0.9);
   // A take that does not belong to the face is refused by name.

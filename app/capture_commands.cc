@@ -166,9 +166,10 @@ StatusOr<TakeOutput> CaptureTake(const capture::CaptureConfig& config,
         "capture: simulating {} s of '{}' on the platform at {:.3f} Hz", triggers / config.fps,
         sim_options.performance.expression,
         inputs.platform_hz > 0 ? inputs.platform_hz : sim_options.performance.motion.platform_hz);
-    FACEDYN_ASSIGN_OR_RETURN(sim::SimulatedStage prepared,
-                             sim::PrepareSimulatedStage(sim_options, config.cameras, config.fps,
-                                                        triggers, inputs.platform_hz));
+    FACEDYN_ASSIGN_OR_RETURN(
+        sim::SimulatedStage prepared,
+        sim::PrepareSimulatedStage(sim_options, config.cameras, config.fps, triggers,
+                                   inputs.platform_hz, config.mount));
     stage = std::make_unique<sim::SimulatedStage>(std::move(prepared));
     output.simulate_s = stage->simulate_s;
   } else if (config.backend == "opencv") {
@@ -206,6 +207,7 @@ StatusOr<TakeOutput> CaptureTake(const capture::CaptureConfig& config,
   options.extra = inputs.extra;
   options.extra["config"] = config.source_path;
   options.extra["backend"] = config.backend;
+  options.extra["camera_mount"] = capture::CameraMountName(config.mount);
   options.extra["exposure_us"] = config.exposure_us;
   options.extra["backpressure"] = capture::BackpressurePolicyName(config.recorder.policy);
   if (stage) {

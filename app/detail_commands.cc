@@ -1,74 +1,30 @@
 // `facedyn detail train` and `facedyn detail apply`: fine-scale detail for sparse HMC markers
 // (Masquerade, detail/masquerade.h). app/ only wires: takes in, model file or take out.
 //
-// Markers are read from takes in the rig's topology: the model's marker surface points are
-// evaluated on each frame's skin in the skull frame (T(t)^-1 x). For training that is exactly
-// Masquerade's virtual markers on high-resolution captures; for `apply` it stands in for HMC
-// marker tracks until the HMC capture path (issue 22) writes its own marker-track files.
+// Training reads markers from takes in the rig's topology: the model's marker surface points
+// evaluated on each frame's skin in the skull frame (T(t)^-1 x), Masquerade's virtual markers on
+// high-resolution captures. `apply` reads the take's labelled marker tracks when it has them (a
+// reconstructed head-mounted-camera take, config/capture/hmc.yaml; missing markers held, see
+// detail/marker_input.h), else the same virtual markers on the take's skin (`--markers-from`).
 
 #include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <cstdio>
-#include <fstream>
 #include <memory>
-#include <set>
 #include <string>
 #include <vector>
 
 #include "app/command.h"
 #include "core/face_rig.h"
 #include "core/json_io.h"
+#include "core/marker_tracks.h"
 #include "core/take.h"
+#include "detail/marker_input.h"
 #include "detail/masquerade.h"
 
 namespace facedyn::app {
 namespace {
-
-// --markers: a count (the first N of the rig's markers, which the procedural rig orders by
-// farthest-point sampling, so any prefix is spread over the face) or a file of marker names,
-// one per line.
-StatusOr<std::vector<Marker>> SelectMarkers(const FaceRig& rig, const std::string& spec) {
-  const bool all_digits =
-      !spec.empty() && spec.find_first_not_of("0123456789") == std::string::npos;
-  if (all_digits) {
-    const long long n = std::stoll(spec.substr(0, 9));
-    if (n < 4 || n > static_cast<long long>(rig.markers.size())) {
-      return InvalidArgumentError("--markers " + spec + ": need 4.." +
-                                  std::to_string(rig.markers.size()) + " (the rig's marker count)");
-    }
-    return std::vector<Marker>(rig.markers.begin(), rig.markers.begin() + n);
-  }
-  std::ifstream in(spec);
-  if (!in)
-    return NotFoundError("--markers " + spec +
-                         ": neither a count nor a readable file of marker names");
-  std::vector<Marker> markers;
-  std::set<std::string> seen;
-  std::string line;
-  int line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
-    if (line.empty() || line[0] == '#') continue;
-    const Marker* found = nullptr;
-    for (const Marker& m : rig.markers) {
-      if (m.name == line) found = &m;
-    }
-    if (found == nullptr) {
-      return NotFoundError(spec + ":" + std::to_string(line_number) + ": marker '" + line +
-                           "' is not in rig '" + rig.name + "'");
-    }
-    if (!seen.insert(line).second) {
-      return InvalidArgumentError(spec + ":" + std::to_string(line_number) + ": marker '" + line +
-                                  "' listed twice");
-    }
-    markers.push_back(*found);
-  }
-  if (markers.size() < 4)
-    return InvalidArgumentError("--markers " + spec + ": fewer than 4 markers");
-  return markers;
-}
 
 Eigen::Matrix3Xd SkinInSkull(const Take& take, int f) {
   return take.world_from_skull[f].Inverse().Apply(take.FramePositions(f));
@@ -135,7 +91,7 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
       detail::DetailTrainingSet set;
       set.subject = rig.name;
       set.neutral = rig.neutral;
-      FACEDYN_ASSIGN_OR_RETURN(set.markers, SelectMarkers(rig, o.markers));
+      FACEDYN_ASSIGN_OR_RETURN(set.markers, SelectMarkerLayout(rig, o.markers, "--markers"));
       for (const std::string& dir : o.takes) {
         FACEDYN_ASSIGN_OR_RETURN(const Take take, LoadTake(dir));
         if (take.vertex_count() != rig.vertex_count()) {
@@ -176,6 +132,7 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
     std::string take;
     std::string model;
     std::string out;
+    std::string markers_from = "auto";
     bool json = false;
   };
   auto apply_options = std::make_shared<ApplyOptions>();
@@ -187,6 +144,12 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
   apply->add_option("--model", apply_options->model, "Model file from `facedyn detail train`")
       ->required();
   apply->add_option("--out", apply_options->out, "Output take folder")->required();
+  apply
+      ->add_option("--markers-from", apply_options->markers_from,
+                   "tracks: the take's labelled marker tracks (a reconstructed HMC take); skin: "
+                   "the markers' points on the take's skin; auto: tracks when the take has them")
+      ->check(CLI::IsMember({"auto", "tracks", "skin"}))
+      ->capture_default_str();
   apply->add_flag("--json", apply_options->json, "Print a JSON summary on stdout");
   apply->callback([apply_options, selected] {
     *selected = [apply_options]() -> Status {
@@ -194,18 +157,42 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
       FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
                                detail::MasqueradeModel::Load(o.model));
       FACEDYN_ASSIGN_OR_RETURN(Take take, LoadTake(o.take));
-      // Markers come from the take's own surface, so only the topology must agree.
+      // The output keeps the take's topology, so only the vertex count must agree; the markers
+      // must be the model's, by name.
       FACEDYN_RETURN_IF_ERROR(model.CheckCompatible(detail::MarkerNames(model.markers()),
                                                     take.vertex_count(), "take " + o.take));
+      std::vector<Eigen::Matrix3Xd> marker_frames(take.frame_count());
+      std::string source = "skin";
+      detail::MarkerFrames tracked;
+      if (o.markers_from != "skin") {
+        StatusOr<MarkerTracks> tracks = LoadMarkerTracks(o.take);
+        if (tracks.ok()) {
+          FACEDYN_ASSIGN_OR_RETURN(
+              tracked, detail::MarkersFromTracks(*tracks, take.world_from_skull, model.markers(),
+                                                 model.neutral()));
+          marker_frames = tracked.markers_mm;
+          source = "tracks";
+          if (!tracked.never_seen.empty()) {
+            spdlog::warn("{} of the model's markers were never tracked (held at neutral): {}",
+                         tracked.never_seen.size(), tracked.never_seen.front());
+          }
+        } else if (o.markers_from == "tracks" || tracks.status().code() != StatusCode::kNotFound) {
+          return tracks.status().WithContext("--markers-from " + o.markers_from);
+        }
+      }
+      if (source == "skin") {
+        for (int f = 0; f < take.frame_count(); ++f) {
+          const Eigen::Matrix3Xd in_skull = SkinInSkull(take, f);
+          marker_frames[f].resize(3, static_cast<int>(model.markers().size()));
+          for (size_t m = 0; m < model.markers().size(); ++m) {
+            marker_frames[f].col(static_cast<int>(m)) = model.markers()[m].point.Evaluate(in_skull);
+          }
+        }
+      }
       const auto start = std::chrono::steady_clock::now();
       Eigen::Matrix3Xd skin;
-      Eigen::Matrix3Xd markers(3, static_cast<int>(model.markers().size()));
       for (int f = 0; f < take.frame_count(); ++f) {
-        const Eigen::Matrix3Xd in_skull = SkinInSkull(take, f);
-        for (size_t m = 0; m < model.markers().size(); ++m) {
-          markers.col(static_cast<int>(m)) = model.markers()[m].point.Evaluate(in_skull);
-        }
-        const Status status = model.Apply(markers, &skin);
+        const Status status = model.Apply(marker_frames[f], &skin);
         if (!status.ok()) return status.WithContext(o.take + " frame " + std::to_string(f));
         take.positions.Frame(f) = take.world_from_skull[f].Apply(skin).cast<float>();
       }
@@ -214,11 +201,15 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
       take.channels.clear();  // the input's channels describe the input, not the result
       take.info.source = "detail apply";
       take.info.metadata["detail_model"] = o.model;
+      take.info.metadata["detail_markers_from"] = source;
       FACEDYN_RETURN_IF_ERROR(SaveTake(take, o.out));
       if (o.json) {
         const Json json = {{"take", o.out},
                            {"frames", take.frame_count()},
                            {"markers", model.markers().size()},
+                           {"markers_from", source},
+                           {"marker_frames_filled", tracked.filled},
+                           {"markers_never_tracked", tracked.never_seen},
                            {"frames_per_s", seconds > 0 ? take.frame_count() / seconds : 0.0}};
         std::printf("%s\n", json.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       } else {

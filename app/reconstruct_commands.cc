@@ -26,6 +26,7 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
     std::string out;
     std::string face = "procedural";
     std::string calibration;
+    std::string markers;
     double marker_diameter_px = 8.0;
     bool bright = false;
     bool json = false;
@@ -44,6 +45,10 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
       ->capture_default_str();
   command->add_option("--calibration", options->calibration,
                       "Calibration YAML (default: the session's calibration.yaml)");
+  command->add_option("--markers", options->markers,
+                      "The markers painted for this take when they are fewer than the face's: a "
+                      "count (the face's first N) or a file of marker names (a head-mounted "
+                      "camera's sparse layout)");
   command
       ->add_option("--marker-diameter-px", options->marker_diameter_px,
                    "Typical marker diameter in the images (tunes the detector)")
@@ -57,6 +62,10 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
         FACEDYN_ASSIGN_OR_RETURN(rig, sim::MakeProceduralFace(sim::ProceduralFaceOptions()));
       } else {
         FACEDYN_ASSIGN_OR_RETURN(rig, LoadFaceRig(options->face));
+      }
+      if (!options->markers.empty()) {
+        FACEDYN_ASSIGN_OR_RETURN(rig.markers,
+                                 SelectMarkerLayout(rig, options->markers, "--markers"));
       }
       reconstruct::SessionInputOptions input_options;
       input_options.calibration_path = options->calibration;
@@ -74,10 +83,15 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
           const reconstruct::SessionDetections input,
           reconstruct::DetectSessionTake(options->session, options->take, input_options));
       for (const std::string& problem : input.take_problems) spdlog::warn("{}", problem);
-      FACEDYN_ASSIGN_OR_RETURN(
-          reconstruct::Reconstruction result,
-          reconstruct::ReconstructTake(rig, input.cameras, input.detections, input.fps,
-                                       reconstruct::ReconstructionOptions()));
+      const reconstruct::ReconstructionOptions reconstruction_options =
+          input.head_mounted ? reconstruct::HeadMountedReconstructionOptions()
+                             : reconstruct::ReconstructionOptions();
+      if (input.head_mounted) {
+        spdlog::info("head-mounted cameras: markers in the helmet (skull) frame, no skull pose");
+      }
+      FACEDYN_ASSIGN_OR_RETURN(reconstruct::Reconstruction result,
+                               reconstruct::ReconstructTake(rig, input.cameras, input.detections,
+                                                            input.fps, reconstruction_options));
       if (!result.jaw_status.ok()) {
         spdlog::warn("jaw not estimated (the take has no jaw.csv): {}",
                      result.jaw_status.message());
@@ -105,6 +119,7 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
               ? Json(result.take.skull_from_jaw.empty() ? "rig has no jaw" : "estimated")
               : Json("not estimated: " + result.jaw_status.message());
       report["frames"] = result.take.frame_count();
+      report["camera_mount"] = input.head_mounted ? "head" : "world";
       report["seconds"] = {{"detect", input.detect_s},
                            {"triangulate", result.timings.triangulate_s},
                            {"track", result.timings.track_s},

@@ -51,6 +51,10 @@ std::vector<CameraModel> CameraRing::Cameras() const {
   return cameras;
 }
 
+const char* CameraMountName(CameraMount mount) {
+  return mount == CameraMount::kHead ? "head" : "world";
+}
+
 int64_t CaptureConfig::TriggerCount() const { return std::llround(fps * duration_s); }
 
 CameraSettings CaptureConfig::SettingsFor(int camera) const {
@@ -203,9 +207,15 @@ StatusOr<CaptureConfig> LoadCaptureConfig(const std::string& path) {
     config.timestamp_tolerance_ns = std::llround(tolerance_us * 1000);
   }
   FACEDYN_ASSIGN_OR_RETURN(const ConfigNode cameras, root.Child("cameras"));
-  FACEDYN_RETURN_IF_ERROR(
-      cameras.CheckFields({"backend", "calibration", "ring", "sources", "devices", "size_px"}));
+  FACEDYN_RETURN_IF_ERROR(cameras.CheckFields(
+      {"backend", "calibration", "ring", "sources", "devices", "size_px", "mount"}));
   FACEDYN_ASSIGN_OR_RETURN(config.backend, cameras.Get<std::string>("backend"));
+  FACEDYN_ASSIGN_OR_RETURN(const std::string mount, cameras.GetOr<std::string>("mount", "world"));
+  if (mount == "head") {
+    config.mount = CameraMount::kHead;
+  } else if (mount != "world") {
+    return cameras.Error("mount", "'" + mount + "' is neither world nor head");
+  }
   if (cameras.Has("calibration") && cameras.Has("ring"))
     return cameras.Error("give either calibration or ring, not both");
   if (cameras.Has("calibration")) {

@@ -21,6 +21,10 @@
 //     sources: [...]                            # opencv: files, /dev/videoN, GStreamer pipelines
 //     devices: [...]                            # aravis: device ids ("Aravis-Fake-GV01", IP, ...)
 //     size_px: [512, 512]                       # uncalibrated opencv/aravis cameras: the size only
+//     mount: world                              # world (a stage rig) | head (head-mounted cameras:
+//                                               # a helmet's, whose calibration frame moves with
+//                                               # the skull; reconstruct then reads the markers in
+//                                               # the skull frame and estimates no skull pose)
 //   platform:
 //     rig: ../rigs/sim-tcp.yaml                 # RIG.yaml (rig/rig_config.h)
 //     start_simulated_drive: true               # serve the rig's simulated drive in-process
@@ -63,6 +67,11 @@ struct CameraRing {
   std::vector<CameraModel> Cameras() const;
 };
 
+// Where the cameras are fixed: to the stage (the multi-view rig) or to the actor's head (a
+// head-mounted camera, HMC). Recorded in capture.json as "camera_mount".
+enum class CameraMount { kWorld, kHead };
+const char* CameraMountName(CameraMount mount);
+
 struct PlatformPlan {
   std::string rig_path;  // "" when the take does not set the platform
   bool start_simulated_drive = false;
@@ -87,6 +96,7 @@ struct CaptureConfig {
   std::string calibration_path;                 // "" when the cameras came from a ring
   std::vector<std::string> sources;             // opencv
   std::vector<std::string> devices;             // aravis
+  CameraMount mount = CameraMount::kWorld;
   PlatformPlan platform;
   std::optional<ConfigNode> sim;  // the sim: section, when present
 

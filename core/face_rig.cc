@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <set>
 
 #include <fmt/format.h>
@@ -267,6 +268,56 @@ Status SaveFaceRig(const FaceRig& rig, const std::string& dir) {
   for (const auto& [region, vertices] : rig.regions) regions[region] = vertices;
   json["regions"] = regions;
   return WriteJsonFile(JoinPath(dir, "face_rig.json"), json);
+}
+
+StatusOr<std::vector<Marker>> SelectMarkerLayout(const FaceRig& rig, const std::string& spec,
+                                                 const std::string& what) {
+  const bool all_digits =
+      !spec.empty() && spec.find_first_not_of("0123456789") == std::string::npos;
+  if (all_digits) {
+    const long long n = std::stoll(spec.substr(0, 9));
+    if (n < 4 || n > static_cast<long long>(rig.markers.size())) {
+      return InvalidArgumentError(what + " " + spec + ": need 4.." +
+                                  std::to_string(rig.markers.size()) + " (rig '" + rig.name +
+                                  "' has " + std::to_string(rig.markers.size()) + " markers)");
+    }
+    return std::vector<Marker>(rig.markers.begin(), rig.markers.begin() + n);
+  }
+  std::ifstream in(spec);
+  if (!in) {
+    return NotFoundError(what + " " + spec +
+                         ": neither a count nor a readable file of marker names");
+  }
+  std::vector<Marker> markers;
+  std::set<std::string> seen;
+  std::string line;
+  int line_number = 0;
+  bool rig_csv = false;  // a FaceRig's markers.csv: the names are its first column
+  while (std::getline(in, line)) {
+    ++line_number;
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    if (line.empty() || line[0] == '#') continue;
+    if (markers.empty() && !rig_csv && line.rfind("name,", 0) == 0) {
+      rig_csv = true;
+      continue;
+    }
+    if (rig_csv) line = line.substr(0, line.find(','));
+    const Marker* found = nullptr;
+    for (const Marker& m : rig.markers) {
+      if (m.name == line) found = &m;
+    }
+    if (found == nullptr) {
+      return NotFoundError(spec + ":" + std::to_string(line_number) + ": marker '" + line +
+                           "' is not in rig '" + rig.name + "'");
+    }
+    if (!seen.insert(line).second) {
+      return InvalidArgumentError(spec + ":" + std::to_string(line_number) + ": marker '" + line +
+                                  "' listed twice");
+    }
+    markers.push_back(*found);
+  }
+  if (markers.size() < 4) return InvalidArgumentError(what + " " + spec + ": fewer than 4 markers");
+  return markers;
 }
 
 }  // namespace facedyn

@@ -93,4 +93,12 @@ struct FaceRig {
 StatusOr<FaceRig> LoadFaceRig(const std::string& dir);
 Status SaveFaceRig(const FaceRig& rig, const std::string& dir);
 
+// A sparse marker layout on a rig (a head-mounted camera's markers, Masquerade's virtual
+// markers): `spec` is a count N (the rig's first N markers; the procedural rig orders them by
+// farthest-point sampling, so any prefix is spread over the face) or a file of marker names,
+// one per line ('#' comments), or a FaceRig's markers.csv (the layout of a face it was saved
+// with, e.g. a simulated head-mounted capture's ground_truth/face/markers.csv). `what` names the spec in errors (e.g. "--markers").
+StatusOr<std::vector<Marker>> SelectMarkerLayout(const FaceRig& rig, const std::string& spec,
+                                                 const std::string& what);
+
 }  // namespace facedyn

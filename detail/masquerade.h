@@ -89,6 +89,7 @@ class MasqueradeModel {
   const MarkerRegions& regions() const { return regions_; }
   const std::vector<BiharmonicRbf>& rbfs() const { return rbfs_; }
   int vertex_count() const { return neutral_.vertex_count(); }
+  const Mesh& neutral() const { return neutral_; }
 
   // The 9 x R region poses of a large-scale skin (vec(F - I), weighted mean per region).
   void RegionPoses(const Eigen::Matrix3Xd& large_mm, Eigen::MatrixXd* poses) const;

@@ -454,7 +454,7 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
   summary.fit_ms = milliseconds_since(stage_start);
   stage_start = thread_cpu_ms();
   std::vector<MarkerDetection> refitted = detections;
-  for (size_t i = 0; i < detections.size(); ++i) {
+  for (size_t i = 0; i < detections.size() && options.occlusion_refit; ++i) {
     std::vector<std::pair<double, size_t>> nearest;
     for (size_t j = 0; j < detections.size(); ++j) {
       if (j != i) {

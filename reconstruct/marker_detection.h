@@ -45,6 +45,9 @@ struct MarkerDetectionOptions {
   double min_contrast = 12.0;         // |a|, gray levels
   double min_quality = 0.4;
   int max_iterations = 20;
+  // Refit dots clearly smaller than their neighbours with the neighbours' shape (occlusion,
+  // see above).
+  bool occlusion_refit = true;
   Status Check() const;
 };
 

@@ -25,6 +25,16 @@ Status ReconstructionOptions::Check() const {
   return Status::Ok();
 }
 
+ReconstructionOptions HeadMountedReconstructionOptions() {
+  ReconstructionOptions options;
+  options.head_mounted = true;
+  options.correspondence.min_views = 2;
+  options.tracking.pose_fixed = true;
+  options.correspondence.min_depth_mm = 100.0;
+  options.correspondence.max_depth_mm = 600.0;
+  return options;
+}
+
 StatusOr<Reconstruction> ReconstructTake(
     const FaceRig& rig, const std::vector<Camera>& cameras,
     const std::vector<std::vector<std::vector<ImageObservation>>>& detections, double fps,
@@ -35,7 +45,7 @@ StatusOr<Reconstruction> ReconstructTake(
   if (!(fps > 0)) return InvalidArgumentError("fps must be > 0");
   for (const Camera& camera : cameras) FACEDYN_RETURN_IF_ERROR(camera.Check());
   const SkullPoseEstimator skull(rig, options.skull);
-  FACEDYN_RETURN_IF_ERROR(skull.status());
+  if (!options.head_mounted) FACEDYN_RETURN_IF_ERROR(skull.status());
   DenseFitter fitter(rig, options.dense);
   FACEDYN_RETURN_IF_ERROR(fitter.status());
   const int frame_count = static_cast<int>(detections.size());
@@ -79,7 +89,8 @@ StatusOr<Reconstruction> ReconstructTake(
   std::vector<Rigid3> poses(frame_count);
   std::vector<bool> has_pose(frame_count, false);
   auto start = std::chrono::steady_clock::now();
-  for (int f = 0; f < frame_count; ++f) {
+  for (int f = 0; f < frame_count && options.head_mounted; ++f) has_pose[f] = true;
+  for (int f = 0; f < frame_count && !options.head_mounted; ++f) {
     const SkullPoseResult result = skull.Estimate(out.tracked[f]);
     poses[f] = result.world_from_skull;
     has_pose[f] = result.ok;
@@ -143,6 +154,7 @@ StatusOr<Reconstruction> ReconstructTake(
   out.take.info.source = "reconstruct";
   out.take.info.motion = "captured";
   out.take.world_from_skull = poses;
+  out.take.info.metadata["camera_mount"] = options.head_mounted ? "head" : "world";
   std::vector<Eigen::Matrix3Xd> in_skull(frame_count);
   std::vector<bool> fitted(frame_count, false);
   start = std::chrono::steady_clock::now();
@@ -172,7 +184,14 @@ StatusOr<Reconstruction> ReconstructTake(
   for (int f = 0; f < frame_count; ++f) {
     if (fitted[f]) last_fitted = f;
   }
-  if (last_fitted < 0) return FailedPreconditionError("no frame of the take could be fitted");
+  if (last_fitted < 0) {
+    // Say why, from the first frame: usually every frame fails the same way.
+    return FailedPreconditionError(
+        "no frame of the take could be fitted (frame 0: " +
+        (out.quality[0].problem.empty() ? std::string("no fit") : out.quality[0].problem) + "; " +
+        std::to_string(out.quality[0].detections) + " detections, " +
+        std::to_string(out.quality[0].points) + " triangulated points)");
+  }
   // Unfitted frames carry the nearest fitted frame's skull-frame shape to their own pose.
   out.take.positions.vertex_count = vertex_count;
   out.take.positions.positions.resize(3 * vertex_count, frame_count);

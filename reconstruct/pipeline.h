@@ -27,6 +27,11 @@
 namespace facedyn::reconstruct {
 
 struct ReconstructionOptions {
+  // Head-mounted cameras (capture.json "camera_mount": "head"): the calibration's frame is the
+  // helmet's, which moves with the skull, so the markers are triangulated in the skull frame and
+  // world_from_skull is the identity on every frame (no skull pose is estimated; the rig needs no
+  // stable markers). A helmet that slips on the head is not corrected.
+  bool head_mounted = false;
   CorrespondenceOptions correspondence;
   TrackingOptions tracking;
   SkullPoseOptions skull;
@@ -34,6 +39,12 @@ struct ReconstructionOptions {
   DenseFitOptions dense;
   Status Check() const;
 };
+
+// Options for head-mounted cameras: head_mounted; labelling with the skull pose fixed at the
+// identity (TrackingOptions::pose_fixed); and the correspondence a two-camera helmet needs —
+// points seen by 2 views (a rig's 8 cameras ask for 3), triangulated 100-600 mm from the cameras
+// (the face sits in the helmet; farther points are wrong epipolar matches).
+ReconstructionOptions HeadMountedReconstructionOptions();
 
 struct FrameQuality {
   int frame = 0;

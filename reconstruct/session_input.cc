@@ -95,6 +95,19 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
                                   ", not a time >= 0 s; every frame counts as held");
     }
   }
+  if (take->manifest.is_object() && take->manifest.contains("camera_mount")) {
+    const Json& mount = take->manifest["camera_mount"];
+    if (mount.is_string() &&
+        (mount.get<std::string>() == "head" || mount.get<std::string>() == "world")) {
+      out.head_mounted = mount.get<std::string>() == "head";
+    } else {
+      return FailedPreconditionError("take " + take_name + ": capture.json camera_mount is " +
+                                     mount.dump(-1, ' ', false, kJsonReplaceInvalidUtf8) +
+                                     ", neither \"world\" nor \"head\"");
+    }
+  }
+  MarkerDetectionOptions detection = options.detection;
+  if (out.head_mounted) detection.occlusion_refit = false;  // see session_input.h
   out.take_problems.insert(out.take_problems.end(), take->problems.begin(), take->problems.end());
   std::vector<std::unique_ptr<capture::FrameFileReader>> readers;
   int64_t last_trigger = -1;
@@ -189,7 +202,7 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
       }
     }
     std::vector<MarkerDetectionSummary> summaries;
-    const auto found = DetectMarkersInImages(images, options.detection, 0, &summaries);
+    const auto found = DetectMarkersInImages(images, detection, 0, &summaries);
     for (size_t c = 0; c < summaries.size(); ++c) {
       if (images[c].empty()) continue;
       const MarkerDetectionSummary& s = summaries[c];

@@ -158,6 +158,7 @@ StatusOr<RigFit> FitRigToPoints(const FaceRig& rig, const Eigen::Matrix3Xd& poin
   const Eigen::MatrixXd basis = MarkerBlendshapes(rig);
   std::vector<Rigid3> candidates;
   if (options.initial_world_from_skull) candidates.push_back(*options.initial_world_from_skull);
+  if (options.pose_fixed && candidates.empty()) candidates.push_back(Rigid3());
   // Principal axes of both sets.
   auto axes = [](const Eigen::Matrix3Xd& x, Eigen::Vector3d* mean) {
     *mean = x.rowwise().mean();
@@ -172,13 +173,14 @@ StatusOr<RigFit> FitRigToPoints(const FaceRig& rig, const Eigen::Matrix3Xd& poin
   const Eigen::Matrix3d point_axes = axes(points, &points_mean);
   for (const Eigen::Vector3d& signs : {Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(1, -1, -1),
                                        Eigen::Vector3d(-1, 1, -1), Eigen::Vector3d(-1, -1, 1)}) {
+    if (options.pose_fixed) break;
     const Eigen::Matrix3d r = point_axes * signs.asDiagonal() * rest_axes.transpose();
     candidates.emplace_back(Eigen::Quaterniond(r), points_mean - r * rest_mean);
   }
   Rigid3 best;
   double best_rms = std::numeric_limits<double>::infinity();
   for (Rigid3 pose : candidates) {
-    const double rms = TrimmedIcp(rest, points, &pose);
+    const double rms = options.pose_fixed ? 0.0 : TrimmedIcp(rest, points, &pose);
     if (rms < best_rms) {
       best_rms = rms;
       best = pose;
@@ -201,7 +203,9 @@ StatusOr<RigFit> FitRigToPoints(const FaceRig& rig, const Eigen::Matrix3Xd& poin
       src.col(k) = posed.col(markers[k]);
       dst.col(k) = points.col(fit.point_of_marker[markers[k]]);
     }
-    fit.world_from_skull = RobustRigid(src, dst, Eigen::VectorXd::Ones(src.cols()), 2.0);
+    if (!options.pose_fixed) {
+      fit.world_from_skull = RobustRigid(src, dst, Eigen::VectorXd::Ones(src.cols()), 2.0);
+    }
     if (basis.cols() > 0) {
       // Expression weights from the assigned markers in the skull frame: ridge least squares
       // on sum_k w_k delta_k = skull_from_world p - rest, clamped to [0, 1].
@@ -298,8 +302,8 @@ StatusOr<TrackedFrame> MarkerTracker::AddFrame(const std::vector<TriangulatedPoi
     for (int m = 0; m < m_count; ++m) {
       if (frame.point_of_marker[m] >= 0) assigned.push_back(m);
     }
-    Rigid3 pose = predicted_pose;
-    if (assigned.size() >= 3) {
+    Rigid3 pose = options_.pose_fixed ? previous : predicted_pose;
+    if (assigned.size() >= 3 && !options_.pose_fixed) {
       Eigen::Matrix3Xd src(3, assigned.size()), dst(3, assigned.size());
       Eigen::VectorXd weights(assigned.size());
       for (size_t k = 0; k < assigned.size(); ++k) {

@@ -45,6 +45,10 @@ struct TrackingOptions {
   double first_frame_gate_mm = 8.0;  // assignment gate when fitting the rig
   int max_bridge_frames = 16;
   std::optional<Rigid3> initial_world_from_skull;  // prior for the first frame
+  // The skull pose is known and constant: initial_world_from_skull (identity when unset) on every
+  // frame, never searched or refitted. Head-mounted cameras, whose frame is the helmet's: a
+  // rigid search there can only trade true labels for a better-fitting wrong alignment.
+  bool pose_fixed = false;
   Status Check() const;
 };
 

@@ -6,6 +6,7 @@
 
 #include "core/file_util.h"
 #include "core/json_io.h"
+#include "core/mesh.h"
 #include "sim/procedural_face.h"
 #include "sim/skull_motion.h"
 
@@ -42,11 +43,23 @@ StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node,
                                                    const std::string& base_dir) {
   FACEDYN_RETURN_IF_ERROR(
       node.CheckFields({"face", "expression", "motion", "platform_hz", "amplitude_mm", "lead_in_s",
-                        "seed", "render", "faults"}));
+                        "seed", "render", "faults", "markers", "markers_max_view_angle_deg"}));
   SimCaptureOptions options;
   FACEDYN_ASSIGN_OR_RETURN(options.face, node.GetOr<std::string>("face", "procedural"));
   if (options.face != "procedural" && !options.face.empty() && options.face[0] != '/') {
     options.face = (std::filesystem::path(base_dir) / options.face).lexically_normal().string();
+  }
+  FACEDYN_ASSIGN_OR_RETURN(options.markers, node.GetOr<std::string>("markers", ""));
+  FACEDYN_ASSIGN_OR_RETURN(options.markers_max_view_angle_deg,
+                           node.GetOr<double>("markers_max_view_angle_deg", 0.0));
+  if (!(options.markers_max_view_angle_deg >= 0 && options.markers_max_view_angle_deg < 90)) {
+    return node.Error("markers_max_view_angle_deg", "must be in [0, 90) degrees (0: no filter)");
+  }
+  if (!options.markers.empty() &&
+      options.markers.find_first_not_of("0123456789") != std::string::npos &&
+      options.markers[0] != '/') {
+    options.markers =
+        (std::filesystem::path(base_dir) / options.markers).lexically_normal().string();
   }
   FACEDYN_ASSIGN_OR_RETURN(options.performance.expression,
                            node.GetOr<std::string>("expression", "neutral"));
@@ -138,15 +151,66 @@ Take TrimTake(const Take& take, int first_frame) {
   return out;
 }
 
+std::vector<Marker> MarkersSeenByEveryCamera(const FaceRig& rig,
+                                             const std::vector<capture::CameraModel>& cameras,
+                                             double max_angle_deg) {
+  const Eigen::Matrix3Xd& skin = rig.neutral.positions_mm;
+  const Eigen::Matrix3Xd normals = VertexNormals(rig.neutral, skin);
+  // Outward: the skin's normals point away from the skull's centre on average.
+  const Eigen::Vector3d centre = skin.rowwise().mean();
+  double outward = 0.0;
+  for (int v = 0; v < skin.cols(); ++v) outward += normals.col(v).dot(skin.col(v) - centre);
+  const double sign = outward >= 0 ? 1.0 : -1.0;
+  const double min_cos = std::cos(max_angle_deg * M_PI / 180.0);
+  std::vector<Marker> seen;
+  for (const Marker& marker : rig.markers) {
+    const Eigen::Vector3d p = marker.point.Evaluate(skin);
+    const Eigen::Vector3d n = sign * marker.point.Evaluate(normals).normalized();
+    bool all = true;
+    for (const capture::CameraModel& camera : cameras) {
+      const Eigen::Vector3d centre_in_world = camera.cam_from_world.Inverse().translation();
+      const Eigen::Vector3d to_camera = (centre_in_world - p).normalized();
+      Eigen::Vector2d pixel;
+      all = all && to_camera.dot(n) >= min_cos && camera.Project(p, &pixel) && pixel.x() >= 0 &&
+            pixel.y() >= 0 && pixel.x() <= camera.width_px - 1 && pixel.y() <= camera.height_px - 1;
+    }
+    if (all) seen.push_back(marker);
+  }
+  return seen;
+}
+
+Take TakeInSkullFrame(const Take& take) {
+  Take out = take;
+  for (int f = 0; f < take.frame_count(); ++f) {
+    const Rigid3 skull_from_world = take.world_from_skull[f].Inverse();
+    out.positions.Frame(f) = skull_from_world.Apply(take.FramePositions(f)).cast<float>();
+    for (auto& [name, channel] : out.channels) {
+      if (name != "quasistatic") continue;
+      channel.Frame(f) = skull_from_world.Apply(channel.Frame(f).cast<double>()).cast<float>();
+    }
+  }
+  for (Rigid3& pose : out.world_from_skull) pose = Rigid3();
+  return out;
+}
+
 StatusOr<SimulatedStage> PrepareSimulatedStage(const SimCaptureOptions& options,
                                                const std::vector<capture::CameraModel>& cameras,
-                                               double fps, int64_t triggers, double platform_hz) {
+                                               double fps, int64_t triggers, double platform_hz,
+                                               capture::CameraMount mount) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   SimulatedStage stage;
   if (options.face == "procedural") {
     FACEDYN_ASSIGN_OR_RETURN(stage.rig, MakeProceduralFace(ProceduralFaceOptions()));
   } else {
     FACEDYN_ASSIGN_OR_RETURN(stage.rig, LoadFaceRig(options.face));
+  }
+  if (options.markers_max_view_angle_deg > 0) {
+    stage.rig.markers =
+        MarkersSeenByEveryCamera(stage.rig, cameras, options.markers_max_view_angle_deg);
+  }
+  if (!options.markers.empty()) {
+    FACEDYN_ASSIGN_OR_RETURN(stage.rig.markers,
+                             SelectMarkerLayout(stage.rig, options.markers, "sim.markers"));
   }
   PerformanceOptions performance = options.performance;
   if (platform_hz > 0) performance.motion.platform_hz = platform_hz;
@@ -170,13 +234,16 @@ StatusOr<SimulatedStage> PrepareSimulatedStage(const SimCaptureOptions& options,
   Take trimmed = TrimTake(simulated, lead_frames);
   trimmed.info.metadata["capture_lead_in_frames"] = lead_frames;
   stage.take = std::make_shared<const Take>(std::move(trimmed));
+  stage.camera_take = mount == capture::CameraMount::kHead
+                          ? std::make_shared<const Take>(TakeInSkullFrame(*stage.take))
+                          : stage.take;
   stage.renderer = std::make_shared<const FaceRenderer>(stage.rig, options.render);
   for (size_t k = 0; k < cameras.size(); ++k) {
     SimCameraFaults faults;
     if (auto it = options.faults.find(cameras[k].name); it != options.faults.end())
       faults = it->second;
     stage.cameras.push_back(std::make_unique<SimCamera>(static_cast<int>(k), cameras[k],
-                                                        stage.renderer, stage.take, faults));
+                                                        stage.renderer, stage.camera_take, faults));
   }
   return stage;
 }

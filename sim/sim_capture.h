@@ -9,6 +9,12 @@
 //     platform_hz: 8              # used when no platform: section sets the real frequency
 //     amplitude_mm: 2
 //     lead_in_s: 0.5              # simulated before trigger 0 (the motion fades in from rest)
+//     markers: 80                 # optional: the painted layout, a count (the face's first N
+//                                 # markers) or a file of marker names (core/face_rig.h
+//                                 # SelectMarkerLayout); default every marker of the face
+//     markers_max_view_angle_deg: 70  # optional: first keep only the markers every camera sees
+//                                 # on the neutral face within this angle of the skin normal (a
+//                                 # head-mounted camera's layout: two cameras see the front)
 //     seed: 1
 //     render: {read_noise_dn: 1.2, shot_noise_gain: 0.25, blur_sigma_px: 0.6,
 //              motion_blur_samples: 1, supersample: 1, skin_albedo: 0.72, marker_albedo: 0.06,
@@ -19,11 +25,16 @@
 // from -lead_in_s and trimmed, so the platform is already oscillating in steady state when the
 // take starts, as it is on the real stage after the rig has settled.
 //
+// Head-mounted cameras (CAPTURE.yaml cameras.mount: head): the camera models are in the skull
+// (helmet) frame, so each camera renders the skin in the skull frame, world_from_skull(t)^-1 x:
+// the helmet follows the head rigidly (a helmet that slips is not simulated).
+//
 // Ground truth, in <take>/ground_truth/:
 //   take/            a Take (core/take.h): positions = dynamic skin, quasistatic.pc2 (exact),
 //                    dynamic_offset.pc2, skull.csv = world_from_skull, on the trigger times
 //   cameras.yaml     the exact camera models (capture/camera_model.h)
-//   face/            the FaceRig (markers, regions) the images were rendered from
+//   face/            the FaceRig (markers, regions) the images were rendered from; with a
+//                    markers: layout, only those markers
 //   render.json      render options, platform frequency, lead-in, seeds
 #pragma once
 
@@ -34,6 +45,7 @@
 #include <vector>
 
 #include "capture/camera_model.h"
+#include "capture/capture_config.h"
 #include "core/config_node.h"
 #include "core/face_rig.h"
 #include "core/status.h"
@@ -47,6 +59,8 @@ struct SimCaptureOptions {
   std::string face = "procedural";
   PerformanceOptions performance;  // expression, motion (platform_hz, amplitude), seed
   double lead_in_s = 0.5;
+  std::string markers;  // "" = every marker of the face, else a SelectMarkerLayout spec
+  double markers_max_view_angle_deg = 0.0;  // > 0: MarkersSeenByEveryCamera first
   RenderOptions render;
   std::map<std::string, SimCameraFaults> faults;  // by camera name
 
@@ -59,6 +73,8 @@ StatusOr<SimCaptureOptions> ParseSimCaptureOptions(const ConfigNode& node,
 struct SimulatedStage {
   FaceRig rig;
   std::shared_ptr<const Take> take;  // trimmed: frame k at t = k / fps
+  // What the cameras see: `take` itself, or for head-mounted cameras its skin in the skull frame.
+  std::shared_ptr<const Take> camera_take;
   std::shared_ptr<const FaceRenderer> renderer;
   std::vector<std::unique_ptr<SimCamera>> cameras;
   double platform_hz = 0.0;
@@ -70,10 +86,22 @@ struct SimulatedStage {
 };
 
 // Simulates `triggers` frames at `fps` (plus the lead-in) with the platform at `platform_hz`
-// (<= 0: the options' own), and builds the cameras.
-StatusOr<SimulatedStage> PrepareSimulatedStage(const SimCaptureOptions& options,
-                                               const std::vector<capture::CameraModel>& cameras,
-                                               double fps, int64_t triggers, double platform_hz);
+// (<= 0: the options' own), and builds the cameras, fixed to the world or to the head (`mount`).
+StatusOr<SimulatedStage> PrepareSimulatedStage(
+    const SimCaptureOptions& options, const std::vector<capture::CameraModel>& cameras, double fps,
+    int64_t triggers, double platform_hz,
+    capture::CameraMount mount = capture::CameraMount::kWorld);
+
+// The rig's markers (in its order) that every camera sees on the neutral face (skull frame, the
+// cameras' world at rest) in front of it, inside its image, within `max_angle_deg` of the skin's
+// outward normal. Occlusion by other parts of the face is not tested.
+std::vector<Marker> MarkersSeenByEveryCamera(const FaceRig& rig,
+                                             const std::vector<capture::CameraModel>& cameras,
+                                             double max_angle_deg);
+
+// The take's skin (and quasistatic channel, if any) in the skull frame, world_from_skull set to
+// identity: what a head-mounted camera sees.
+Take TakeInSkullFrame(const Take& take);
 
 Status WriteGroundTruth(const SimulatedStage& stage, const SimCaptureOptions& options,
                         const std::vector<capture::CameraModel>& cameras,

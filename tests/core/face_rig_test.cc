@@ -473,5 +473,48 @@ TEST(LoadFaceRig, WrongUnitsAndVersion) {
               AllOf(HasSubstr("field 'format_version'"), HasSubstr("version 9 is not supported")));
 }
 
+// A sparse layout: a count (the first N), a list of names, or a saved rig's markers.csv.
+TEST(SelectMarkerLayout, CountNamesAndRigCsv) {
+  FaceRig rig = MakeRig();
+  for (int i = 0; i < 4; ++i) {
+    rig.markers.push_back({"extra" + std::to_string(i), SurfacePoint::AtVertex(i), 2.0});
+  }
+  auto first = SelectMarkerLayout(rig, "4", "--markers");
+  ASSERT_TRUE(first.ok()) << first.status().ToString();
+  ASSERT_EQ(first->size(), 4u);
+  EXPECT_EQ((*first)[0].name, "brow_l");
+  EXPECT_EQ((*first)[3].name, "extra1");
+  EXPECT_THAT(SelectMarkerLayout(rig, "3", "--markers").status().message(),
+              HasSubstr("--markers 3: need 4..6"));
+  EXPECT_THAT(SelectMarkerLayout(rig, "99", "sim.markers").status().message(),
+              HasSubstr("sim.markers 99: need 4..6"));
+
+  TempDir dir;
+  testing::WriteBytes(dir.Join("names.txt"), "# layout\nextra3\nbrow_l\r\nextra0\nextra2\n");
+  auto named = SelectMarkerLayout(rig, dir.Join("names.txt"), "--markers");
+  ASSERT_TRUE(named.ok()) << named.status().ToString();
+  ASSERT_EQ(named->size(), 4u);
+  EXPECT_EQ((*named)[0].name, "extra3");
+  EXPECT_EQ((*named)[1].name, "brow_l");
+
+  // A saved rig with a subset of the markers: its markers.csv is a layout for the full rig.
+  FaceRig subset = rig;
+  subset.markers = {rig.markers[5], rig.markers[1], rig.markers[2], rig.markers[4]};
+  ASSERT_TRUE(SaveFaceRig(subset, dir.Join("subset")).ok());
+  auto from_csv = SelectMarkerLayout(rig, dir.Join("subset/markers.csv"), "--markers");
+  ASSERT_TRUE(from_csv.ok()) << from_csv.status().ToString();
+  ASSERT_EQ(from_csv->size(), 4u);
+  for (size_t i = 0; i < 4; ++i) EXPECT_EQ((*from_csv)[i].name, subset.markers[i].name);
+
+  testing::WriteBytes(dir.Join("bad.txt"), "extra0\nnose_tip\n");
+  EXPECT_THAT(SelectMarkerLayout(rig, dir.Join("bad.txt"), "--markers").status().message(),
+              AllOf(HasSubstr("bad.txt:2"), HasSubstr("'nose_tip' is not in rig")));
+  testing::WriteBytes(dir.Join("twice.txt"), "extra0\nextra1\nextra0\nextra2\n");
+  EXPECT_THAT(SelectMarkerLayout(rig, dir.Join("twice.txt"), "--markers").status().message(),
+              HasSubstr("twice.txt:3: marker 'extra0' listed twice"));
+  EXPECT_THAT(SelectMarkerLayout(rig, dir.Join("missing.txt"), "--markers").status().message(),
+              HasSubstr("neither a count nor a readable file"));
+}
+
 }  // namespace
 }  // namespace facedyn

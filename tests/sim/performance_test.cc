@@ -106,6 +106,68 @@ TEST(TrimTake, ShiftsTheHeldPartWithTheFirstFrame) {
   EXPECT_EQ(*TrimTake(take, 100).info.hold_start_s, 0.0);
 }
 
+// What a head-mounted camera sees: the skin (and quasistatic channel) in the skull frame, the
+// head's motion gone.
+TEST(TakeInSkullFrame, RemovesTheHeadMotion) {
+  const Take take = Perform("smile", MotionKind::kWalk, 8.0, 0.5);
+  const Take in_skull = TakeInSkullFrame(take);
+  ASSERT_EQ(in_skull.frame_count(), take.frame_count());
+  ASSERT_TRUE(in_skull.channels.count("quasistatic"));
+  double travel = 0.0;
+  for (int f = 0; f < take.frame_count(); ++f) {
+    travel = std::max(travel, take.world_from_skull[f].translation().norm());
+    EXPECT_LT(in_skull.world_from_skull[f].translation().norm(), 1e-12);
+    const Eigen::Matrix3Xd expected =
+        take.world_from_skull[f].Inverse().Apply(take.FramePositions(f));
+    EXPECT_LT((in_skull.FramePositions(f) - expected).cwiseAbs().maxCoeff(), 1e-3);
+    const Eigen::Matrix3Xd q_world = take.channels.at("quasistatic").Frame(f).cast<double>();
+    const Eigen::Matrix3Xd q_skull = in_skull.channels.at("quasistatic").Frame(f).cast<double>();
+    EXPECT_LT((q_skull - take.world_from_skull[f].Inverse().Apply(q_world)).cwiseAbs().maxCoeff(),
+              1e-3);
+  }
+  EXPECT_GT(travel, 1.0);  // the walk moved the head, so the test compares something
+}
+
+// A head-mounted camera's layout: only markers both cameras see nearly face-on, in the rig's
+// order; a camera looking from behind sees none.
+TEST(MarkersSeenByEveryCamera, KeepsTheFrontOfTheFace) {
+  const auto rig = MakeProceduralFace(ProceduralFaceOptions());
+  ASSERT_TRUE(rig.ok());
+  capture::CameraRing ring;
+  ring.count = 2;
+  ring.width_px = 720;
+  ring.height_px = 1280;
+  ring.focal_px = 1300;
+  ring.distance_mm = 250;
+  ring.span_deg = 20;
+  ring.elevation_deg = -10;
+  ring.target_mm = Eigen::Vector3d(0, -15, 60);
+  const std::vector<capture::CameraModel> cameras = ring.Cameras();
+  const std::vector<Marker> seen = MarkersSeenByEveryCamera(*rig, cameras, 72.0);
+  EXPECT_GT(seen.size(), 30u);
+  EXPECT_LT(seen.size(), rig->markers.size() / 2);
+  // In the rig's order, and every one in front (+Z) of the face's centre.
+  size_t next = 0;
+  const double centre_z = rig->neutral.positions_mm.row(2).mean();
+  for (const Marker& m : seen) {
+    while (next < rig->markers.size() && rig->markers[next].name != m.name) ++next;
+    ASSERT_LT(next, rig->markers.size()) << m.name << " out of order";
+    EXPECT_GT(m.point.Evaluate(rig->neutral.positions_mm).z(), centre_z) << m.name;
+  }
+  // A tighter angle keeps a subset.
+  EXPECT_LT(MarkersSeenByEveryCamera(*rig, cameras, 50.0).size(), seen.size());
+  ring.target_mm = Eigen::Vector3d(0, -15, 60);
+  ring.distance_mm = 400;
+  ring.span_deg = 20;
+  std::vector<capture::CameraModel> behind = ring.Cameras();
+  for (capture::CameraModel& camera : behind) {
+    camera = capture::CameraModel::LookAt(camera.name, 720, 1280, 1300,
+                                          Eigen::Vector3d(0, -15, -400), Eigen::Vector3d(0, -15, 60),
+                                          Eigen::Vector3d::UnitY());
+  }
+  EXPECT_TRUE(MarkersSeenByEveryCamera(*rig, behind, 72.0).empty());
+}
+
 TEST(SimulatePerformance, NoMotionHeldExpressionIsQuasistatic) {
   const Take take = Perform("smile", MotionKind::kNone, 8.0, 1.5);
   const PointCache& quasistatic = take.channels.at("quasistatic");

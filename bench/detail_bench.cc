@@ -21,9 +21,20 @@
 // (every vertex of the rig) and over the lips (rig region "lips").
 // Speed: upsampling frames/s (Apply on the test markers, best of 3 passes) on this machine.
 //
+// Head-mounted camera ("hmc" in each run; skipped with --no-hmc): the layout the simulated HMC
+// paints (config/capture/hmc.yaml: the markers both helmet cameras see within its
+// markers_max_view_angle_deg), the three methods (large-scale only, Bickel 80, Masquerade 80
+// global) trained on that layout's virtual markers, and tested twice on the held-out speech:
+// from the clean virtual markers, and from markers filmed by the HMC — every test frame rendered
+// by both cameras (sim/virtual_camera.h, the config's render options and noise), detected,
+// triangulated and labelled by reconstruct's head-mounted path (reconstruct/pipeline.h
+// HeadMountedReconstructionOptions), missing markers held (detail/marker_input.h). The cameras
+// are the config's exact models (no calibration error). Reported beside the errors: the filmed
+// markers' error against their true positions and how many marker-frames were filled.
+//
 //   detail_bench [--vertices N] [--markers N] [--train-frames N] [--test-frames N]
 //                [--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S]
-//                [--seed N] [--seeds 1,2,3] [--quick]
+//                [--seed N] [--seeds 1,2,3] [--quick] [--no-hmc]
 //
 // --seeds: one run per seed (the seed draws both performances' timing and pose order), then a
 // "summary" with each figure's mean and sample standard deviation over the seeds.
@@ -42,10 +53,17 @@
 #include "core/json_io.h"
 #include "core/log.h"
 #include "detail/bickel.h"
+#include "capture/capture_config.h"
+#include "core/marker_tracks.h"
+#include "detail/marker_input.h"
 #include "detail/masquerade.h"
+#include "reconstruct/marker_detection.h"
+#include "reconstruct/pipeline.h"
 #include "sim/expression_curve.h"
 #include "sim/expressions.h"
 #include "sim/procedural_face.h"
+#include "sim/sim_capture.h"
+#include "sim/virtual_camera.h"
 
 namespace {
 
@@ -74,6 +92,7 @@ struct Settings {
   double sigma_mm = 4.0;           // region blend falloff
   double feature_sigma_mm = 20.0;  // falloff of the triangles in a region's pose
   double edge_sigma_mm = 20.0;     // Bickel: falloff of a vertex's edge weights
+  bool hmc = true;
 };
 
 std::vector<Eigen::Matrix3Xd> Frames(const facedyn::FaceRig& rig,
@@ -128,6 +147,160 @@ double FramesPerSecond(const std::vector<Eigen::Matrix3Xd>& markers, F&& apply) 
     best = std::max(best, markers.size() / Seconds(start));
   }
   return best;
+}
+
+
+// The markers of `layout` on every `truth` frame (skull frame) as the simulated HMC films them:
+// rendered by each camera, detected, triangulated and labelled with the head-mounted options,
+// missing markers held. *marker_errors receives |filmed - true| per observed marker-frame.
+facedyn::StatusOr<facedyn::detail::MarkerFrames> FilmHmcMarkers(
+    const facedyn::FaceRig& rig, const std::vector<facedyn::Marker>& layout,
+    const std::vector<facedyn::capture::CameraModel>& cameras,
+    const facedyn::sim::RenderOptions& render, const std::vector<Eigen::Matrix3Xd>& truth,
+    double fps, std::vector<double>* marker_errors, Json* stats) {
+  namespace reconstruct = facedyn::reconstruct;
+  facedyn::FaceRig painted = rig;
+  painted.markers = layout;
+  const facedyn::sim::FaceRenderer renderer(painted, render);
+  // The dots' diameter in the images: at the layout's mean depth in camera 0.
+  double depth = 0.0;
+  for (const facedyn::Marker& m : layout) {
+    depth += (cameras[0].cam_from_world * m.point.Evaluate(rig.neutral.positions_mm)).z();
+  }
+  depth /= layout.size();
+  const double diameter_px = layout.front().diameter_mm * cameras[0].fx() / depth;
+  reconstruct::MarkerDetectionOptions detection;
+  detection.expected_diameter_px = diameter_px;
+  detection.min_diameter_px = std::max(1.5, 0.4 * diameter_px);
+  detection.max_diameter_px = 2.5 * diameter_px;
+  detection.occlusion_refit = false;  // as reconstruct/session_input.h does for HMC takes
+  std::vector<std::vector<std::vector<reconstruct::ImageObservation>>> detections(truth.size());
+  std::vector<facedyn::sim::RenderWorkspace> workspaces(cameras.size());
+  const auto start = Clock::now();
+  for (size_t f = 0; f < truth.size(); ++f) {
+    std::vector<cv::Mat> images;
+    for (size_t c = 0; c < cameras.size(); ++c) {
+      cv::Mat image(cameras[c].height_px, cameras[c].width_px, CV_8UC1);
+      renderer.Render(cameras[c], truth[f], (uint64_t{c} << 40) ^ f, &workspaces[c], image.data);
+      images.push_back(image);
+    }
+    const auto found = reconstruct::DetectMarkersInImages(images, detection);
+    detections[f].resize(cameras.size());
+    for (size_t c = 0; c < cameras.size(); ++c) {
+      if (!found[c].ok()) return found[c].status();
+      for (const reconstruct::MarkerDetection& d : *found[c]) {
+        reconstruct::ImageObservation o;  // as reconstruct/session_input.cc builds them
+        o.camera = static_cast<int>(c);
+        o.detection = static_cast<int>(detections[f][c].size());
+        o.pixel = d.center_px;
+        o.weight = d.quality;
+        detections[f][c].push_back(o);
+      }
+    }
+  }
+  const double film_s = Seconds(start);
+  FACEDYN_ASSIGN_OR_RETURN(
+      const reconstruct::Reconstruction reconstruction,
+      reconstruct::ReconstructTake(painted, cameras, detections, fps,
+                                   reconstruct::HeadMountedReconstructionOptions()));
+  const facedyn::MarkerTracks tracks = reconstruct::MarkerTracksOf(painted, reconstruction);
+  FACEDYN_ASSIGN_OR_RETURN(
+      facedyn::detail::MarkerFrames frames,
+      facedyn::detail::MarkersFromTracks(tracks, reconstruction.take.world_from_skull, layout,
+                                         rig.neutral));
+  int observed = 0;
+  for (int f = 0; f < tracks.frame_count(); ++f) {
+    for (int m = 0; m < tracks.marker_count(); ++m) {
+      if (tracks.state[f][m] != facedyn::MarkerTrackState::kObserved) continue;
+      ++observed;
+      marker_errors->push_back(
+          (tracks.world_mm.block(3 * m, f, 3, 1) - layout[m].point.Evaluate(truth[f])).norm());
+    }
+  }
+  std::vector<double> sorted = *marker_errors;
+  std::sort(sorted.begin(), sorted.end());
+  double sq = 0;
+  for (double e : sorted) sq += e * e;
+  *stats = {{"marker_diameter_px", diameter_px},
+            {"observed_fraction", double(observed) / (tracks.frame_count() * layout.size())},
+            {"marker_frames_filled", frames.filled},
+            {"markers_never_tracked", frames.never_seen.size()},
+            {"marker_error_median_mm", sorted.empty() ? 0.0 : sorted[sorted.size() / 2]},
+            {"marker_error_rms_mm", sorted.empty() ? 0.0 : std::sqrt(sq / sorted.size())},
+            {"marker_error_p95_mm", Percentile95(sorted)},
+            {"render_and_detect_s", film_s}};
+  return frames;
+}
+
+// The HMC comparison of one seed (see the header).
+facedyn::StatusOr<Json> RunHmc(const Settings& s, const facedyn::FaceRig& rig,
+                               const std::vector<Eigen::Matrix3Xd>& rom,
+                               const std::vector<Eigen::Matrix3Xd>& truth,
+                               const std::vector<int>& lips) {
+  namespace sim = facedyn::sim;
+  const std::string config_path = std::string(FACEDYN_SOURCE_DIR) + "/config/capture/hmc.yaml";
+  FACEDYN_ASSIGN_OR_RETURN(const facedyn::capture::CaptureConfig config,
+                           facedyn::capture::LoadCaptureConfig(config_path));
+  if (!config.sim) return facedyn::InvalidArgumentError(config_path + " has no sim: section");
+  FACEDYN_ASSIGN_OR_RETURN(
+      const sim::SimCaptureOptions options,
+      sim::ParseSimCaptureOptions(*config.sim, std::string(FACEDYN_SOURCE_DIR) + "/config/capture"));
+  std::vector<facedyn::Marker> layout =
+      options.markers_max_view_angle_deg > 0
+          ? sim::MarkersSeenByEveryCamera(rig, config.cameras, options.markers_max_view_angle_deg)
+          : rig.markers;
+  if (!options.markers.empty()) {
+    facedyn::FaceRig seen = rig;
+    seen.markers = layout;
+    FACEDYN_ASSIGN_OR_RETURN(layout,
+                             facedyn::SelectMarkerLayout(seen, options.markers, "sim.markers"));
+  }
+  if (layout.size() < 4) return facedyn::FailedPreconditionError("the HMC sees < 4 markers");
+  detail::DetailTrainingSet set;
+  set.subject = rig.name;
+  set.neutral = rig.neutral;
+  set.markers = layout;
+  set.frames_mm = rom;
+  std::vector<Eigen::Matrix3Xd> clean;
+  for (const auto& x : truth) clean.push_back(set.MarkersOn(x));
+  std::vector<double> marker_errors;
+  Json film;
+  FACEDYN_ASSIGN_OR_RETURN(
+      const detail::MarkerFrames filmed,
+      FilmHmcMarkers(rig, layout, config.cameras, options.render, truth, 60.0, &marker_errors,
+                     &film));
+  std::fprintf(stderr, "detail_bench: HMC filmed %zu frames\n", truth.size());
+
+  detail::MasqueradeOptions masquerade_options;
+  masquerade_options.region_sigma_mm = s.sigma_mm;
+  masquerade_options.feature_sigma_mm = s.feature_sigma_mm;
+  masquerade_options.global_frames = s.global_frames;
+  FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel masquerade,
+                           detail::MasqueradeModel::Train(set, masquerade_options));
+  detail::BickelOptions bickel_options;
+  bickel_options.edge_sigma_mm = s.edge_sigma_mm;
+  bickel_options.frames = s.global_frames;
+  FACEDYN_ASSIGN_OR_RETURN(const detail::BickelModel bickel,
+                           detail::BickelModel::Train(set, bickel_options));
+  Json methods = Json::object();
+  for (const auto& [input, markers] :
+       {std::pair<const char*, const std::vector<Eigen::Matrix3Xd>*>{"clean", &clean},
+        {"filmed", &filmed.markers_mm}}) {
+    std::vector<Eigen::Matrix3Xd> result(truth.size()), large(truth.size()),
+        bickel_result(truth.size());
+    for (size_t f = 0; f < truth.size(); ++f) {
+      FACEDYN_RETURN_IF_ERROR(masquerade.Apply((*markers)[f], &result[f], &large[f]));
+      FACEDYN_RETURN_IF_ERROR(bickel.Apply((*markers)[f], &bickel_result[f]));
+    }
+    methods[input] = {
+        {"large_scale_only", ErrorsJson(Score(large, truth, lips))},
+        {"bickel2008_80", ErrorsJson(Score(bickel_result, truth, lips))},
+        {"masquerade_global_80", ErrorsJson(Score(result, truth, lips))}};
+  }
+  return Json{{"config", "config/capture/hmc.yaml"},
+              {"markers", layout.size()},
+              {"film", film},
+              {"methods", methods}};
 }
 
 facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
@@ -245,6 +418,9 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
                                 {"upsample_frames_per_s", fps}};
   }
   run["methods"] = methods;
+  if (s.hmc) {
+    FACEDYN_ASSIGN_OR_RETURN(run["hmc"], RunHmc(s, rig, set.frames_mm, truth, lips_it->second));
+  }
   return run;
 }
 
@@ -303,6 +479,8 @@ int main(int argc, char** argv) {
       std::string item;
       while (std::getline(list, item, ','))
         seeds.push_back(static_cast<uint64_t>(Integer(item.c_str(), arg)));
+    } else if (arg == "--no-hmc") {
+      s.hmc = false;
     } else if (arg == "--quick") {
       s.vertices = 4000;
       s.train_frames = 160;
@@ -312,7 +490,7 @@ int main(int argc, char** argv) {
           stderr,
           "usage: detail_bench [--vertices N] [--markers N] [--train-frames N] [--test-frames N] "
           "[--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S] [--seed "
-          "N] [--seeds 1,2,3] [--quick]\n");
+          "N] [--seeds 1,2,3] [--quick] [--no-hmc]\n");
       return 2;
     }
   }
@@ -339,6 +517,9 @@ int main(int argc, char** argv) {
   if (runs.size() > 1) {
     Json summary = Json::object();
     Summarise(runs, runs.front()["methods"], Json::json_pointer("/methods"), &summary);
+    if (runs.front().contains("hmc")) {
+      Summarise(runs, runs.front()["hmc"], Json::json_pointer("/hmc"), &summary);
+    }
     out["summary"] = summary;
     out["summary"]["seeds"] = seeds;
   }

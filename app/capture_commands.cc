@@ -710,4 +710,26 @@ Status RunCaptureDemoStage(const std::string& out_dir, bool quick, Json* metrics
   return Status::Ok();
 }
 
+StatusOr<std::string> CaptureSimulatedTake(const capture::CaptureConfig& config,
+                                           const std::string& session_dir,
+                                           const std::string& take_name) {
+  FACEDYN_RETURN_IF_ERROR(config.Check());
+  if (config.backend != "sim" || !config.sim) {
+    return InvalidArgumentError(config.source_path + ": not a simulated capture (backend sim)");
+  }
+  std::error_code ec;
+  std::filesystem::remove_all(session_dir, ec);  // the caller's own folder, replaced each run
+  FACEDYN_ASSIGN_OR_RETURN(auto session, OpenSession(config, session_dir));
+  TakeInputs inputs;
+  inputs.name = take_name;
+  FACEDYN_ASSIGN_OR_RETURN(const TakeOutput output,
+                           CaptureTake(config, session.get(), inputs, nullptr));
+  PrintTake(inputs.name, output);
+  if (output.report.result.status != "complete") {
+    return InternalError("simulated take " + take_name +
+                         " is incomplete: " + output.report.result.reason);
+  }
+  return output.report.take_dir;
+}
+
 }  // namespace facedyn::app

@@ -4,6 +4,7 @@
 
 #include <string>
 
+#include "capture/capture_config.h"
 #include "core/json_io.h"
 #include "core/status.h"
 
@@ -14,5 +15,12 @@ namespace facedyn::app {
 // (may be null) with the take's JSON report plus "cameras", "session", "session_complete".
 // Fails when the take or the session check is not complete.
 Status RunCaptureDemoStage(const std::string& out_dir, bool quick, Json* metrics);
+
+// Records one take of a simulated capture `config` into a new session at `session_dir` (removed
+// first), prints its report and returns the take's folder. Errors: not a sim config, an
+// incomplete take.
+StatusOr<std::string> CaptureSimulatedTake(const capture::CaptureConfig& config,
+                                           const std::string& session_dir,
+                                           const std::string& take_name);
 
 }  // namespace facedyn::app

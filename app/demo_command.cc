@@ -3,8 +3,9 @@
 // save/reload/export round trip; a simulated face on the platform; a simulated multi-view capture
 // (app/capture_demo.h); calibration and reconstruction of the 11 Hz take (app/reconstruct_demo.h);
 // a simulated-data reference study with exact targets (eval/dynamics_study.h); removal,
-// synthesis and retargeting trained on reconstructed takes (app/demo_dynamics.h); renders,
-// metrics.json and the self-contained report.html (report/report.h).
+// synthesis and retargeting trained on reconstructed takes (app/demo_dynamics.h); rig solving
+// (app/solve_demo.h); fine detail for a head-mounted camera's markers (app/detail_demo.h);
+// renders, metrics.json and the self-contained report.html (report/report.h).
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -21,6 +22,7 @@
 #include "app/capture_demo.h"
 #include "app/command.h"
 #include "app/demo_dynamics.h"
+#include "app/detail_demo.h"
 #include "eval/dynamics_study.h"
 #include "eval/replicates.h"
 #include "app/reconstruct_demo.h"
@@ -274,6 +276,13 @@ Status RunDemo(const DemoOptions& options) {
                         SolveDemoOptions::ForDemo(options.quick, options.seeds.front()),
                         options.out_dir));
   clock.Lap("rig solving (FDLS)");
+  // Fine detail for a head-mounted camera's sparse markers (Masquerade).
+  FACEDYN_ASSIGN_OR_RETURN(
+      metrics["detail"],
+      RunDetailDemoStage(face, cameras,
+                         DetailDemoOptions::ForDemo(options.quick, options.seeds.front()),
+                         options.out_dir));
+  clock.Lap("fine detail from a head-mounted camera (Masquerade)");
   FACEDYN_ASSIGN_OR_RETURN(metrics["renders"],
                            RenderDemoDynamics(face, artifacts, options.out_dir));
   clock.Lap("renders");

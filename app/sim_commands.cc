@@ -73,7 +73,10 @@ void AddSimCommands(CLI::App& app, CommandRunner* selected) {
   auto* perform = sim->add_subcommand(
       "perform", "Simulate a take: dynamic skin plus the exact quasistatic channel");
   perform->add_option("--face", perform_options->face, "FaceRig folder, or 'procedural'")->capture_default_str();
-  perform->add_option("--expression", p.expression, "Expression name, or 'speech'")->capture_default_str();
+  perform
+      ->add_option("--expression", p.expression,
+                   "Expression name, or 'speech' or 'range_of_motion'")
+      ->capture_default_str();
   perform->add_option("--motion", perform_options->motion, "platform | walk | run | jump | none | file:SKULL.csv")
       ->capture_default_str();
   perform->add_option("--hz", p.motion.platform_hz, "Platform frequency (Hz)")->capture_default_str();

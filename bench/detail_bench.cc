@@ -245,16 +245,8 @@ facedyn::StatusOr<Json> RunHmc(const Settings& s, const facedyn::FaceRig& rig,
   FACEDYN_ASSIGN_OR_RETURN(
       const sim::SimCaptureOptions options,
       sim::ParseSimCaptureOptions(*config.sim, std::string(FACEDYN_SOURCE_DIR) + "/config/capture"));
-  std::vector<facedyn::Marker> layout =
-      options.markers_max_view_angle_deg > 0
-          ? sim::MarkersSeenByEveryCamera(rig, config.cameras, options.markers_max_view_angle_deg)
-          : rig.markers;
-  if (!options.markers.empty()) {
-    facedyn::FaceRig seen = rig;
-    seen.markers = layout;
-    FACEDYN_ASSIGN_OR_RETURN(layout,
-                             facedyn::SelectMarkerLayout(seen, options.markers, "sim.markers"));
-  }
+  FACEDYN_ASSIGN_OR_RETURN(const std::vector<facedyn::Marker> layout,
+                           sim::PaintedMarkers(rig, options, config.cameras));
   if (layout.size() < 4) return facedyn::FailedPreconditionError("the HMC sees < 4 markers");
   detail::DetailTrainingSet set;
   set.subject = rig.name;
@@ -317,24 +309,8 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
   if (lips_it == rig.regions.end()) return facedyn::NotFoundError("the rig has no 'lips' region");
 
   // Key poses. Training: the range of motion; test: the speech visemes of sim/performance.cc.
-  std::map<std::string, Eigen::VectorXd> pose;
-  for (const std::string& name : sim::ExpressionNames()) {
-    FACEDYN_ASSIGN_OR_RETURN(pose[name], sim::ExpressionWeights(rig, name));
-  }
-  std::vector<Eigen::VectorXd> rom;
-  for (const auto& [name, w] : pose) {
-    rom.push_back(w);
-    rom.push_back(0.5 * w);
-    if (name != "neutral" && name != "jaw_open") {
-      rom.push_back((w + 0.5 * pose["jaw_open"]).cwiseMin(1.0));
-    }
-  }
-  std::vector<Eigen::VectorXd> visemes;
-  for (const char* name :
-       {"neutral", "lips_parted", "smile", "pucker", "lip_funnel", "mouth_stretch", "jaw_open"}) {
-    visemes.push_back(std::string(name) == "jaw_open" ? Eigen::VectorXd(0.4 * pose[name])
-                                                      : pose[name]);
-  }
+  FACEDYN_ASSIGN_OR_RETURN(const std::vector<Eigen::VectorXd> rom, sim::RangeOfMotionPoses(rig));
+  FACEDYN_ASSIGN_OR_RETURN(const std::vector<Eigen::VectorXd> visemes, sim::DialogueVisemes(rig));
   const auto rom_curve = sim::MakeSpeechSequence(rom, 3.0, seed);
   const auto speech_curve = sim::MakeSpeechSequence(visemes, 4.5, seed + 1000);
 

@@ -78,8 +78,12 @@ class HeldExpression : public ExpressionCurve {
 
 class SpeechSequence : public ExpressionCurve {
  public:
-  SpeechSequence(std::vector<Eigen::VectorXd> key_poses, double syllables_per_s, uint64_t seed)
-      : key_poses_(std::move(key_poses)), syllables_per_s_(syllables_per_s), seed_(seed) {}
+  SpeechSequence(std::vector<Eigen::VectorXd> key_poses, double syllables_per_s, uint64_t seed,
+                 bool every_pose_per_cycle = false)
+      : key_poses_(std::move(key_poses)),
+        syllables_per_s_(syllables_per_s),
+        seed_(seed),
+        every_pose_per_cycle_(every_pose_per_cycle) {}
 
   Eigen::VectorXd Weights(double t_s) const override {
     if (t_s <= 0.0) return Eigen::VectorXd::Zero(size());
@@ -107,12 +111,23 @@ class SpeechSequence : public ExpressionCurve {
   }
   Eigen::VectorXd Pose(int64_t k) const {
     if (k == 0) return Eigen::VectorXd::Zero(size());
-    return key_poses_[Hash(k, 2) % key_poses_.size()];
+    if (!every_pose_per_cycle_) return key_poses_[Hash(k, 2) % key_poses_.size()];
+    // Knots 1..n are cycle 0, n+1..2n cycle 1, ...: each cycle a seeded permutation of the
+    // poses (Fisher-Yates driven by the cycle's hashes).
+    const int64_t n = static_cast<int64_t>(key_poses_.size());
+    const int64_t cycle = (k - 1) / n;
+    std::vector<int64_t> order(n);
+    for (int64_t i = 0; i < n; ++i) order[i] = i;
+    for (int64_t i = n - 1; i > 0; --i) {
+      std::swap(order[i], order[Hash(cycle * n + i, 3) % static_cast<uint64_t>(i + 1)]);
+    }
+    return key_poses_[order[(k - 1) % n]];
   }
 
   std::vector<Eigen::VectorXd> key_poses_;
   double syllables_per_s_;
   uint64_t seed_;
+  bool every_pose_per_cycle_;
 };
 
 }  // namespace
@@ -141,6 +156,21 @@ std::unique_ptr<ExpressionCurve> MakeSpeechSequence(const std::vector<Eigen::Vec
                 "MakeSpeechSequence: syllables_per_s must be in (0, 20], got " +
                     std::to_string(syllables_per_s));
   return std::make_unique<SpeechSequence>(key_poses, syllables_per_s, seed);
+}
+
+std::unique_ptr<ExpressionCurve> MakeScriptedSequence(const std::vector<Eigen::VectorXd>& key_poses,
+                                                      double poses_per_s, uint64_t seed) {
+  FACEDYN_CHECK(!key_poses.empty(), "MakeScriptedSequence: needs at least one key pose");
+  for (size_t i = 0; i < key_poses.size(); ++i) {
+    FACEDYN_CHECK(
+        key_poses[i].size() == key_poses.front().size() && AllInUnitInterval(key_poses[i]),
+        "MakeScriptedSequence: key pose " + std::to_string(i) +
+            " must have the first pose's size and weights in [0, 1]");
+  }
+  FACEDYN_CHECK(
+      poses_per_s > 0.0 && poses_per_s <= 20.0,
+      "MakeScriptedSequence: poses_per_s must be in (0, 20], got " + std::to_string(poses_per_s));
+  return std::make_unique<SpeechSequence>(key_poses, poses_per_s, seed, true);
 }
 
 }  // namespace facedyn::sim

@@ -48,4 +48,10 @@ std::unique_ptr<ExpressionCurve> MakeHeldExpression(const Eigen::VectorXd& targe
 std::unique_ptr<ExpressionCurve> MakeSpeechSequence(const std::vector<Eigen::VectorXd>& key_poses,
                                                     double syllables_per_s, uint64_t seed);
 
+// A scripted session through key poses (a range of motion): the speech sequence's timing and
+// blends, but every key pose exactly once per cycle of key_poses.size() knots, in a seeded order
+// per cycle, so a session of n / poses_per_s seconds visits every pose. Same preconditions.
+std::unique_ptr<ExpressionCurve> MakeScriptedSequence(const std::vector<Eigen::VectorXd>& key_poses,
+                                                      double poses_per_s, uint64_t seed);
+
 }  // namespace facedyn::sim

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <utility>
@@ -122,6 +123,31 @@ double JawAngleRad(const FaceRig& rig, const Eigen::VectorXd& weights) {
   if (k < 0) k = rig.BlendshapeIndex("jawOpen");
   if (k < 0 || weights[k] == 0.0) return 0.0;
   return weights[k] * JawOpenAngleRad(rig);
+}
+
+StatusOr<std::vector<Eigen::VectorXd>> RangeOfMotionPoses(const FaceRig& rig) {
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::VectorXd jaw, ExpressionWeights(rig, "jaw_open"));
+  std::vector<std::string> names = ExpressionNames();
+  std::sort(names.begin(), names.end());
+  std::vector<Eigen::VectorXd> poses;
+  for (const std::string& name : names) {
+    FACEDYN_ASSIGN_OR_RETURN(const Eigen::VectorXd w, ExpressionWeights(rig, name));
+    poses.push_back(w);
+    poses.push_back(0.5 * w);
+    if (name != "neutral" && name != "jaw_open") poses.push_back((w + 0.5 * jaw).cwiseMin(1.0));
+  }
+  return poses;
+}
+
+StatusOr<std::vector<Eigen::VectorXd>> DialogueVisemes(const FaceRig& rig) {
+  std::vector<Eigen::VectorXd> poses;
+  for (const char* name :
+       {"neutral", "lips_parted", "smile", "pucker", "lip_funnel", "mouth_stretch", "jaw_open"}) {
+    FACEDYN_ASSIGN_OR_RETURN(Eigen::VectorXd w, ExpressionWeights(rig, name));
+    if (std::string(name) == "jaw_open") w *= 0.4;
+    poses.push_back(w);
+  }
+  return poses;
 }
 
 }  // namespace facedyn::sim

@@ -25,6 +25,15 @@ std::vector<std::string> ExpressionNames();
 // named expression the rig's shapes cannot form, give kNotFound listing the valid names.
 StatusOr<Eigen::VectorXd> ExpressionWeights(const FaceRig& rig, const std::string& name);
 
+// Key poses of a range-of-motion performance (what Masquerade trains on, Moser et al. 2017):
+// every ExpressionNames() entry, in name order, at full and half weight, and each one but neutral
+// and jaw_open with the jaw half open (clamped to 1). Errors: the rig cannot form an expression.
+StatusOr<std::vector<Eigen::VectorXd>> RangeOfMotionPoses(const FaceRig& rig);
+
+// Key poses of a dialogue (the visemes sim/performance.cc's "speech" moves through): neutral,
+// lips_parted, smile, pucker, lip_funnel, mouth_stretch and jaw_open at 0.4.
+StatusOr<std::vector<Eigen::VectorXd>> DialogueVisemes(const FaceRig& rig);
+
 // Mandible rotation (rad, about rig.jaw.axis_in_skull through its pivot; positive opens) of the
 // jaw-opening shape at weight 1: kProceduralJawOpenRad for a procedural rig ("jaw_open"); for
 // an ICT rig ("jawOpen") the rotation about the rig's hinge fitted by least squares to that

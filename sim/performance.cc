@@ -77,7 +77,9 @@ Status PerformanceOptions::Check() const {
 }
 
 std::optional<double> HeldExpressionStartS(const PerformanceOptions& options) {
-  if (options.expression == "speech") return std::nullopt;
+  if (options.expression == "speech" || options.expression == "range_of_motion") {
+    return std::nullopt;
+  }
   // The expression forms over kExpressionRamp_s and the motion fades in over its ramp_in_s;
   // the skin's transient from both then decays. Before that a held-expression target (moving
   // average, platform fit) is wrong by up to 0.5 mm at the mouth corners (smile, 8 Hz), so
@@ -99,15 +101,14 @@ StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions&
   // Expression over time, and the reference expression the dynamics are linearised about.
   std::unique_ptr<ExpressionCurve> curve;
   Eigen::VectorXd reference_weights;
-  if (options.expression == "speech") {
-    std::vector<Eigen::VectorXd> keys;
-    for (const char* name : {"neutral", "lips_parted", "smile", "pucker", "lip_funnel", "mouth_stretch", "jaw_open"}) {
-      FACEDYN_ASSIGN_OR_RETURN(Eigen::VectorXd w, ExpressionWeights(rig, name));
-      keys.push_back(std::string(name) == "jaw_open" ? Eigen::VectorXd(0.4 * w) : w);
-    }
+  if (options.expression == "speech" || options.expression == "range_of_motion") {
+    const bool speech = options.expression == "speech";
+    FACEDYN_ASSIGN_OR_RETURN(const std::vector<Eigen::VectorXd> keys,
+                             speech ? DialogueVisemes(rig) : RangeOfMotionPoses(rig));
     reference_weights = Eigen::VectorXd::Zero(keys.front().size());
     for (const auto& k : keys) reference_weights += k / double(keys.size());
-    curve = MakeSpeechSequence(keys, 4.5, options.seed);
+    curve = speech ? MakeSpeechSequence(keys, 4.5, options.seed)
+                   : MakeScriptedSequence(keys, 3.0, options.seed);
   } else {
     FACEDYN_ASSIGN_OR_RETURN(reference_weights, ExpressionWeights(rig, options.expression));
     curve = MakeHeldExpression(reference_weights, kExpressionRamp_s, 0.02, options.seed);

@@ -19,7 +19,10 @@
 namespace facedyn::sim {
 
 struct PerformanceOptions {
-  std::string expression = "neutral";  // an expression name (sim/expressions.h) or "speech"
+  // An expression name (sim/expressions.h, held), "speech" (sim/expressions.h DialogueVisemes at
+  // 4.5 syllables/s) or "range_of_motion" (every RangeOfMotionPoses pose once per 10.3 s at 3
+  // poses/s, MakeScriptedSequence: a performance for training Masquerade's upsampler, detail/).
+  std::string expression = "neutral";
   MotionOptions motion;
   double seconds = 3.0;
   double fps = 128.0;
@@ -43,7 +46,8 @@ StatusOr<std::map<std::string, double>> PeakOffsetByRegionMm(const FaceRig& rig,
 
 // When a held-expression take made with `options` is held, in s from its first frame: the
 // expression's formation (0.3 s) and the motion's fade-in, whichever is longer, plus
-// core/take.h kHeldExpressionSettleS; nullopt for speech (a performance is never held).
+// core/take.h kHeldExpressionSettleS; nullopt for speech and range_of_motion (a performance is
+// never held).
 // It follows from the performance's script alone (its ramps), never from the tissue, so a
 // capture session that prompts the simulated actor may write it into its takes as a real
 // session writes the time it prompted. SimulatePerformance writes it into take.info.

@@ -179,6 +179,19 @@ std::vector<Marker> MarkersSeenByEveryCamera(const FaceRig& rig,
   return seen;
 }
 
+StatusOr<std::vector<Marker>> PaintedMarkers(const FaceRig& rig, const SimCaptureOptions& options,
+                                             const std::vector<capture::CameraModel>& cameras) {
+  FaceRig painted = rig;
+  if (options.markers_max_view_angle_deg > 0) {
+    painted.markers = MarkersSeenByEveryCamera(rig, cameras, options.markers_max_view_angle_deg);
+  }
+  if (!options.markers.empty()) {
+    FACEDYN_ASSIGN_OR_RETURN(painted.markers,
+                             SelectMarkerLayout(painted, options.markers, "sim.markers"));
+  }
+  return painted.markers;
+}
+
 Take TakeInSkullFrame(const Take& take) {
   Take out = take;
   for (int f = 0; f < take.frame_count(); ++f) {
@@ -204,14 +217,7 @@ StatusOr<SimulatedStage> PrepareSimulatedStage(const SimCaptureOptions& options,
   } else {
     FACEDYN_ASSIGN_OR_RETURN(stage.rig, LoadFaceRig(options.face));
   }
-  if (options.markers_max_view_angle_deg > 0) {
-    stage.rig.markers =
-        MarkersSeenByEveryCamera(stage.rig, cameras, options.markers_max_view_angle_deg);
-  }
-  if (!options.markers.empty()) {
-    FACEDYN_ASSIGN_OR_RETURN(stage.rig.markers,
-                             SelectMarkerLayout(stage.rig, options.markers, "sim.markers"));
-  }
+  FACEDYN_ASSIGN_OR_RETURN(stage.rig.markers, PaintedMarkers(stage.rig, options, cameras));
   PerformanceOptions performance = options.performance;
   if (platform_hz > 0) performance.motion.platform_hz = platform_hz;
   stage.platform_hz = performance.motion.platform_hz;

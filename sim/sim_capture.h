@@ -99,6 +99,11 @@ std::vector<Marker> MarkersSeenByEveryCamera(const FaceRig& rig,
                                              const std::vector<capture::CameraModel>& cameras,
                                              double max_angle_deg);
 
+// The painted layout `options` asks for on `rig` (markers_max_view_angle_deg with `cameras`,
+// then the markers: spec), or every marker of the rig. Errors name the spec.
+StatusOr<std::vector<Marker>> PaintedMarkers(const FaceRig& rig, const SimCaptureOptions& options,
+                                             const std::vector<capture::CameraModel>& cameras);
+
 // The take's skin (and quasistatic channel, if any) in the skull frame, world_from_skull set to
 // identity: what a head-mounted camera sees.
 Take TakeInSkullFrame(const Take& take);

@@ -200,6 +200,40 @@ sim:
   // 5-px dots; config/capture/hmc.yaml's 10-px dots: median 0.043 mm, RMS 0.088, none.
   EXPECT_LT(median, 0.1);
   EXPECT_LE(far, 0.02 * observed);
+
+  // The upsampler reads these tracks (detail apply --markers-from tracks), and says so.
+  const std::string layout = truth_dir + "/face/markers.csv";
+  ASSERT_EQ(RunCommand(FacedynExecutable() +
+                           " --quiet sim perform --expression range_of_motion --motion none "
+                           "--fps 30 --seconds 1 --out " +
+                           temp.Join("rom"),
+                       &out),
+            0)
+      << out;
+  ASSERT_EQ(RunCommand(FacedynExecutable() + " --quiet detail train --takes " + temp.Join("rom") +
+                           " --markers " + layout + " --frames 20 --out " + temp.Join("d.bin"),
+                       &out),
+            0)
+      << out;
+  ASSERT_EQ(RunCommand(FacedynExecutable() + " --quiet detail apply --take " + temp.Join("rec") +
+                           " --model " + temp.Join("d.bin") + " --markers-from tracks --out " +
+                           temp.Join("up") + " --json",
+                       &out),
+            0)
+      << out;
+  EXPECT_THAT(out, ::testing::HasSubstr("\"markers_from\": \"tracks\""));
+  const auto up = LoadTake(temp.Join("up"));
+  ASSERT_TRUE(up.ok()) << up.status().ToString();
+  EXPECT_EQ(up->frame_count(), rec->frame_count());
+  EXPECT_EQ(up->info.metadata.value("detail_markers_from", ""), "tracks");
+  // A take without tracks cannot give them.
+  EXPECT_NE(RunCommand(FacedynExecutable() + " --quiet detail apply --take " + truth_dir +
+                           "/take --model " + temp.Join("d.bin") + " --markers-from tracks --out " +
+                           temp.Join("up2"),
+                       &out),
+            0);
+  EXPECT_THAT(out, ::testing::HasSubstr("--markers-from tracks"));
+  EXPECT_THAT(out, ::testing::HasSubstr("marker_tracks.csv"));
 }
 
 TEST(SimulatedSession, BadCameraMountIsNamed) {

@@ -129,6 +129,42 @@ TEST(MakeSpeechSequence, IsSmoothAndDeterministic) {
   EXPECT_EIGEN_NEAR(a->Weights(0.0), Eigen::VectorXd::Zero(6), 0.0);
 }
 
+// A scripted range of motion: every key pose once per cycle (the knot times are the speech
+// sequence's, k / rate with +-0.25 jitter, so knot k is reached by (k + 0.25) / rate), each
+// cycle in its own seeded order.
+TEST(MakeScriptedSequence, VisitsEveryPoseOncePerCycle) {
+  const std::vector<Eigen::VectorXd> poses = KeyPoses();
+  const double rate = 3.0;
+  const auto curve = MakeScriptedSequence(poses, rate, 5);
+  const int n = static_cast<int>(poses.size());
+  std::vector<std::vector<int>> cycles(3);
+  for (int k = 1; k <= 3 * n; ++k) {
+    // The weights at knot k's time are pose(k); find it between the jittered bounds by the
+    // sample closest to a key pose.
+    int found = -1;
+    for (double t = (k - 0.26) / rate; t <= (k + 0.26) / rate && found < 0; t += 1e-4) {
+      const Eigen::VectorXd w = curve->Weights(t);
+      for (int p = 0; p < n; ++p) {
+        if ((w - poses[p]).cwiseAbs().maxCoeff() < 1e-6) found = p;
+      }
+    }
+    ASSERT_GE(found, 0) << "knot " << k;
+    cycles[(k - 1) / n].push_back(found);
+  }
+  for (std::vector<int>& cycle : cycles) {
+    std::vector<int> sorted = cycle;
+    std::sort(sorted.begin(), sorted.end());
+    for (int p = 0; p < n; ++p) EXPECT_EQ(sorted[p], p);  // a permutation
+  }
+  EXPECT_NE(cycles[0], cycles[1]);  // seeded per cycle (this seed; 5! = 120 possible orders)
+  const auto other = MakeScriptedSequence(poses, rate, 6);
+  double different = 0.0;
+  for (double t = 0.0; t < 2.0 * n / rate; t += 0.01) {
+    different = std::max(different, (curve->Weights(t) - other->Weights(t)).cwiseAbs().maxCoeff());
+  }
+  EXPECT_GT(different, 0.1);
+}
+
 TEST(MakeHeldExpression, AcceptsARigWithoutBlendshapes) {
   const auto curve = MakeHeldExpression(Eigen::VectorXd(0), 0.3, 0.02, 1);
   EXPECT_EQ(curve->size(), 0);

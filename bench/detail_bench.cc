@@ -34,7 +34,11 @@
 //
 //   detail_bench [--vertices N] [--markers N] [--train-frames N] [--test-frames N]
 //                [--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S]
-//                [--seed N] [--seeds 1,2,3] [--quick] [--no-hmc]
+//                [--seed N] [--seeds 1,2,3] [--quick] [--no-hmc] [--ict DIR]
+//
+// --ict DIR: the subject is the ICT-FaceKit face region (sim/ict_import.h; 9,409 vertices, the
+// speed figure issue 22 names) instead of the procedural face; its expressions are the ARKit
+// combinations of sim/expressions.h.
 //
 // --seeds: one run per seed (the seed draws both performances' timing and pose order), then a
 // "summary" with each figure's mean and sample standard deviation over the seeds.
@@ -61,6 +65,7 @@
 #include "reconstruct/pipeline.h"
 #include "sim/expression_curve.h"
 #include "sim/expressions.h"
+#include "sim/ict_import.h"
 #include "sim/procedural_face.h"
 #include "sim/sim_capture.h"
 #include "sim/virtual_camera.h"
@@ -93,6 +98,7 @@ struct Settings {
   double feature_sigma_mm = 20.0;  // falloff of the triangles in a region's pose
   double edge_sigma_mm = 20.0;     // Bickel: falloff of a vertex's edge weights
   bool hmc = true;
+  std::string ict_dir;  // --ict: the ICT-FaceKit face region (9,409 vertices) instead
 };
 
 std::vector<Eigen::Matrix3Xd> Frames(const facedyn::FaceRig& rig,
@@ -297,9 +303,16 @@ facedyn::StatusOr<Json> RunHmc(const Settings& s, const facedyn::FaceRig& rig,
 
 facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
   namespace sim = facedyn::sim;
-  sim::ProceduralFaceOptions face_options;
-  face_options.target_vertex_count = s.vertices;
-  FACEDYN_ASSIGN_OR_RETURN(const facedyn::FaceRig rig, sim::MakeProceduralFace(face_options));
+  facedyn::FaceRig rig;
+  if (s.ict_dir.empty()) {
+    sim::ProceduralFaceOptions face_options;
+    face_options.target_vertex_count = s.vertices;
+    FACEDYN_ASSIGN_OR_RETURN(rig, sim::MakeProceduralFace(face_options));
+  } else {
+    sim::IctImportOptions ict;
+    ict.dir = s.ict_dir;
+    FACEDYN_ASSIGN_OR_RETURN(rig, sim::ImportIctFaceKit(ict));
+  }
   if (s.markers > static_cast<int>(rig.markers.size())) {
     return facedyn::InvalidArgumentError("--markers " + std::to_string(s.markers) +
                                          ": the rig has " + std::to_string(rig.markers.size()) +
@@ -455,6 +468,8 @@ int main(int argc, char** argv) {
       std::string item;
       while (std::getline(list, item, ','))
         seeds.push_back(static_cast<uint64_t>(Integer(item.c_str(), arg)));
+    } else if (arg == "--ict") {
+      s.ict_dir = next();
     } else if (arg == "--no-hmc") {
       s.hmc = false;
     } else if (arg == "--quick") {
@@ -466,7 +481,7 @@ int main(int argc, char** argv) {
           stderr,
           "usage: detail_bench [--vertices N] [--markers N] [--train-frames N] [--test-frames N] "
           "[--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S] [--seed "
-          "N] [--seeds 1,2,3] [--quick] [--no-hmc]\n");
+          "N] [--seeds 1,2,3] [--quick] [--no-hmc] [--ict DIR]\n");
       return 2;
     }
   }

@@ -63,7 +63,7 @@ sim::MotionOptions PlatformMotion(double hz, uint64_t seed) {
 
 StatusOr<Take> Simulate(const FaceRig& face, const std::string& expression,
                         const sim::MotionOptions& motion, double seconds,
-                        const sim::TissueOptions& tissue, uint64_t seed) {
+                        const physics::TissueOptions& tissue, uint64_t seed) {
   sim::PerformanceOptions perform;
   perform.expression = expression;
   perform.motion = motion;
@@ -134,7 +134,7 @@ std::vector<TakeSpec> TrainingSpecs(const std::vector<double>& hz_list,
 // demo targets): each take has its own seeds, so the results do not depend on the order.
 Status SimulateAndReconstruct(const FaceRig& face, const DemoCameraRig& cameras,
                               const std::vector<TakeSpec>& specs, double seconds,
-                              const sim::TissueOptions& tissue, const std::string& subject,
+                              const physics::TissueOptions& tissue, const std::string& subject,
                               int* done, int total, SubjectTakes* takes) {
   struct Result {
     Status status = Status::Ok();
@@ -414,8 +414,8 @@ Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
                     Eigen::Vector3d(options.second_subject_scale_x, options.second_subject_scale_y,
                                     options.second_subject_scale_z),
                     face.name + "-b"));
-  sim::TissueOptions tissue_a;
-  sim::TissueOptions tissue_b;
+  physics::TissueOptions tissue_a;
+  physics::TissueOptions tissue_b;
   tissue_b.fundamental_hz = options.second_subject_fundamental_hz;
   tissue_b.damping_ratio = options.second_subject_damping_ratio;
 

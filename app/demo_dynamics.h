@@ -80,7 +80,7 @@ struct DemoDynamicsOptions {
   int subset_epochs = 3;
   uint64_t seed = 1;
   // Subject B: procedural face scaled by this per axis (skull frame, x = width, y = height,
-  // z = depth), tissue with this fundamental and damping (sim/soft_tissue.h TissueOptions).
+  // z = depth), tissue with this fundamental and damping (physics/soft_tissue.h TissueOptions).
   double second_subject_scale_x = 0.92;
   double second_subject_scale_y = 1.06;
   double second_subject_scale_z = 0.96;

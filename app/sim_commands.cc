@@ -9,7 +9,7 @@
 #include "app/command.h"
 #include "core/face_rig.h"
 #include "core/take.h"
-#include "sim/face_anatomy.h"
+#include "physics/face_anatomy.h"
 #include "sim/ict_import.h"
 #include "sim/performance.h"
 #include "sim/procedural_face.h"

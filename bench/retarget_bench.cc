@@ -61,6 +61,7 @@ using facedyn::StatusOr;
 using facedyn::Take;
 namespace dyn = facedyn::dynamics;
 namespace sim = facedyn::sim;
+namespace physics = facedyn::physics;
 
 constexpr char kProgram[] = "retarget_bench";
 
@@ -114,7 +115,7 @@ sim::MotionOptions Walk(double step_hz, uint64_t seed) {
 }
 
 Take Simulate(const facedyn::FaceRig& face, const sim::MotionOptions& motion, double seconds,
-              const sim::TissueOptions& tissue, uint64_t seed, const std::string& what) {
+              const physics::TissueOptions& tissue, uint64_t seed, const std::string& what) {
   sim::PerformanceOptions perform;
   perform.expression = "neutral";
   perform.motion = motion;
@@ -215,8 +216,8 @@ int main(int argc, char** argv) {
   const FaceRig face_a = OrDie(sim::MakeProceduralFace(sim::ProceduralFaceOptions()), "face A");
   const FaceRig face_b = OrDie(
       sim::ScaledFaceRig(face_a, Eigen::Vector3d(0.92, 1.06, 0.96), face_a.name + "-b"), "face B");
-  const sim::TissueOptions tissue_a;
-  sim::TissueOptions tissue_b;
+  const physics::TissueOptions tissue_a;
+  physics::TissueOptions tissue_b;
   tissue_b.fundamental_hz = 8.5;
   tissue_b.damping_ratio = 0.17;
 

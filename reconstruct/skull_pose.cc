@@ -47,7 +47,7 @@ SkullPoseEstimator::SkullPoseEstimator(const FaceRig& rig, const SkullPoseOption
   thickness_mm_.resize(n);
   const Eigen::Matrix3Xd normals = VertexNormals(rig.neutral, rig.neutral.positions_mm);
   // Tissue thickness: distance from the skin point to the skull beneath it. When the skull
-  // shares the skin's topology (as FaceRigs from sim/face_anatomy.h do) that is the same
+  // shares the skin's topology (as FaceRigs from physics/face_anatomy.h do) that is the same
   // surface point on the skull; otherwise the nearest skull vertex.
   const bool paired = rig.skull.vertex_count() == rig.neutral.vertex_count();
   for (int k = 0; k < n; ++k) {

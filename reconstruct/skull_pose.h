@@ -22,7 +22,7 @@
 // On the noise-free take above (a)-(c) leave 0.048 mm and 0.020 degrees RMS
 // (bench/skull_pose_bench; README, "Skull pose"). Thickness is the skin-to-skull
 // distance under each marker (the same surface point on the skull when the skull shares the
-// skin's topology, as sim/face_anatomy.h rigs do; otherwise the nearest skull vertex).
+// skin's topology, as physics/face_anatomy.h rigs do; otherwise the nearest skull vertex).
 #pragma once
 
 #include <Eigen/Core>

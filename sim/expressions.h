@@ -37,7 +37,7 @@ StatusOr<std::vector<Eigen::VectorXd>> DialogueVisemes(const FaceRig& rig);
 // Mandible rotation (rad, about rig.jaw.axis_in_skull through its pivot; positive opens) of the
 // jaw-opening shape at weight 1: kProceduralJawOpenRad for a procedural rig ("jaw_open"); for
 // an ICT rig ("jawOpen") the rotation about the rig's hinge fitted by least squares to that
-// shape's deltas over JawFitVertices (chin and lower cheeks). 0 when the rig has neither.
+// shape's deltas over physics::JawFitVertices (chin and lower cheeks). 0 when the rig has neither.
 double JawOpenAngleRad(const FaceRig& rig);
 
 // Mandible rotation implied by `weights` (precondition: one weight per blendshape): the jaw

@@ -13,7 +13,7 @@
 #include <set>
 #include <string_view>
 
-#include "sim/face_anatomy.h"
+#include "physics/face_anatomy.h"
 
 namespace facedyn::sim {
 namespace {
@@ -330,7 +330,7 @@ StatusOr<FaceRig> ImportIctFaceKit(const IctImportOptions& options) {
   // the two largest remaining loops left and right of the midline, the mouth the largest one
   // below them on the midline.
   std::vector<LoopSummary> loops;
-  for (const auto& loop : BoundaryLoops(mesh)) {
+  for (const auto& loop : physics::BoundaryLoops(mesh)) {
     LoopSummary s{Eigen::Vector3d::Zero(), Eigen::Vector3d::Constant(1e300),
                   Eigen::Vector3d::Constant(-1e300), loop.size()};
     for (int v : loop) {
@@ -412,7 +412,7 @@ StatusOr<FaceRig> ImportIctFaceKit(const IctImportOptions& options) {
       side_x = std::max(side_x, std::abs(p(0, v)));
   }
 
-  FaceLayout layout;
+  physics::FaceLayout layout;
   layout.eye_center_x_mm = 0.5 * (left_eye->centroid.x() - right_eye->centroid.x());
   layout.eye_center_y_mm = kEyeHeightInSkullMm;
   layout.eye_half_width_mm =
@@ -435,7 +435,7 @@ StatusOr<FaceRig> ImportIctFaceKit(const IctImportOptions& options) {
     const double peak = moved.maxCoeff();
     if (peak > 0) jaw_weight = (moved / (0.66 * peak)).cwiseMin(1.0);
   }
-  rig.regions = LabelFaceRegions(p, normals, layout, jaw_weight);
+  rig.regions = physics::LabelFaceRegions(p, normals, layout, jaw_weight);
   rig.jaw.axis_in_skull = Eigen::Vector3d::UnitX();
   rig.jaw.region = "jaw";
   // Hinge (temporomandibular joint): 10 mm below the ear's centre and 5 mm in front of its
@@ -451,7 +451,7 @@ StatusOr<FaceRig> ImportIctFaceKit(const IctImportOptions& options) {
   }
   rig.jaw.pivot_in_skull = Eigen::Vector3d(0.0, ear_y / ear_count - 10.0, ear_front_z + 5.0);
 
-  FACEDYN_RETURN_IF_ERROR(CompleteFaceAnatomy(options.anatomy, &rig).WithContext(dir));
+  FACEDYN_RETURN_IF_ERROR(physics::CompleteFaceAnatomy(options.anatomy, &rig).WithContext(dir));
   FACEDYN_RETURN_IF_ERROR(rig.Validate());
   return rig;
 }

@@ -12,9 +12,9 @@
 // and stores each expression OBJ as a blendshape delta named by its file stem. It then finds
 // the face's frame geometrically (eye and mouth openings from the boundary loops, nose tip,
 // head extent from the full head mesh), moves the head so the skull-frame origin is the centre
-// of the cranium (+Y up, face toward +Z), labels regions (LabelFaceRegions; the jaw region is
-// where jawOpen moves the skin by more than a third of its peak), puts the jaw hinge (axis +X)
-// just in front of and below the ears, and completes the anatomy (CompleteFaceAnatomy).
+// of the cranium (+Y up, face toward +Z), labels regions (physics::LabelFaceRegions; the jaw region
+// is where jawOpen moves the skin by more than a third of its peak), puts the jaw hinge (axis +X)
+// just in front of and below the ears, and completes the anatomy (physics::CompleteFaceAnatomy).
 //
 // Expression OBJs are read by a dedicated vertex-only reader (they share the neutral's
 // topology): every file's vertex count is checked and a wrong one is reported with its path.
@@ -26,7 +26,7 @@
 
 #include "core/face_rig.h"
 #include "core/status.h"
-#include "sim/face_anatomy.h"
+#include "physics/face_anatomy.h"
 
 namespace facedyn::sim {
 
@@ -36,8 +36,8 @@ inline constexpr double kIctMmPerUnit = 10.0;     // ICT-FaceKit is in centimetr
 struct IctImportOptions {
   std::string dir;  // the ICT-FaceKit folder (generic_neutral_mesh.obj, expression OBJs)
   std::vector<std::pair<std::string, double>> identity_weights;  // e.g. {{"identity000", 1.5}}
-  std::string name;        // rig name; "" gives "ict" plus the identity spec
-  AnatomyOptions anatomy;  // skull, samples, markers
+  std::string name;                 // rig name; "" gives "ict" plus the identity spec
+  physics::AnatomyOptions anatomy;  // skull, samples, markers
   Status Check() const;
 };
 

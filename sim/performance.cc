@@ -22,7 +22,7 @@ Rigid3 SkullFromJaw(const FaceRig& rig, double angle_rad) {
   return Rigid3(q, rig.jaw.pivot_in_skull - q * rig.jaw.pivot_in_skull);
 }
 
-Json TissueJson(const TissueOptions& t) {
+Json TissueJson(const physics::TissueOptions& t) {
   return {{"layers", t.layers},
           {"poisson_ratio", t.poisson_ratio},
           {"density_kg_per_mm3", t.density_kg_per_mm3},
@@ -114,13 +114,13 @@ StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions&
     curve = MakeHeldExpression(reference_weights, kExpressionRamp_s, 0.02, options.seed);
   }
   FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<SkullMotion> motion, MakeSkullMotion(options.motion));
-  FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<SoftTissueModel> model, SoftTissueModel::Create(rig, options.tissue));
+  FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<physics::SoftTissueModel> model, physics::SoftTissueModel::Create(rig, options.tissue));
 
   const int frames = static_cast<int>(std::lround(options.seconds * options.fps));
   const double frame_dt = 1.0 / options.fps;
   const int substeps = std::max(1, static_cast<int>(std::ceil(frame_dt / options.tissue.max_step_s - 1e-9)));
   const double dt = frame_dt / substeps;
-  FACEDYN_ASSIGN_OR_RETURN(const ReferenceSummary reference,
+  FACEDYN_ASSIGN_OR_RETURN(const physics::ReferenceSummary reference,
                            model->SetReference(reference_weights, JawAngleRad(rig, reference_weights), dt));
   if (reference.inverted_elements > 0) {
     spdlog::warn("expression '{}' turns {} tetrahedra inside out; their stiffness uses |volume|",
@@ -130,7 +130,7 @@ StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions&
   // step is far below the curve's time scales (drift < 1 Hz, syllables ~5 Hz).
   constexpr double kH = 1e-3;
   auto forcing_at = [&](double t) {
-    TissueForcing forcing;
+    physics::TissueForcing forcing;
     forcing.kinematics = motion->Kinematics(t);
     forcing.weights = curve->Weights(t);
     forcing.jaw_angle_rad = JawAngleRad(rig, forcing.weights);
@@ -162,7 +162,7 @@ StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions&
   PointCache offset = make_cache();
 
   Progress progress("simulate " + options.expression + "/" + take.info.motion, frames);
-  TissueForcing forcing = forcing_at(0.0);
+  physics::TissueForcing forcing = forcing_at(0.0);
   model->Reset(forcing);
   for (int f = 0; f < frames; ++f) {
     const double t = f * frame_dt;

@@ -13,8 +13,8 @@
 #include "core/face_rig.h"
 #include "core/status.h"
 #include "core/take.h"
+#include "physics/soft_tissue.h"
 #include "sim/skull_motion.h"
-#include "sim/soft_tissue.h"
 
 namespace facedyn::sim {
 
@@ -27,13 +27,13 @@ struct PerformanceOptions {
   double seconds = 3.0;
   double fps = 128.0;
   uint64_t seed = 1;  // expression drift/speech timing; the motion has its own seed
-  TissueOptions tissue;
+  physics::TissueOptions tissue;
 
   Status Check() const;
 };
 
 struct PerformanceSummary {
-  ReferenceSummary reference;
+  physics::ReferenceSummary reference;
   double youngs_modulus_kpa = 0.0;
   int substeps_per_frame = 0;
   double simulate_s = 0.0;  // wall time

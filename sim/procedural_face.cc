@@ -380,7 +380,7 @@ StatusOr<FaceRig> MakeProceduralFace(const ProceduralFaceOptions& options) {
   }
 
   // Layout in 3D (X of a feature = its base-surface X).
-  FaceLayout layout;
+  physics::FaceLayout layout;
   layout.eye_center_x_mm = HalfWidthMm(kEyeY) * std::sin(arc.Theta(kEyeU));
   layout.eye_center_y_mm = kEyeY;
   layout.eye_half_width_mm = kEyeHalfWidth;
@@ -392,13 +392,13 @@ StatusOr<FaceRig> MakeProceduralFace(const ProceduralFaceOptions& options) {
   layout.mouth_half_width_mm = HalfWidthMm(kMouthY) * std::sin(arc.Theta(kMouthHalfWidth));
   layout.chin_y_mm = kChinY;
   layout.temple_max_x_mm = 72.0;
-  rig.regions = LabelFaceRegions(mesh.positions_mm, VertexNormals(mesh, mesh.positions_mm), layout,
-                                 jaw_weight);
+  rig.regions = physics::LabelFaceRegions(mesh.positions_mm, VertexNormals(mesh, mesh.positions_mm),
+                                          layout, jaw_weight);
   rig.jaw.pivot_in_skull = kProceduralJawPivotMm;
   rig.jaw.axis_in_skull = Eigen::Vector3d::UnitX();
   rig.jaw.region = "jaw";
 
-  FACEDYN_RETURN_IF_ERROR(CompleteFaceAnatomy(options.anatomy, &rig));
+  FACEDYN_RETURN_IF_ERROR(physics::CompleteFaceAnatomy(options.anatomy, &rig));
   FACEDYN_RETURN_IF_ERROR(rig.Validate());
   return rig;
 }

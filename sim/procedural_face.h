@@ -19,7 +19,7 @@
 
 #include "core/face_rig.h"
 #include "core/status.h"
-#include "sim/face_anatomy.h"
+#include "physics/face_anatomy.h"
 
 namespace facedyn::sim {
 
@@ -39,13 +39,13 @@ struct ProceduralFaceOptions {
   // simulated take under 10 s on a 2-core machine (bench/sim_bench).
   int target_vertex_count = 5000;
   std::string name = "procedural";
-  AnatomyOptions anatomy;  // skull, samples, markers
+  physics::AnatomyOptions anatomy;  // skull, samples, markers
   Status Check() const;
 };
 
 // Builds the complete procedural FaceRig: neutral skin with UVs, the 10 expression
-// blendshapes of kProceduralExpressions, regions (see LabelFaceRegions), jaw (pivot
-// kProceduralJawPivotMm, axis +X, region "jaw"), then CompleteFaceAnatomy. Deterministic.
+// blendshapes of kProceduralExpressions, regions (see physics::LabelFaceRegions), jaw (pivot
+// kProceduralJawPivotMm, axis +X, region "jaw"), then physics::CompleteFaceAnatomy. Deterministic.
 StatusOr<FaceRig> MakeProceduralFace(const ProceduralFaceOptions& options);
 
 // Another subject from a rig: every position the rig stores in the skull frame (skin, skull,

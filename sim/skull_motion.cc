@@ -14,7 +14,7 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kTwoPi = 2.0 * kPi;
-constexpr double kGMmPerS2 = 9810.0;  // |kGravityInWorld|
+constexpr double kGMmPerS2 = 9810.0;  // |physics::kGravityInWorld|
 constexpr double kDegToRad = kPi / 180.0;
 
 // Postural sway is an inverted pendulum about the ankles: the head tilts by
@@ -178,7 +178,7 @@ class SynthesizedMotion : public SkullMotion {
 class NoMotion : public SkullMotion {
  public:
   Rigid3 WorldFromSkull(double) const override { return Rigid3::Identity(); }
-  SkullKinematics Kinematics(double) const override { return SkullKinematics{}; }
+  physics::SkullKinematics Kinematics(double) const override { return physics::SkullKinematics{}; }
 };
 
 // Sway: per horizontal axis two sinusoids with seeded frequencies and phases, each of half the
@@ -539,7 +539,7 @@ Status MotionOptions::Check() const {
   return Status::Ok();
 }
 
-SkullKinematics SkullMotion::Kinematics(double t_s) const {
+physics::SkullKinematics SkullMotion::Kinematics(double t_s) const {
   const double h = kDifferenceStepS;
   Rigid3 pose[5];
   for (int i = 0; i < 5; ++i) pose[i] = WorldFromSkull(t_s + (i - 2) * h);
@@ -559,7 +559,7 @@ SkullKinematics SkullMotion::Kinematics(double t_s) const {
   const Eigen::Vector4d q_dot = (dq[0] - 8.0 * dq[1] + 8.0 * dq[3] - dq[4]) / (12 * h);
   const Eigen::Vector4d q_ddot = (-dq[0] + 16.0 * dq[1] + 16.0 * dq[3] - dq[4]) / (12 * h * h);
   const Eigen::Quaterniond q0_conj = q0.conjugate();
-  SkullKinematics k;
+  physics::SkullKinematics k;
   k.world_from_skull = pose[2];
   k.origin_acceleration_in_skull = q0_conj * acceleration;
   k.angular_velocity_in_skull = 2.0 * (q0_conj * Eigen::Quaterniond(q_dot)).vec();

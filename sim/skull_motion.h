@@ -4,7 +4,7 @@
 //
 // Why it is shaped this way:
 // - The tissue is simulated in the skull frame, where head motion enters only through the
-//   skull's acceleration, angular velocity and angular acceleration (sim/skull_kinematics.h).
+//   skull's acceleration, angular velocity and angular acceleration (physics/skull_kinematics.h).
 //   Generated motions are therefore built to be C2 in time (continuous acceleration): sums of
 //   sinusoids and of smooth (Hann-shaped) acceleration pulses integrated in closed form. A
 //   kink in velocity would be an infinite force on the flesh.
@@ -33,7 +33,7 @@
 
 #include "core/rigid3.h"
 #include "core/status.h"
-#include "sim/skull_kinematics.h"
+#include "physics/skull_kinematics.h"
 
 namespace facedyn::sim {
 
@@ -120,7 +120,7 @@ class SkullMotion {
   // translation and the quaternion (w = 2 vec(q* q'), dw/dt = 2 vec(q* q'')). Truncation error
   // is h^4 f^(6) / 90: ~1e-5 relative for a 30 Hz sinusoid, ~1e-6 for the 30 ms impact pulses;
   // rounding adds ~5e-9 |t| mm/s^2. Subclasses may override with analytic derivatives.
-  virtual SkullKinematics Kinematics(double t_s) const;
+  virtual physics::SkullKinematics Kinematics(double t_s) const;
 
   static constexpr double kDifferenceStepS = 5e-4;
 };

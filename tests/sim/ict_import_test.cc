@@ -9,8 +9,8 @@
 #include <set>
 #include <sstream>
 
+#include "physics/face_anatomy.h"
 #include "sim/expressions.h"
-#include "sim/face_anatomy.h"
 #include "tests/support/test_support.h"
 
 namespace facedyn::sim {
@@ -168,11 +168,11 @@ TEST(ImportIctFaceKit, ImportsTheFaceRegionInMillimetres) {
   EXPECT_EQ(rig.skull_landmarks.size(), 5u);
   EXPECT_EQ(rig.skin_samples.size(), 344u);
   EXPECT_EQ(rig.markers.size(), 150u);
-  const Eigen::VectorXd t = TissueThicknessMm(rig);
-  const std::vector<double> border = ThicknessBorderDistanceMm(rig);
-  for (const auto& [region, range] : RegionThicknessRanges()) {
+  const Eigen::VectorXd t = physics::TissueThicknessMm(rig);
+  const std::vector<double> border = physics::ThicknessBorderDistanceMm(rig);
+  for (const auto& [region, range] : physics::RegionThicknessRanges()) {
     for (int v : rig.regions.at(region)) {
-      if (border[v] < kThicknessBlendMm) continue;
+      if (border[v] < physics::kThicknessBlendMm) continue;
       EXPECT_GE(t[v], range.min_mm - 1e-9) << region;
       EXPECT_LE(t[v], range.max_mm + 1e-9) << region;
     }

@@ -224,16 +224,16 @@ TEST(SimulatePerformance, ResponseFollowsTheResonance) {
 }
 
 TEST(SoftTissueModel, CheekImpulseResponseMatchesConfiguredFrequencyAndDamping) {
-  TissueOptions options;  // defaults: fundamental 11 Hz, damping ratio 0.22
-  auto created = SoftTissueModel::Create(Face(), options);
+  physics::TissueOptions options;  // defaults: fundamental 11 Hz, damping ratio 0.22
+  auto created = physics::SoftTissueModel::Create(Face(), options);
   ASSERT_TRUE(created.ok());
-  SoftTissueModel& model = **created;
+  physics::SoftTissueModel& model = **created;
   // dt = 2 ms: the calibration compensates Newmark's error for the calibrated mode at any step
   // (soft_tissue_test's ShippedStepShows... checks 1/128 s); a jolt also rings the modes around
   // it, whose residual error (omega dt)^2 / 12 minus the fundamental's is negligible at 2 ms.
   const double dt = 0.002;
   ASSERT_TRUE(model.SetReference(Eigen::VectorXd::Zero(Face().blendshape_names.size()), 0.0, dt).ok());
-  TissueForcing forcing;
+  physics::TissueForcing forcing;
   forcing.weights = Eigen::VectorXd::Zero(Face().blendshape_names.size());
   model.Reset(forcing);
   const auto& cheeks = Face().regions.at("cheeks");

@@ -11,7 +11,7 @@
 #include <utility>
 
 #include "core/face_rig.h"
-#include "sim/face_anatomy.h"
+#include "physics/face_anatomy.h"
 #include "tests/support/test_support.h"
 
 namespace facedyn::sim {
@@ -99,7 +99,7 @@ TEST(MakeProceduralFace, MeshIsValidManifoldAndHasEyeAndMouthHoles) {
   for (int v = 0; v < rig.vertex_count(); ++v)
     ASSERT_TRUE(boundary_degree[v] == 0 || boundary_degree[v] == 2) << v;
   // Outer rim + two eyes + mouth.
-  const auto loops = BoundaryLoops(rig.neutral);
+  const auto loops = physics::BoundaryLoops(rig.neutral);
   ASSERT_EQ(loops.size(), 4u);
   int eye_loops = 0, mouth_loops = 0;
   for (const auto& loop : loops) {
@@ -158,7 +158,7 @@ TEST(MakeProceduralFace, HasFaceProportions) {
   for (int v : rig.regions.at("brows")) {
     if (std::abs(std::abs(p(0, v)) - 30.0) < 8.0) brow_z += p(2, v), ++brow_n;
   }
-  for (const auto& loop : BoundaryLoops(rig.neutral)) {
+  for (const auto& loop : physics::BoundaryLoops(rig.neutral)) {
     if (loop.size() > 200) continue;  // the outer rim
     for (int v : loop) {
       if (p(1, v) > 0) rim_z += p(2, v), ++rim_n;
@@ -279,7 +279,7 @@ TEST(MakeProceduralFace, SaveLoadRoundTrip) {
   EXPECT_EQ(loaded->skull_landmarks.size(), 5u);
   EXPECT_EIGEN_NEAR(loaded->jaw.pivot_in_skull, rig.jaw.pivot_in_skull, 1e-9);
   // Tissue thickness is recomputable from the loaded regions.
-  EXPECT_EIGEN_NEAR(TissueThicknessMm(*loaded), TissueThicknessMm(rig), 1e-3);
+  EXPECT_EIGEN_NEAR(physics::TissueThicknessMm(*loaded), physics::TissueThicknessMm(rig), 1e-3);
 }
 
 }  // namespace

@@ -87,11 +87,11 @@ TEST(MakeSkullMotion, NoneIsIdentity) {
   ASSERT_NE(motion, nullptr);
   for (double t : {-1.0, 0.0, 0.37, 5.0, 100.0}) {
     EXPECT_TRUE(motion->WorldFromSkull(t).IsApprox(Rigid3::Identity(), 0.0)) << "t = " << t;
-    const SkullKinematics k = motion->Kinematics(t);
+    const physics::SkullKinematics k = motion->Kinematics(t);
     EXPECT_EIGEN_NEAR(k.origin_acceleration_in_skull, Eigen::Vector3d::Zero(), 0.0);
     EXPECT_EIGEN_NEAR(k.angular_velocity_in_skull, Eigen::Vector3d::Zero(), 0.0);
     EXPECT_EIGEN_NEAR(k.angular_acceleration_in_skull, Eigen::Vector3d::Zero(), 0.0);
-    EXPECT_EIGEN_NEAR(k.GravityInSkull(), kGravityInWorld, 0.0);
+    EXPECT_EIGEN_NEAR(k.GravityInSkull(), physics::kGravityInWorld, 0.0);
   }
 }
 
@@ -173,7 +173,7 @@ TEST(SkullMotionKinematics, MatchesAnalyticForSinusoidalTranslation) {
   const SinusoidalTranslation motion;
   const double w = 2 * kPi * SinusoidalTranslation::kHz;
   for (double t : {0.0, 0.013, 0.1, 0.377, 2.5}) {
-    const SkullKinematics k = motion.Kinematics(t);
+    const physics::SkullKinematics k = motion.Kinematics(t);
     const Eigen::Vector3d a_world =
         -w * w * SinusoidalTranslation::kAmplitudeMm * std::sin(w * t) * motion.direction;
     const double scale = w * w * SinusoidalTranslation::kAmplitudeMm;  // ~9600 mm/s^2
@@ -188,7 +188,7 @@ TEST(SkullMotionKinematics, MatchesAnalyticForConstantRateRotation) {
   const ConstantRateRotation motion;
   const double w = ConstantRateRotation::kRateRadPerS, r = ConstantRateRotation::kRadiusMm;
   for (double t : {0.0, 0.21, 1.0, 3.7}) {
-    const SkullKinematics k = motion.Kinematics(t);
+    const physics::SkullKinematics k = motion.Kinematics(t);
     EXPECT_EIGEN_NEAR(k.angular_velocity_in_skull, Eigen::Vector3d(0, w, 0), 1e-9);
     EXPECT_EIGEN_NEAR(k.angular_acceleration_in_skull, Eigen::Vector3d::Zero(), 1e-5);
     // Centripetal: w^2 r towards the axis, i.e. along -X of the skull (900 mm/s^2).
@@ -212,7 +212,7 @@ TEST(SkullMotionKinematics, AgreesWithFiniteDifferencesForGaits) {
                                    double* error_w, double* error_alpha) {
       *error_a = *max_a = *error_w = *error_alpha = 0.0;
       for (double t = t0; t < t1; t += 0.0037) {
-        const SkullKinematics k = motion->Kinematics(t);
+        const physics::SkullKinematics k = motion->Kinematics(t);
         const Eigen::Matrix3d r = k.world_from_skull.RotationMatrix();
         const Eigen::Vector3d a = r.transpose() * WorldAccelerationByDifferences(*motion, t, 2e-4);
         *error_a = std::max(*error_a, (k.origin_acceleration_in_skull - a).norm());
@@ -247,7 +247,7 @@ TEST(JumpMotion, FallsFreelyDuringFlightAndIsPushedOnlyUpward) {
   int samples = 0, free_fall = 0;
   double min_a = 1e9, max_a = -1e9, min_y = 1e9, max_y = -1e9;
   for (double t = 1.0; t < 1.0 + 4 * o.jump_period_s; t += 1e-3, ++samples) {  // 4 jumps
-    const SkullKinematics k = motion->Kinematics(t);
+    const physics::SkullKinematics k = motion->Kinematics(t);
     const double a_y = (k.world_from_skull.rotation() * k.origin_acceleration_in_skull).y();
     if (std::abs(a_y + kG) < 1e-3 * kG) ++free_fall;
     min_a = std::min(min_a, a_y);
@@ -271,7 +271,7 @@ TEST(RunMotion, BouncesWithFlightAndSharpImpacts) {
   double min_y = 1e9, max_y = -1e9, max_a = -1e9;
   int free_fall = 0, samples = 0;
   for (double t = 1.0; t < 1.0 + 6 / o.run_step_hz; t += 1e-3, ++samples) {  // 6 steps
-    const SkullKinematics k = motion->Kinematics(t);
+    const physics::SkullKinematics k = motion->Kinematics(t);
     const double a_y = (k.world_from_skull.rotation() * k.origin_acceleration_in_skull).y();
     if (std::abs(a_y + kG) < 1e-3 * kG) ++free_fall;
     max_a = std::max(max_a, a_y);
@@ -399,7 +399,7 @@ TEST(FileMotion, ExactForConstantRateRotationAndVelocity) {
   for (double t = 0.0; t <= 0.55; t += 0.0071) {
     EXPECT_TRUE(motion->WorldFromSkull(t).IsApprox(truth(t), 1e-6)) << "t = " << t;
   }
-  const SkullKinematics k = motion->Kinematics(0.3);
+  const physics::SkullKinematics k = motion->Kinematics(0.3);
   EXPECT_EIGEN_NEAR(k.angular_velocity_in_skull, rate * axis, 1e-5);
 }
 

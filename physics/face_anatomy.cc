@@ -1,4 +1,4 @@
-#include "sim/face_anatomy.h"
+#include "physics/face_anatomy.h"
 
 #include <fmt/format.h>
 
@@ -12,7 +12,7 @@
 
 #include "core/check.h"
 
-namespace facedyn::sim {
+namespace facedyn::physics {
 namespace {
 
 // Regions whose thickness range is enforced, in the priority used when a vertex is in several
@@ -468,4 +468,4 @@ Status CompleteFaceAnatomy(const AnatomyOptions& options, FaceRig* rig) {
   return Status::Ok();
 }
 
-}  // namespace facedyn::sim
+}  // namespace facedyn::physics

@@ -19,7 +19,7 @@
 #include "core/mesh.h"
 #include "core/status.h"
 
-namespace facedyn::sim {
+namespace facedyn::physics {
 
 // Where the features of a face are, in the skull frame (mm). X is the subject's left (+X),
 // Y up, Z toward the viewer. Generators measure these on their mesh and pass them to
@@ -125,4 +125,4 @@ double FitHingeAngleRad(const Eigen::Matrix3Xd& points_mm, const Eigen::Matrix3X
 std::vector<int> FarthestPointSample(const Eigen::Matrix3Xd& positions_mm,
                                      const std::vector<int>& candidates, int count, uint64_t seed);
 
-}  // namespace facedyn::sim
+}  // namespace facedyn::physics

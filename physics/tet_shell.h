@@ -1,7 +1,7 @@
 // TetShell: the volumetric soft tissue between skin and skull as layered prisms split into
 // tetrahedra.
 //
-// The FaceRig's skull surface shares the skin's topology (sim/face_anatomy.h): skull vertex i
+// The FaceRig's skull surface shares the skin's topology (physics/face_anatomy.h): skull vertex i
 // lies under skin vertex i. Node (layer l, vertex i) interpolates linearly between them, l = 0
 // on the skull (attached) and l = layers on the skin. Each skin triangle and layer gives a
 // prism, split into 3 tetrahedra by the rule "on the quad between vertices p < q the diagonal
@@ -17,7 +17,7 @@
 
 #include "core/mesh.h"
 
-namespace facedyn::sim {
+namespace facedyn::physics {
 
 struct TetShell {
   int layers = 0;
@@ -35,4 +35,4 @@ struct TetShell {
 // Prisms whose tetrahedra would be degenerate (skull vertex on the skin) are skipped.
 TetShell BuildTetShell(const Mesh& skin, const Eigen::Matrix3Xd& skull_positions_mm, int layers);
 
-}  // namespace facedyn::sim
+}  // namespace facedyn::physics

@@ -1,4 +1,4 @@
-#include "sim/tet_shell.h"
+#include "physics/tet_shell.h"
 
 #include <algorithm>
 #include <array>
@@ -7,7 +7,7 @@
 
 #include "core/check.h"
 
-namespace facedyn::sim {
+namespace facedyn::physics {
 namespace {
 double SignedVolume(const Eigen::Matrix3Xd& x, int a, int b, int c, int d) {
   return (x.col(b) - x.col(a)).cross(x.col(c) - x.col(a)).dot(x.col(d) - x.col(a)) / 6.0;
@@ -61,4 +61,4 @@ TetShell BuildTetShell(const Mesh& skin, const Eigen::Matrix3Xd& skull_positions
   return shell;
 }
 
-}  // namespace facedyn::sim
+}  // namespace facedyn::physics

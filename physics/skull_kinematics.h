@@ -10,7 +10,7 @@
 
 #include "core/rigid3.h"
 
-namespace facedyn::sim {
+namespace facedyn::physics {
 
 // World gravity, mm/s^2, along -Y (ARCHITECTURE.md: world frame is +Y up).
 inline const Eigen::Vector3d kGravityInWorld(0.0, -9810.0, 0.0);
@@ -28,4 +28,4 @@ struct SkullKinematics {
   }
 };
 
-}  // namespace facedyn::sim
+}  // namespace facedyn::physics

@@ -1,7 +1,7 @@
 // Physics checks of the tissue model on a spherical shell patch (skin radius 90 mm over a
 // skull of radius 75 mm): calibration, impulse response, energy, frame consistency.
 
-#include "sim/soft_tissue.h"
+#include "physics/soft_tissue.h"
 
 #include <algorithm>
 #include <cmath>
@@ -16,7 +16,7 @@
 #include "sim/procedural_face.h"
 #include "tests/support/test_support.h"
 
-namespace facedyn::sim {
+namespace facedyn::physics {
 namespace {
 
 FaceRig MakeShellRig(int resolution = 14) {
@@ -61,7 +61,7 @@ double CentreZ(const Eigen::Matrix3Xd& skin) { return Centre(skin, 2); }
 
 // The procedural face (its default 5000 vertices), built once.
 const FaceRig& ProceduralFace() {
-  static const FaceRig* rig = new FaceRig(MakeProceduralFace(ProceduralFaceOptions()).value());
+  static const FaceRig* rig = new FaceRig(sim::MakeProceduralFace(sim::ProceduralFaceOptions()).value());
   return *rig;
 }
 
@@ -457,4 +457,4 @@ TEST(SoftTissueModel, SustainedAccelerationSettlesOnEquivalentGravity) {
 }
 
 }  // namespace
-}  // namespace facedyn::sim
+}  // namespace facedyn::physics

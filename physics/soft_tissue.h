@@ -5,7 +5,7 @@
 // Why it is shaped this way:
 // - Frame. The tissue is simulated in the skull's own (non-inertial) frame, where the
 //   attached inner surface is fixed and head motion enters only as fictitious body forces
-//   (sim/skull_kinematics.h) and a rotating gravity vector. Head rotation of any size is
+//   (physics/skull_kinematics.h) and a rotating gravity vector. Head rotation of any size is
 //   therefore exact: nothing is linearised about the head pose, and the elastic problem only
 //   sees the millimetre-scale motion of flesh relative to bone.
 // - Expressions (after Bao et al. 2018, sections 5-6): blendshape-driven muscle tracks. Every
@@ -53,10 +53,10 @@
 
 #include "core/face_rig.h"
 #include "core/status.h"
-#include "sim/skull_kinematics.h"
-#include "sim/tet_shell.h"
+#include "physics/skull_kinematics.h"
+#include "physics/tet_shell.h"
 
-namespace facedyn::sim {
+namespace facedyn::physics {
 
 struct TissueOptions {
   int layers = 2;                          // tetrahedral layers through the tissue thickness
@@ -183,4 +183,4 @@ class SoftTissueModel {
   Eigen::VectorXd calibrated_mode_;
 };
 
-}  // namespace facedyn::sim
+}  // namespace facedyn::physics

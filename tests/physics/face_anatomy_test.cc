@@ -1,4 +1,4 @@
-#include "sim/face_anatomy.h"
+#include "physics/face_anatomy.h"
 
 #include <gtest/gtest.h>
 
@@ -11,12 +11,12 @@
 #include "sim/procedural_face.h"
 #include "tests/support/test_support.h"
 
-namespace facedyn::sim {
+namespace facedyn::physics {
 namespace {
 
 const FaceRig& Face() {
   static const FaceRig rig = [] {
-    StatusOr<FaceRig> made = MakeProceduralFace(ProceduralFaceOptions{});
+    StatusOr<FaceRig> made = sim::MakeProceduralFace(sim::ProceduralFaceOptions{});
     FACEDYN_CHECK(made.ok(), made.status().ToString());
     return std::move(made).value();
   }();
@@ -244,4 +244,4 @@ TEST(FitHingeAngleRad, RecoversARigidRotation) {
 }
 
 }  // namespace
-}  // namespace facedyn::sim
+}  // namespace facedyn::physics

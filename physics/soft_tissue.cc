@@ -1,4 +1,4 @@
-#include "sim/soft_tissue.h"
+#include "physics/soft_tissue.h"
 
 #include <algorithm>
 #include <cmath>
@@ -12,7 +12,7 @@
 
 #include "core/check.h"
 
-namespace facedyn::sim {
+namespace facedyn::physics {
 namespace {
 
 using SparseMatrix = Eigen::SparseMatrix<double>;
@@ -619,4 +619,4 @@ void SoftTissueModel::SetVelocity(const Eigen::VectorXd& velocity) {
   m.a = -(m.ku + m.alpha * m.mass_dofs.cwiseProduct(m.v) + m.beta * m.kv).cwiseQuotient(m.mass_dofs);
 }
 
-}  // namespace facedyn::sim
+}  // namespace facedyn::physics

@@ -163,6 +163,9 @@ struct SoftTissueModel::Impl {
   std::vector<int> entry_map;       // 144 per tet: index into kff values, or -1
   double youngs = 1.0;
   double unit_eigenvalue = 0.0;  // w^2 of the calibrated mode for E = 1 (w^2 scales with E)
+  bool explicit_material = false;     // SetMaterial: no calibration from the options
+  Eigen::VectorXd tet_scale;          // per tet stiffness scale (empty = 1)
+  std::vector<int> cheek_vertices;    // the rig's "cheeks" region (mode selection)
 
   // Reference expression (linearisation point) and prefactored systems.
   bool has_reference = false;
@@ -199,6 +202,7 @@ struct SoftTissueModel::Impl {
   // frequency and damping are those that Newmark's rule at step_s turns into the configured ones,
   // and alpha + beta w^2 = 2 zeta w splits its damping between mass and stiffness at that w.
   void Calibrate(const TissueOptions& options, double step_s) {
+    if (explicit_material) return;
     const DampedMode continuous =
         NewmarkCompensatedMode({2 * M_PI * options.fundamental_hz, options.damping_ratio}, step_s);
     const double omega = continuous.omega_rad_s, zeta = continuous.damping_ratio;
@@ -284,7 +288,8 @@ struct SoftTissueModel::Impl {
       Eigen::Matrix3d dm;
       for (int c = 0; c < 3; ++c) dm.col(c) = geometry.col(tets(c + 1, e)) - geometry.col(tets(0, e));
       if (dm.determinant() <= 0) ++inverted;
-      const Matrix12d k = youngs * UnitTetStiffness(dm, poisson);
+      const double scale = tet_scale.size() == tets.cols() ? tet_scale[e] : 1.0;
+      const Matrix12d k = youngs * scale * UnitTetStiffness(dm, poisson);
       const int* map = entry_map.data() + size_t(e) * 144;
       for (int i = 0; i < 144; ++i) {
         if (map[i] >= 0) kff.valuePtr()[map[i]] += k(i / 12, i % 12);
@@ -324,6 +329,36 @@ struct SoftTissueModel::Impl {
       const int f = free_index[layers * vertex_count + i];
       if (f >= 0) gravity_response.middleRows<3>(3 * i) = response.middleRows<3>(3 * f);
     }
+  }
+
+  // The calibrated mode is the one that dominates the cheeks' vertical response to vertical
+  // head motion (largest |participation x cheek amplitude| / omega^2 among the lowest six),
+  // i.e. the frequency at which the cheeks ring after a jolt; without a "cheeks" region, the
+  // lowest mode. Uses the factorised static system; fills the lowest six eigenpairs.
+  int CheekModeIndex(Eigen::VectorXd* eigenvalues, Eigen::MatrixXd* modes) const {
+    constexpr int kCalibrationModes = 6;
+    LowestModes(*static_solver, kff, mass_dofs, kCalibrationModes, eigenvalues, modes);
+    int calibrated_mode = 0;
+    if (cheek_vertices.empty()) return calibrated_mode;
+    double best = -1;
+    for (int i = 0; i < kCalibrationModes; ++i) {
+      double participation = 0, modal_mass = 0;
+      for (int f = 0; f < nf(); ++f) {
+        participation += mass_dofs[3 * f + 1] * (*modes)(3 * f + 1, i);
+        modal_mass += mass_dofs.segment<3>(3 * f).dot(modes->col(i).segment<3>(3 * f).cwiseAbs2());
+      }
+      double cheek_y = 0;
+      for (int vertex : cheek_vertices) {
+        const int f = free_index[layers * vertex_count + vertex];
+        if (f >= 0) cheek_y += (*modes)(3 * f + 1, i);
+      }
+      const double score = std::abs(participation / modal_mass * cheek_y) / (*eigenvalues)[i];
+      if (score > best) {
+        best = score;
+        calibrated_mode = i;
+      }
+    }
+    return calibrated_mode;
   }
 
   // Skin positions for targets plus a displacement field on free DOFs.
@@ -405,36 +440,11 @@ StatusOr<std::unique_ptr<SoftTissueModel>> SoftTissueModel::Create(const FaceRig
   m.dynamic_solver->analyzePattern(m.kff);
   m.static_solver->factorize(m.kff);
   if (m.static_solver->info() != Eigen::Success) return InternalError("tissue stiffness is not positive definite");
-  // The calibrated mode is the one that dominates the cheeks' vertical response to vertical
-  // head motion (largest |participation x cheek amplitude| / omega^2 among the lowest six),
-  // i.e. the frequency at which the cheeks ring after a jolt; without a "cheeks" region, the
-  // lowest mode.
-  constexpr int kCalibrationModes = 6;
+  const auto cheeks = rig.regions.find("cheeks");
+  if (cheeks != rig.regions.end()) m.cheek_vertices = cheeks->second;
   Eigen::VectorXd eigenvalues;
   Eigen::MatrixXd modes;
-  LowestModes(*m.static_solver, m.kff, m.mass_dofs, kCalibrationModes, &eigenvalues, &modes);
-  int calibrated_mode = 0;
-  const auto cheeks = rig.regions.find("cheeks");
-  if (cheeks != rig.regions.end() && !cheeks->second.empty()) {
-    double best = -1;
-    for (int i = 0; i < kCalibrationModes; ++i) {
-      double participation = 0, modal_mass = 0;
-      for (int f = 0; f < m.nf(); ++f) {
-        participation += m.mass_dofs[3 * f + 1] * modes(3 * f + 1, i);
-        modal_mass += m.mass_dofs.segment<3>(3 * f).dot(modes.col(i).segment<3>(3 * f).cwiseAbs2());
-      }
-      double cheek_y = 0;
-      for (int v : cheeks->second) {
-        const int f = m.free_index[m.layers * m.vertex_count + v];
-        if (f >= 0) cheek_y += modes(3 * f + 1, i);
-      }
-      const double score = std::abs(participation / modal_mass * cheek_y) / eigenvalues[i];
-      if (score > best) {
-        best = score;
-        calibrated_mode = i;
-      }
-    }
-  }
+  const int calibrated_mode = m.CheekModeIndex(&eigenvalues, &modes);
   // Until SetReference names the step, calibrate for the largest one the options allow.
   m.unit_eigenvalue = eigenvalues[calibrated_mode];
   m.Calibrate(options, options.max_step_s);
@@ -603,6 +613,103 @@ Eigen::Matrix3Xd SoftTissueModel::QuasistaticSkin(const TissueForcing& forcing) 
   const Eigen::Vector3d dg = forcing.kinematics.GravityInSkull() - kGravityInWorld;
   const Eigen::VectorXd offset = m.gravity_response * dg;
   return m.SkinTargets(forcing.weights) + Eigen::Map<const Eigen::Matrix3Xd>(offset.data(), 3, m.vertex_count);
+}
+
+Status SoftTissueModel::SetMaterial(const TissueMaterial& material) {
+  Impl& m = *impl_;
+  if (!(material.youngs_modulus_kpa > 0) || !std::isfinite(material.youngs_modulus_kpa)) {
+    return InvalidArgumentError(
+        fmt::format("tissue material: youngs_modulus_kpa must be positive, got {}", material.youngs_modulus_kpa));
+  }
+  if (!(material.rayleigh_mass >= 0) || !(material.rayleigh_stiffness >= 0) ||
+      !std::isfinite(material.rayleigh_mass) || !std::isfinite(material.rayleigh_stiffness)) {
+    return InvalidArgumentError(fmt::format("tissue material: Rayleigh damping must be >= 0, got alpha {} beta {}",
+                                            material.rayleigh_mass, material.rayleigh_stiffness));
+  }
+  if (material.tet_stiffness_scale.size() != 0) {
+    if (material.tet_stiffness_scale.size() != m.tets.cols()) {
+      return InvalidArgumentError(fmt::format("tissue material: {} stiffness scales for {} tetrahedra",
+                                              material.tet_stiffness_scale.size(), m.tets.cols()));
+    }
+    if (!(material.tet_stiffness_scale.array() > 0).all() || !material.tet_stiffness_scale.allFinite()) {
+      return InvalidArgumentError("tissue material: every tetrahedron's stiffness scale must be positive");
+    }
+  }
+  m.explicit_material = true;
+  m.youngs = material.youngs_modulus_kpa;
+  m.tet_scale = material.tet_stiffness_scale;
+  m.alpha = material.rayleigh_mass;
+  m.beta = material.rayleigh_stiffness;
+  youngs_modulus_kpa_ = m.youngs;
+  rayleigh_mass_ = m.alpha;
+  rayleigh_stiffness_ = m.beta;
+  // Back to the neutral face, unstressed by any expression, until SetReference.
+  m.has_reference = false;
+  m.spring.resize(0);
+  m.Assemble(m.rest, options_.poisson_ratio);
+  m.static_solver->factorize(m.kff);
+  if (m.static_solver->info() != Eigen::Success) return InternalError("tissue stiffness is not positive definite");
+  return Status::Ok();
+}
+
+TissueMaterial SoftTissueModel::material() const {
+  const Impl& m = *impl_;
+  TissueMaterial material;
+  material.youngs_modulus_kpa = m.youngs;
+  material.tet_stiffness_scale = m.tet_scale;
+  material.rayleigh_mass = m.alpha;
+  material.rayleigh_stiffness = m.beta;
+  return material;
+}
+
+StatusOr<DampedMode> SoftTissueModel::CheekMode() const {
+  const Impl& m = *impl_;
+  Eigen::VectorXd eigenvalues;
+  Eigen::MatrixXd modes;
+  const int index = m.CheekModeIndex(&eigenvalues, &modes);
+  if (!(eigenvalues[index] > 0)) return InternalError("the tissue's cheek mode has no positive stiffness");
+  const double omega = std::sqrt(eigenvalues[index]);
+  return DampedMode{omega, m.alpha / (2 * omega) + m.beta * omega / 2};
+}
+
+StatusOr<TissueSystemParts> SoftTissueModel::SystemParts(const Eigen::VectorXi& tet_group, int group_count) const {
+  const Impl& m = *impl_;
+  if (!m.has_reference) return FailedPreconditionError("tissue system parts: SetReference first");
+  if (tet_group.size() != m.tets.cols() || group_count < 1) {
+    return InvalidArgumentError(
+        fmt::format("tissue system parts: {} group labels for {} tetrahedra", tet_group.size(), m.tets.cols()));
+  }
+  if (tet_group.minCoeff() < 0 || tet_group.maxCoeff() >= group_count) {
+    return InvalidArgumentError(fmt::format("tissue system parts: group labels must be in [0, {})", group_count));
+  }
+  TissueSystemParts parts;
+  parts.stiffness_by_group.assign(group_count, m.kff);
+  for (SparseMatrix& k : parts.stiffness_by_group) std::fill(k.valuePtr(), k.valuePtr() + k.nonZeros(), 0.0);
+  for (int e = 0; e < m.tets.cols(); ++e) {
+    Eigen::Matrix3d dm;
+    for (int c = 0; c < 3; ++c) dm.col(c) = m.x_ref.col(m.tets(c + 1, e)) - m.x_ref.col(m.tets(0, e));
+    const double scale = m.tet_scale.size() == m.tets.cols() ? m.tet_scale[e] : 1.0;
+    const Matrix12d k = m.youngs * scale * UnitTetStiffness(dm, options_.poisson_ratio);
+    const int* map = m.entry_map.data() + size_t(e) * 144;
+    double* values = parts.stiffness_by_group[tet_group[e]].valuePtr();
+    for (int i = 0; i < 144; ++i) {
+      if (map[i] >= 0) values[map[i]] += k(i / 12, i % 12);
+    }
+  }
+  parts.spring_dofs.setZero(3 * m.nf());
+  if (m.spring.size() == m.rest.cols()) {
+    for (int f = 0; f < m.nf(); ++f) parts.spring_dofs.segment<3>(3 * f).setConstant(m.spring[m.free_nodes[f]]);
+  }
+  parts.mass_dofs = m.mass_dofs;
+  parts.load_fields = m.fields.leftCols<6>();
+  parts.skin_dof.assign(m.vertex_count, -1);
+  for (int i = 0; i < m.vertex_count; ++i) {
+    const int f = m.free_index[m.layers * m.vertex_count + i];
+    if (f >= 0) parts.skin_dof[i] = 3 * f;
+  }
+  parts.rayleigh_mass = m.alpha;
+  parts.rayleigh_stiffness = m.beta;
+  return parts;
 }
 
 double SoftTissueModel::Energy() const {

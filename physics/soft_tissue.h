@@ -123,6 +123,34 @@ DampedMode NewmarkApparentMode(const DampedMode& continuous, double dt_s);
 // pi (it has no preimage beyond; TissueOptions asks for at least four steps per period).
 DampedMode NewmarkCompensatedMode(const DampedMode& apparent, double dt_s);
 
+// An explicit material in place of the calibration from TissueOptions' fundamental_hz and
+// damping_ratio: what a fitted twin (physics/material_fit.h) carries. Young's modulus applies to
+// every tetrahedron, scaled per tetrahedron (regional stiffness); damping is Rayleigh,
+// C = alpha M + beta K.
+struct TissueMaterial {
+  double youngs_modulus_kpa = 0.0;
+  Eigen::VectorXd tet_stiffness_scale;  // one per tetrahedron of shell(); empty = all 1
+  double rayleigh_mass = 0.0;           // alpha, 1/s
+  double rayleigh_stiffness = 0.0;      // beta, s
+};
+
+// The linear system about the current reference, split so a method can rescale its parts:
+// M u'' + (alpha M + beta K) u' + K u = F, K = sum of stiffness_by_group + diag(spring_dofs).
+// Indices are free degrees of freedom (3 per free node, x y z).
+struct TissueSystemParts {
+  std::vector<Eigen::SparseMatrix<double>> stiffness_by_group;  // elastic, same pattern each
+  Eigen::VectorXd spring_dofs;  // muscle springs (diagonal), kg s^-2
+  Eigen::VectorXd mass_dofs;    // lumped mass, kg
+  // Force fields (3nf x 6) whose coefficients are skull-frame loads: columns 0-2 take the
+  // uniform acceleration (gravity's change in the skull frame minus the origin's acceleration,
+  // mm/s^2, x y z), columns 3-5 the negated angular acceleration (rad/s^2), which acts on the
+  // reference positions as -m alpha x p.
+  Eigen::MatrixXd load_fields;
+  std::vector<int> skin_dof;  // per skin vertex: its first free DOF, or -1 (held)
+  double rayleigh_mass = 0.0;
+  double rayleigh_stiffness = 0.0;
+};
+
 class SoftTissueModel {
  public:
   // Builds the tet shell under the rig's skin, the mass, and calibrates the material.
@@ -161,6 +189,23 @@ class SoftTissueModel {
   Eigen::Matrix3Xd QuasistaticSkin(const TissueForcing& forcing) const;
   // Reference expression's skin (the blendshape shape), skull frame.
   Eigen::Matrix3Xd ReferenceSkin() const;
+
+  // Replaces the calibrated material (fundamental_hz, damping_ratio) with an explicit one, e.g.
+  // a fitted twin's. Invalidates the reference: call SetReference again before stepping.
+  // Fails, naming the field, on a non-positive modulus, negative damping, or a scale vector of
+  // the wrong size or with a non-positive entry.
+  Status SetMaterial(const TissueMaterial& material);
+  TissueMaterial material() const;
+
+  // The mode the material is calibrated on, for the current material and linearisation (the
+  // neutral face's before any SetReference): among the lowest six of K phi = w^2 M phi, the one
+  // that dominates the cheeks' vertical response to vertical head motion (the lowest without a
+  // "cheeks" region). Continuous-time; damping ratio alpha / (2 w) + beta w / 2.
+  StatusOr<DampedMode> CheekMode() const;
+
+  // The linear system about the current reference (requires SetReference), with the elastic
+  // stiffness split by `tet_group` (one entry per tetrahedron in [0, group_count)).
+  StatusOr<TissueSystemParts> SystemParts(const Eigen::VectorXi& tet_group, int group_count) const;
 
   // Kinetic + elastic energy of the flesh's motion relative to its targets.
   double Energy() const;

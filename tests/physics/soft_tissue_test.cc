@@ -1,5 +1,5 @@
-// Physics checks of the tissue model on a spherical shell patch (skin radius 90 mm over a
-// skull of radius 75 mm): calibration, impulse response, energy, frame consistency.
+// Physics checks of the tissue model on a spherical shell patch (tests/physics/shell_rig.h):
+// calibration, impulse response, energy, frame consistency.
 
 #include "physics/soft_tissue.h"
 
@@ -14,27 +14,11 @@
 
 #include "core/mesh_primitives.h"
 #include "sim/procedural_face.h"
+#include "tests/physics/shell_rig.h"
 #include "tests/support/test_support.h"
 
 namespace facedyn::physics {
 namespace {
-
-FaceRig MakeShellRig(int resolution = 14) {
-  FaceRig rig;
-  rig.name = "shell";
-  rig.neutral = MakeEllipsoidPatch(90, 90, 90, 0.7, 0.6, resolution, resolution);
-  rig.skull = MakeEllipsoidPatch(75, 75, 75, 0.7, 0.6, resolution, resolution);
-  // One "expression": a bulge of the patch centre along +Z, 5 mm at the middle.
-  Eigen::Matrix3Xd bulge = Eigen::Matrix3Xd::Zero(3, rig.vertex_count());
-  for (int v = 0; v < rig.vertex_count(); ++v) {
-    const Eigen::Vector3d p = rig.neutral.positions_mm.col(v);
-    const double r2 = (p.x() * p.x() + p.y() * p.y()) / (30.0 * 30.0);
-    bulge(2, v) = 5.0 * std::exp(-r2);
-  }
-  rig.blendshape_names = {"bulge"};
-  rig.blendshape_deltas_mm = {bulge};
-  return rig;
-}
 
 TissueForcing Rest(int blendshapes, double bulge = 0.0) {
   TissueForcing forcing;

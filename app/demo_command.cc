@@ -194,7 +194,7 @@ Status RunDemo(const DemoOptions& options) {
 
   // Reconstruction: calibrate the simulated rig, reconstruct the 11 Hz take, compare with truth.
   Json reconstruct_metrics;
-  DemoCameraRig cameras;
+  eval::SimulatedCameraRig cameras;
   Take reconstructed;
   FACEDYN_RETURN_IF_ERROR(RunReconstructDemoStage(face, simulated, options.out_dir, options.quick,
                                                   &reconstruct_metrics, &cameras, &reconstructed));

@@ -132,7 +132,7 @@ std::vector<TakeSpec> TrainingSpecs(const std::vector<double>& hz_list,
 // *done counts takes across subjects for the progress lines. Simulation and reconstruction of
 // one take run on one core, so takes run two at a time (one per core of the 2-core machines the
 // demo targets): each take has its own seeds, so the results do not depend on the order.
-Status SimulateAndReconstruct(const FaceRig& face, const DemoCameraRig& cameras,
+Status SimulateAndReconstruct(const FaceRig& face, const eval::SimulatedCameraRig& cameras,
                               const std::vector<TakeSpec>& specs, double seconds,
                               const physics::TissueOptions& tissue, const std::string& subject,
                               int* done, int total, SubjectTakes* takes) {
@@ -167,7 +167,7 @@ Status SimulateAndReconstruct(const FaceRig& face, const DemoCameraRig& cameras,
           Simulate(face, spec.expression, spec.motion, seconds_of(spec), tissue, spec.motion.seed);
       StatusOr<reconstruct::Reconstruction> reconstruction =
           simulated.ok()
-              ? ReconstructSimulatedTake(face, cameras, *simulated, 7000 + spec.motion.seed)
+              ? eval::ReconstructSimulatedTake(face, cameras, *simulated, 7000 + spec.motion.seed)
               : StatusOr<reconstruct::Reconstruction>(simulated.status());
       if (!reconstruction.ok()) {
         result.status =
@@ -372,7 +372,7 @@ Status DemoDynamicsOptions::Check() const {
   return Status::Ok();
 }
 
-Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
+Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig& cameras,
                             const Take& test_simulated, const Take& test_reconstructed,
                             const DemoDynamicsOptions& options, const std::string& out_dir,
                             const dynamics::RemovalModel* reference_removal, Json* metrics,

@@ -128,7 +128,7 @@ struct DemoDynamicsArtifacts {
 // "removal_by_training_frequencies" (Fig. 5), "synthesis" ("resynthesis", "walk"), "retarget" and
 // "training". `reference_removal` (may be null) is another removal model for A's rig, reported as
 // "F_exact_targets_simulated" (e.g. the simulated-data study's). *artifacts may be null.
-Status RunDemoDynamicsStage(const FaceRig& face, const DemoCameraRig& cameras,
+Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig& cameras,
                             const Take& test_simulated, const Take& test_reconstructed,
                             const DemoDynamicsOptions& options, const std::string& out_dir,
                             const dynamics::RemovalModel* reference_removal, Json* metrics,

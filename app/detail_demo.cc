@@ -84,7 +84,7 @@ DetailDemoOptions DetailDemoOptions::ForDemo(bool quick, uint64_t seed) {
   return options;
 }
 
-StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const DemoCameraRig& cameras,
+StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCameraRig& cameras,
                                   const DetailDemoOptions& options, const std::string& out_dir) {
   const std::string dir = JoinPath(out_dir, "detail");
   FACEDYN_RETURN_IF_ERROR(MakeDirectories(dir));
@@ -118,7 +118,7 @@ StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const DemoCameraRig& came
   rom_options.seed = options.seed;
   FACEDYN_ASSIGN_OR_RETURN(const Take rom, sim::SimulatePerformance(face, rom_options));
   FACEDYN_ASSIGN_OR_RETURN(const reconstruct::Reconstruction rom_reconstruction,
-                           ReconstructSimulatedTake(face, cameras, rom, options.seed));
+                           eval::ReconstructSimulatedTake(face, cameras, rom, options.seed));
   detail::DetailTrainingSet set;
   set.subject = face.name;
   set.neutral = face.neutral;

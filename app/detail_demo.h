@@ -32,7 +32,7 @@ struct DetailDemoOptions {
 // mean and p95 vertex error in mm for "large_scale_only" and "masquerade", skull frame) and
 // "images" (renders of one frame: truth, both results, and their signed error along the normal).
 // Errors: no config folder with capture/hmc.yaml, a failed capture or reconstruction.
-StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const DemoCameraRig& cameras,
+StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCameraRig& cameras,
                                   const DetailDemoOptions& options, const std::string& out_dir);
 
 }  // namespace facedyn::app

@@ -15,37 +15,9 @@
 #include "reconstruct/calibration.h"
 #include "reconstruct/camera.h"
 #include "reconstruct/pipeline.h"
+#include "eval/simulated_stage.h"
 
 namespace facedyn::app {
-
-// The demo's 8-camera face rig: the true cameras (reconstruct/synthetic_views.h
-// MakeFaceCameraRing, k1 = -0.06), which project the markers, and their calibration, which
-// the reconstruction uses, expressed in the stage's world frame.
-struct DemoCameraRig {
-  std::vector<reconstruct::Camera> truth;
-  reconstruct::RigCalibration calibration;  // cameras in the stage's world frame
-  double worst_centre_error_mm = 0.0;       // calibrated vs true camera centres
-};
-
-// Calibrates the rig from a ChArUco board (charuco:10x7:25:18) waved through it in
-// `board_views` poses in front of the face: board corners projected through the true cameras
-// with 0.2 px noise, then reconstruct::Calibrate (intrinsics + bundle adjustment). The
-// calibration's world (camera 0) is brought into the stage's world by the rigid motion that
-// best maps the calibrated camera centres onto the true ones (what surveying the rig once
-// would give). Deterministic for a seed. Errors: board_views < 3, a failed calibration.
-StatusOr<DemoCameraRig> CalibrateDemoCameraRig(int board_views, uint64_t seed);
-
-// Reconstructs one simulated take as if filmed by `cameras`: the markers of `face` on every
-// frame's dynamic skin (positions) projected through the true cameras with 0.2 px noise
-// (projected, not rendered and detected, to keep the demo fast; detection on rendered images
-// is measured by bench/reconstruct_bench), then reconstruct::ReconstructTake with the
-// calibrated cameras (triangulation, tracking, skull pose, dense fit). The result's take
-// carries the simulated take's expression, motion and platform frequency. Errors: an empty
-// take, a take whose vertex count is not the face's, and the pipeline's own.
-StatusOr<reconstruct::Reconstruction> ReconstructSimulatedTake(const FaceRig& face,
-                                                               const DemoCameraRig& cameras,
-                                                               const Take& simulated,
-                                                               uint64_t seed);
 
 // The stage: calibrates (60 board views, 30 with `quick`) into
 // <out_dir>/reconstruct/calibration.yaml, reconstructs `simulated` into
@@ -59,6 +31,6 @@ StatusOr<reconstruct::Reconstruction> ReconstructSimulatedTake(const FaceRig& fa
 // for later stages.
 Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
                                const std::string& out_dir, bool quick, Json* metrics,
-                               DemoCameraRig* cameras = nullptr, Take* reconstructed = nullptr);
+                               eval::SimulatedCameraRig* cameras = nullptr, Take* reconstructed = nullptr);
 
 }  // namespace facedyn::app

@@ -1,0 +1,50 @@
+// The simulated stage's camera rig as the demo and the benches use it: the simulated 8-camera
+// face rig calibrated from a simulated ChArUco board, and a simulated take reconstructed through
+// reconstruct/'s pipeline from the markers' projected centres. Here, not in app/, so benches
+// (bench/twin_bench) reconstruct takes by the same path as `facedyn demo`; it uses the
+// simulator's truth (true cameras, true skin) to make the images' stand-in, and it gives the
+// methods only what a capture has (calibrated cameras, 2D marker positions).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/face_rig.h"
+#include "core/status.h"
+#include "core/take.h"
+#include "reconstruct/calibration.h"
+#include "reconstruct/camera.h"
+#include "reconstruct/pipeline.h"
+
+namespace facedyn::eval {
+
+// The simulated stage's 8-camera face rig: the true cameras (reconstruct/synthetic_views.h
+// MakeFaceCameraRing, k1 = -0.06), which project the markers, and their calibration, which
+// the reconstruction uses, expressed in the stage's world frame.
+struct SimulatedCameraRig {
+  std::vector<reconstruct::Camera> truth;
+  reconstruct::RigCalibration calibration;  // cameras in the stage's world frame
+  double worst_centre_error_mm = 0.0;       // calibrated vs true camera centres
+};
+
+// Calibrates the rig from a ChArUco board (charuco:10x7:25:18) waved through it in
+// `board_views` poses in front of the face: board corners projected through the true cameras
+// with 0.2 px noise, then reconstruct::Calibrate (intrinsics + bundle adjustment). The
+// calibration's world (camera 0) is brought into the stage's world by the rigid motion that
+// best maps the calibrated camera centres onto the true ones (what surveying the rig once
+// would give). Deterministic for a seed. Errors: board_views < 3, a failed calibration.
+StatusOr<SimulatedCameraRig> CalibrateSimulatedCameraRig(int board_views, uint64_t seed);
+
+// Reconstructs one simulated take as if filmed by `cameras`: the markers of `face` on every
+// frame's dynamic skin (positions) projected through the true cameras with 0.2 px noise
+// (projected, not rendered and detected, to keep the demo fast; detection on rendered images
+// is measured by bench/reconstruct_bench), then reconstruct::ReconstructTake with the
+// calibrated cameras (triangulation, tracking, skull pose, dense fit). The result's take
+// carries the simulated take's expression, motion and platform frequency. Errors: an empty
+// take, a take whose vertex count is not the face's, and the pipeline's own.
+StatusOr<reconstruct::Reconstruction> ReconstructSimulatedTake(const FaceRig& face,
+                                                               const SimulatedCameraRig& cameras,
+                                                               const Take& simulated,
+                                                               uint64_t seed);
+
+}  // namespace facedyn::eval

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <Eigen/Dense>
+#include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <Eigen/UmfPackSupport>
 #include <algorithm>
@@ -203,18 +204,127 @@ Eigen::VectorXd HarmonicTissueResponse::InitialParameters() const {
   return theta;
 }
 
-Status HarmonicTissueResponse::Evaluate(const Eigen::VectorXd& theta,
-                                        const HarmonicSkullMotion& motion,
-                                        Eigen::Matrix3Xcd* response,
-                                        std::vector<Eigen::Matrix3Xcd>* jacobian) const {
+Status HarmonicTissueResponse::Evaluate(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion,
+                                        Eigen::Matrix3Xcd* response, std::vector<Eigen::Matrix3Xcd>* jacobian) const {
   FACEDYN_CHECK(response != nullptr, "response is required");
   if (theta.size() != parameter_count() || !theta.allFinite()) {
     return InvalidArgumentError(
-        fmt::format("harmonic response: {} parameters, expected {} finite values", theta.size(),
-                    parameter_count()));
+        fmt::format("harmonic response: {} parameters, expected {} finite values", theta.size(), parameter_count()));
   }
-  if (!(motion.frequency_hz > 0))
-    return InvalidArgumentError("harmonic response: the frequency must be positive");
+  if (!(motion.frequency_hz > 0)) return InvalidArgumentError("harmonic response: the frequency must be positive");
+  return reduced_ ? EvaluateReduced(theta, motion, response, jacobian)
+                  : EvaluateFull(theta, motion, response, jacobian);
+}
+
+Status HarmonicTissueResponse::ReduceAt(const Eigen::VectorXd& theta, int blocks) {
+  if (theta.size() != parameter_count() || !theta.allFinite()) {
+    return InvalidArgumentError(
+        fmt::format("harmonic reduction: {} parameters, expected {} finite values", theta.size(), parameter_count()));
+  }
+  if (blocks < 1) return InvalidArgumentError(fmt::format("harmonic reduction: {} blocks, need at least 1", blocks));
+  const int groups = group_count();
+  Eigen::SparseMatrix<double> k = std::exp(theta[0]) * parts_.stiffness_by_group[0];
+  for (int g = 1; g < groups; ++g) k += std::exp(theta[g]) * parts_.stiffness_by_group[g];
+  for (Eigen::Index d = 0; d < k.rows(); ++d) k.coeffRef(d, d) += parts_.spring_dofs[d];
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> cholesky(k);
+  if (cholesky.info() != Eigen::Success) return InternalError("harmonic reduction: the stiffness is not positive definite");
+  const Eigen::VectorXd& mass = parts_.mass_dofs;
+  // Block Krylov with M-orthonormalisation (modified Gram-Schmidt, twice), dropping columns that
+  // are numerically dependent on the basis so far.
+  std::vector<Eigen::VectorXd> vectors;
+  auto add_block = [&](const Eigen::MatrixXd& block) {
+    int added = 0;
+    for (Eigen::Index c = 0; c < block.cols(); ++c) {
+      Eigen::VectorXd x = block.col(c);
+      const double before = std::sqrt(x.dot(mass.cwiseProduct(x)));
+      if (!(before > 0)) continue;
+      for (int pass = 0; pass < 2; ++pass) {
+        for (const Eigen::VectorXd& v : vectors) x -= v.dot(mass.cwiseProduct(x)) * v;
+      }
+      const double after = std::sqrt(x.dot(mass.cwiseProduct(x)));
+      if (!(after > 1e-8 * before)) continue;
+      vectors.push_back(x / after);
+      ++added;
+    }
+    return added;
+  };
+  Eigen::MatrixXd block = cholesky.solve(parts_.load_fields);
+  int first = 0;
+  for (int b = 0; b < blocks; ++b) {
+    const int added = add_block(block);
+    if (added == 0) break;
+    Eigen::MatrixXd last(mass.size(), added);
+    for (int c = 0; c < added; ++c) last.col(c) = vectors[first + c];
+    first += added;
+    block = cholesky.solve(mass.asDiagonal() * last);
+  }
+  basis_.resize(mass.size(), static_cast<Eigen::Index>(vectors.size()));
+  for (size_t c = 0; c < vectors.size(); ++c) basis_.col(static_cast<Eigen::Index>(c)) = vectors[c];
+  reduced_stiffness_.clear();
+  for (int g = 0; g < groups; ++g) reduced_stiffness_.push_back(basis_.transpose() * (parts_.stiffness_by_group[g] * basis_));
+  reduced_springs_ = basis_.transpose() * parts_.spring_dofs.asDiagonal() * basis_;
+  reduced_mass_ = basis_.transpose() * mass.asDiagonal() * basis_;
+  reduced_loads_ = basis_.transpose() * parts_.load_fields;
+  observed_basis_.resize(3 * static_cast<Eigen::Index>(observed_.size()), basis_.cols());
+  for (size_t i = 0; i < observed_.size(); ++i) {
+    observed_basis_.middleRows<3>(3 * static_cast<Eigen::Index>(i)) = basis_.middleRows<3>(parts_.skin_dof[observed_[i]]);
+  }
+  reduced_ = true;
+  return Status::Ok();
+}
+
+StatusOr<double> HarmonicTissueResponse::ReductionError(const Eigen::VectorXd& theta,
+                                                        const HarmonicSkullMotion& motion) const {
+  if (!reduced_) return FailedPreconditionError("harmonic response: not reduced");
+  Eigen::Matrix3Xcd reduced, full;
+  FACEDYN_RETURN_IF_ERROR(Evaluate(theta, motion, &reduced));
+  FACEDYN_RETURN_IF_ERROR(EvaluateFull(theta, motion, &full, nullptr));
+  if (!(full.norm() > 0)) return 0.0;
+  return (reduced - full).norm() / full.norm();
+}
+
+Status HarmonicTissueResponse::EvaluateReduced(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion,
+                                               Eigen::Matrix3Xcd* response,
+                                               std::vector<Eigen::Matrix3Xcd>* jacobian) const {
+  const int groups = group_count();
+  const double omega = 2 * M_PI * motion.frequency_hz;
+  const double alpha = std::exp(theta[groups]), beta = std::exp(theta[groups + 1]);
+  const Complex stiffness_factor(1.0, omega * beta);
+  const Complex mass_factor(-omega * omega, omega * alpha);
+  Eigen::MatrixXd k = reduced_springs_;
+  for (int g = 0; g < groups; ++g) k += std::exp(theta[g]) * reduced_stiffness_[g];
+  const Eigen::MatrixXcd a = stiffness_factor * k.cast<Complex>() + mass_factor * reduced_mass_.cast<Complex>();
+  Eigen::Matrix<Complex, 6, 1> load;
+  load.head<3>() = motion.uniform_acceleration_in_skull;
+  load.tail<3>() = -motion.angular_acceleration_in_skull;
+  const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(a);
+  const Eigen::VectorXcd q = lu.solve(reduced_loads_.cast<Complex>() * load);
+  if (!q.allFinite()) {
+    return InternalError(fmt::format("harmonic response: the reduced system at {} Hz is singular", motion.frequency_hz));
+  }
+  const Eigen::MatrixXcd observed = observed_basis_.cast<Complex>();
+  const Eigen::Index n = static_cast<Eigen::Index>(observed_.size());
+  const Eigen::VectorXcd u = observed * q;
+  *response = Eigen::Map<const Eigen::Matrix3Xcd>(u.data(), 3, n);
+  if (jacobian == nullptr) return Status::Ok();
+  Eigen::MatrixXcd rhs(q.size(), parameter_count());
+  for (int g = 0; g < groups; ++g) {
+    rhs.col(g) = stiffness_factor * std::exp(theta[g]) * (reduced_stiffness_[g].cast<Complex>() * q);
+  }
+  rhs.col(groups) = Complex(0, omega * alpha) * (reduced_mass_.cast<Complex>() * q);
+  rhs.col(groups + 1) = Complex(0, omega * beta) * (k.cast<Complex>() * q);
+  const Eigen::MatrixXcd dq = -lu.solve(rhs);
+  jacobian->resize(parameter_count());
+  for (int j = 0; j < parameter_count(); ++j) {
+    const Eigen::VectorXcd du = observed * dq.col(j);
+    (*jacobian)[j] = Eigen::Map<const Eigen::Matrix3Xcd>(du.data(), 3, n);
+  }
+  return Status::Ok();
+}
+
+Status HarmonicTissueResponse::EvaluateFull(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion,
+                                            Eigen::Matrix3Xcd* response,
+                                            std::vector<Eigen::Matrix3Xcd>* jacobian) const {
   const int groups = group_count();
   const double omega = 2 * M_PI * motion.frequency_hz;
   const double alpha = std::exp(theta[groups]), beta = std::exp(theta[groups + 1]);

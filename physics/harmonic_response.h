@@ -22,6 +22,14 @@
 //   (gravity's change in the skull frame minus the origin's acceleration) and the angular
 //   acceleration. The centripetal and Coriolis terms are second order in the motion's amplitude
 //   and are left out (at 2 mm and 11 Hz they are below 1e-3 of the linear terms).
+// - Reduction. A full evaluation factorises the complex system (30,000 DOFs on the procedural
+//   face: seconds), and a fit needs dozens. ReduceAt(theta) projects the system on
+//   load-dependent Ritz vectors (Wilson, Yuan & Dickens 1982): the block Krylov space of
+//   K^-1 M on K^-1 F, M-orthonormal, for the stiffness at theta. For that stiffness it is exact
+//   at every frequency and damping up to the truncation ((1 + i w beta) K + c M = K (1 + i w beta
+//   + c K^-1 M), whose inverse is a power series in K^-1 M), so a fit refreshes the basis at its
+//   current parameters until they stop moving (physics/material_fit.h) and then agrees with the
+//   full model; ReductionError measures how well.
 // Units: mm, s, kg. Not thread-safe (the factorisation is reused between calls).
 #pragma once
 
@@ -76,6 +84,15 @@ class HarmonicTissueResponse {
   // coefficient of 0 is taken as 1e-9 of its scale so its logarithm exists).
   Eigen::VectorXd InitialParameters() const;
 
+  // Projects the system on `blocks` blocks of load-dependent Ritz vectors (up to 6 each) for the
+  // stiffness at `theta`; Evaluate then solves the small dense system. UseFullSystem undoes it.
+  Status ReduceAt(const Eigen::VectorXd& theta, int blocks);
+  void UseFullSystem() { reduced_ = false; }
+  bool reduced() const { return reduced_; }
+  int basis_size() const { return static_cast<int>(basis_.cols()); }
+  // |reduced - full| / |full| of the response at theta and motion (one full factorisation).
+  StatusOr<double> ReductionError(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion) const;
+
   // Phasors (3 x n, mm) of the observed skin vertices' displacement from their targets, and if
   // `jacobian` is given its derivative per parameter (parameter_count() matrices).
   Status Evaluate(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion,
@@ -89,6 +106,16 @@ class HarmonicTissueResponse {
   std::vector<int> observed_;
   std::vector<int> diagonal_entry_;  // per DOF: index of (d, d) in the shared value array
   std::unique_ptr<Solver> solver_;
+  Status EvaluateFull(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion, Eigen::Matrix3Xcd* response,
+                      std::vector<Eigen::Matrix3Xcd>* jacobian) const;
+  Status EvaluateReduced(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion,
+                         Eigen::Matrix3Xcd* response, std::vector<Eigen::Matrix3Xcd>* jacobian) const;
+  // The reduction: basis V (DOFs x N), V^T K_g V per group, V^T diag(springs) V, V^T M V (= I),
+  // V^T load_fields, and the observed DOFs' rows of V.
+  bool reduced_ = false;
+  Eigen::MatrixXd basis_;
+  std::vector<Eigen::MatrixXd> reduced_stiffness_;
+  Eigen::MatrixXd reduced_springs_, reduced_mass_, reduced_loads_, observed_basis_;
 };
 
 }  // namespace facedyn::physics

@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <set>
 
 namespace facedyn::physics {
 namespace {
@@ -73,6 +75,8 @@ Status MaterialFitOptions::Check() const {
   if (!(max_scale > 1))
     return InvalidArgumentError(fmt::format("max_scale must be > 1, got {}", max_scale));
   if (!(damping_decades > 0)) return InvalidArgumentError("damping_decades must be positive");
+  if (reduction_blocks < 0) return InvalidArgumentError("reduction_blocks must be >= 0");
+  if (max_reductions < 1) return InvalidArgumentError("max_reductions must be >= 1");
   return Status::Ok();
 }
 
@@ -81,6 +85,7 @@ StatusOr<MaterialFitResult> FitTissueMaterial(const std::vector<PlatformObservat
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (observations.empty()) return InvalidArgumentError("material fit: no platform observations");
   const HarmonicTissueResponse* first = observations.front().model;
+  if (first == nullptr) return InvalidArgumentError("material fit: " + observations.front().name + " has no model");
   for (const PlatformObservation& observation : observations) {
     if (observation.model == nullptr)
       return InvalidArgumentError(fmt::format("material fit: {} has no model", observation.name));
@@ -104,54 +109,75 @@ StatusOr<MaterialFitResult> FitTissueMaterial(const std::vector<PlatformObservat
   const int groups = first->group_count();
   const Eigen::VectorXd initial = first->InitialParameters();
   Eigen::VectorXd theta = initial;
+  std::set<HarmonicTissueResponse*> models;
+  for (const PlatformObservation& observation : observations) models.insert(observation.model);
 
-  ceres::Problem::Options problem_options;
-  problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
-  int residual_count = 0;
-  for (const PlatformObservation& observation : observations) {
-    auto* cost = new PhasorResidual(&observation);
-    residual_count += cost->num_residuals();
-    problem.AddResidualBlock(cost, nullptr, theta.data());
-  }
+  MaterialFitResult result;
   const double log_scale = std::log(options.max_scale);
   const double log_damping = options.damping_decades * std::log(10.0);
-  for (int j = 0; j < p; ++j) {
-    const double half_width = j < groups ? log_scale : log_damping;
-    problem.SetParameterLowerBound(theta.data(), j, initial[j] - half_width);
-    problem.SetParameterUpperBound(theta.data(), j, initial[j] + half_width);
-  }
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::DENSE_QR;
   solver_options.max_num_iterations = options.max_iterations;
   solver_options.function_tolerance = 1e-10;
   solver_options.parameter_tolerance = 1e-10;
-  solver_options.num_threads = 1;  // each evaluation is a sparse LU; the model is not thread-safe
+  solver_options.num_threads = 1;  // the models reuse their factorisations: not thread-safe
+  ceres::Problem::Options problem_options;
+  problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+  std::unique_ptr<ceres::Problem> problem;
   ceres::Solver::Summary summary;
-  MaterialFitResult result;
-  result.rms_initial_mm = ResidualRms(observations, initial);
-  ceres::Solve(solver_options, &problem, &summary);
-  if (!summary.IsSolutionUsable()) {
-    return InternalError("material fit: the solver found no usable solution: " + summary.message);
+  int residual_count = 0;
+  const int rounds = options.reduction_blocks > 0 ? options.max_reductions : 1;
+  for (int round = 0; round < rounds; ++round) {
+    if (options.reduction_blocks > 0) {
+      for (HarmonicTissueResponse* model : models) FACEDYN_RETURN_IF_ERROR(model->ReduceAt(theta, options.reduction_blocks));
+    }
+    if (round == 0) result.rms_initial_mm = ResidualRms(observations, initial);
+    const Eigen::VectorXd before = theta;
+    problem = std::make_unique<ceres::Problem>(problem_options);
+    residual_count = 0;
+    for (const PlatformObservation& observation : observations) {
+      auto* cost = new PhasorResidual(&observation);
+      residual_count += cost->num_residuals();
+      problem->AddResidualBlock(cost, nullptr, theta.data());
+    }
+    for (int j = 0; j < p; ++j) {
+      const double half_width = j < groups ? log_scale : log_damping;
+      problem->SetParameterLowerBound(theta.data(), j, initial[j] - half_width);
+      problem->SetParameterUpperBound(theta.data(), j, initial[j] + half_width);
+    }
+    ceres::Solve(solver_options, problem.get(), &summary);
+    if (!summary.IsSolutionUsable()) {
+      return InternalError("material fit: the solver found no usable solution: " + summary.message);
+    }
+    result.iterations += static_cast<int>(summary.iterations.size());
+    result.reductions = round + 1;
+    if ((theta - before).cwiseAbs().maxCoeff() < options.reduction_tolerance) break;
   }
   result.theta = theta;
   result.rms_final_mm = ResidualRms(observations, theta);
-  result.iterations = static_cast<int>(summary.iterations.size());
   result.converged = summary.termination_type == ceres::CONVERGENCE;
   result.message = summary.BriefReport();
+  if (options.reduction_blocks > 0 && options.check_reduction) {
+    for (const PlatformObservation& observation : observations) {
+      FACEDYN_ASSIGN_OR_RETURN(const double error, observation.model->ReductionError(theta, observation.motion));
+      result.reduction_error = std::max(result.reduction_error, error);
+    }
+  }
 
   // One standard deviation per parameter: (J^T J)^-1 scaled by the residual variance.
   result.theta_stddev = Eigen::VectorXd::Constant(p, std::numeric_limits<double>::quiet_NaN());
+  result.covariance = Eigen::MatrixXd::Constant(p, p, std::numeric_limits<double>::quiet_NaN());
   ceres::Covariance::Options covariance_options;
   covariance_options.algorithm_type = ceres::DENSE_SVD;
   covariance_options.null_space_rank = -1;
   ceres::Covariance covariance(covariance_options);
   std::vector<std::pair<const double*, const double*>> blocks = {{theta.data(), theta.data()}};
-  if (residual_count > p && covariance.Compute(blocks, &problem)) {
+  if (residual_count > p && covariance.Compute(blocks, problem.get())) {
     Eigen::MatrixXd c(p, p);
     if (covariance.GetCovarianceBlock(theta.data(), theta.data(), c.data())) {
       const double variance = 2.0 * summary.final_cost / (residual_count - p);
-      result.theta_stddev = (c.diagonal() * variance).cwiseSqrt();
+      result.covariance = c * variance;
+      result.theta_stddev = result.covariance.diagonal().cwiseSqrt();
     }
   }
   return result;

@@ -1,5 +1,7 @@
 #include "sim/expressions.h"
 
+#include "physics/twin.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -8,6 +10,7 @@
 #include <utility>
 
 #include "physics/face_anatomy.h"
+#include "physics/twin.h"
 #include "sim/procedural_face.h"
 
 namespace facedyn::sim {
@@ -103,17 +106,7 @@ StatusOr<Eigen::VectorXd> ExpressionWeights(const FaceRig& rig, const std::strin
 
 double JawOpenAngleRad(const FaceRig& rig) {
   if (rig.BlendshapeIndex("jaw_open") >= 0) return kProceduralJawOpenRad;
-  const int k = rig.BlendshapeIndex("jawOpen");
-  if (k < 0) return 0.0;
-  const std::vector<int> vertices = physics::JawFitVertices(rig);
-  if (vertices.size() < 3) return 0.0;
-  Eigen::Matrix3Xd points(3, vertices.size()), deltas(3, vertices.size());
-  for (size_t i = 0; i < vertices.size(); ++i) {
-    points.col(i) = rig.neutral.positions_mm.col(vertices[i]);
-    deltas.col(i) = rig.blendshape_deltas_mm[k].col(vertices[i]);
-  }
-  return physics::FitHingeAngleRad(points, deltas, rig.jaw.axis_in_skull.normalized(),
-                                   rig.jaw.pivot_in_skull);
+  return physics::FittedJawOpenAngleRad(rig);  // "jawOpen" (ICT), or 0
 }
 
 double JawAngleRad(const FaceRig& rig, const Eigen::VectorXd& weights) {

@@ -99,6 +99,49 @@ TEST(HarmonicTissueResponse, JacobianMatchesFiniteDifferences) {
   }
 }
 
+// The reduced system (load-dependent Ritz vectors at the parameters it is evaluated at) agrees
+// with the full one at every frequency and damping, and its Jacobian with its finite differences.
+TEST(HarmonicTissueResponse, ReductionMatchesTheFullSystem) {
+  std::unique_ptr<SoftTissueModel> model = MakeModel(TissueOptions(), 0.6, 1.0 / 128);
+  ASSERT_NE(model, nullptr);
+  std::unique_ptr<HarmonicTissueResponse> response = MakeResponse(*model, TwoGroups(*model), 2);
+  ASSERT_NE(response, nullptr);
+  Eigen::VectorXd theta = response->InitialParameters();
+  theta += Eigen::Vector4d(0.15, -0.2, 0.3, -0.25);
+  EXPECT_FALSE(response->ReduceAt(theta, 0).ok());
+  ASSERT_TRUE(response->ReduceAt(theta, 12).ok());
+  EXPECT_TRUE(response->reduced());
+  EXPECT_GT(response->basis_size(), 30);
+  for (double hz : {6.0, 8.0, 11.0, 14.0}) {
+    auto error = response->ReductionError(theta, Bounce(hz));
+    ASSERT_TRUE(error.ok()) << error.status().message();
+    EXPECT_LT(*error, 1e-4) << hz << " Hz";
+    // Other damping at the same stiffness: still exact up to the truncation.
+    Eigen::VectorXd damped = theta;
+    damped.tail<2>() += Eigen::Vector2d(0.7, -0.4);
+    error = response->ReductionError(damped, Bounce(hz));
+    ASSERT_TRUE(error.ok());
+    EXPECT_LT(*error, 1e-4) << hz << " Hz, other damping";
+  }
+  const HarmonicSkullMotion motion = Bounce(9.0);
+  Eigen::Matrix3Xcd u;
+  std::vector<Eigen::Matrix3Xcd> jacobian;
+  ASSERT_TRUE(response->Evaluate(theta, motion, &u, &jacobian).ok());
+  for (int j = 0; j < 4; ++j) {
+    constexpr double kStep = 1e-5;
+    Eigen::VectorXd plus = theta, minus = theta;
+    plus[j] += kStep;
+    minus[j] -= kStep;
+    Eigen::Matrix3Xcd u_plus, u_minus;
+    ASSERT_TRUE(response->Evaluate(plus, motion, &u_plus).ok());
+    ASSERT_TRUE(response->Evaluate(minus, motion, &u_minus).ok());
+    const Eigen::Matrix3Xcd finite = (u_plus - u_minus) / (2 * kStep);
+    EXPECT_LT((finite - jacobian[j]).norm() / jacobian[j].norm(), 1e-4) << "parameter " << j;
+  }
+  response->UseFullSystem();
+  EXPECT_FALSE(response->reduced());
+}
+
 // The phasors predicted in the frequency domain are the steady state that Newmark time stepping
 // reaches under the same skull motion (at a fine step, where the integrator's frequency shift is
 // ~1e-4), with the skull motion's phasor measured from the sampled poses.
@@ -205,6 +248,8 @@ TEST(FitTissueMaterial, RecoversAnotherSubjectsFrequencyAndDamping) {
   auto fit = FitTissueMaterial(observations, MaterialFitOptions());
   ASSERT_TRUE(fit.ok()) << fit.status().message();
   EXPECT_LT(fit->rms_final_mm, 0.5 * fit->rms_initial_mm);
+  EXPECT_GE(fit->reductions, 2);  // the basis was refreshed at the fitted stiffness
+  EXPECT_LT(fit->reduction_error, 1e-3);
   EXPECT_TRUE(fit->theta_stddev.allFinite());
 
   // The fitted material on the twin, then its cheek mode against the truth's.

@@ -30,6 +30,7 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected);
 void AddCaptureCommands(CLI::App& app, CommandRunner* selected);  // capture, session check
 void AddDetailCommands(CLI::App& app, CommandRunner* selected);   // detail train, detail apply
 void AddProcessCommand(CLI::App& app, CommandRunner* selected);   // a session as a job graph
+void AddTwinCommands(CLI::App& app, CommandRunner* selected);     // twin fit (physics/twin.h)
 // train-removal, remove, train-synthesis, synthesize, retarget under `facedyn dynamics`.
 void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected);
 

@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
   app::AddDynamicsCommands(cli, &selected);
   app::AddSolveCommands(cli, &selected);
   app::AddDetailCommands(cli, &selected);
+  app::AddTwinCommands(cli, &selected);
   app::AddRigCommands(cli, &selected);
   app::AddSweepCommand(cli, &selected);
   app::AddCalibrateCommand(cli, &selected);

@@ -46,7 +46,9 @@ namespace physics = facedyn::physics;
 namespace sim = facedyn::sim;
 namespace eval = facedyn::eval;
 
-double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
 
 struct Settings {
   std::vector<uint64_t> seeds = {1, 2, 3};
@@ -80,7 +82,8 @@ Json FitJson(const physics::FittedTwin& twin, const Settings& s) {
   json["score"] = {{"true_hz", s.true_hz},
                    {"true_damping_ratio", s.true_damping},
                    {"hz_error_percent", 100.0 * (hz - s.true_hz) / s.true_hz},
-                   {"damping_error_percent", 100.0 * (twin.cheek_mode.damping_ratio - s.true_damping) / s.true_damping}};
+                   {"damping_error_percent",
+                    100.0 * (twin.cheek_mode.damping_ratio - s.true_damping) / s.true_damping}};
   return json;
 }
 
@@ -134,13 +137,15 @@ int main(int argc, char** argv) {
     }
   }
 
-  const facedyn::FaceRig face = Check(sim::MakeProceduralFace(sim::ProceduralFaceOptions()), "procedural face");
+  const facedyn::FaceRig face =
+      Check(sim::MakeProceduralFace(sim::ProceduralFaceOptions()), "procedural face");
   Json runs = Json::array();
   std::vector<double> clean_hz, clean_damping, rec_hz, rec_damping, fit_seconds;
   for (uint64_t seed : s.seeds) {
     const auto seed_start = Clock::now();
     eval::SimulatedCameraRig cameras;
-    if (s.reconstruct) cameras = Check(eval::CalibrateSimulatedCameraRig(30, 2020 + seed), "calibration");
+    if (s.reconstruct)
+      cameras = Check(eval::CalibrateSimulatedCameraRig(30, 2020 + seed), "calibration");
     std::vector<facedyn::Take> clean, reconstructed;
     double simulate_s = 0, reconstruct_s = 0;
     for (const std::string& expression : s.expressions) {
@@ -160,8 +165,9 @@ int main(int argc, char** argv) {
         simulate_s += Seconds(t0);
         if (s.reconstruct) {
           t0 = Clock::now();
-          auto reconstruction = Check(eval::ReconstructSimulatedTake(face, cameras, take, seed * 1000 + clean.size()),
-                                      "reconstruct " + expression);
+          auto reconstruction =
+              Check(eval::ReconstructSimulatedTake(face, cameras, take, seed * 1000 + clean.size()),
+                    "reconstruct " + expression);
           reconstruct_s += Seconds(t0);
           reconstructed.push_back(std::move(reconstruction.take));
         }
@@ -173,31 +179,36 @@ int main(int argc, char** argv) {
       std::vector<std::pair<std::string, const facedyn::Take*>> pairs;
       size_t i = 0;
       for (const std::string& expression : s.expressions) {
-        for (double hz : s.frequencies) pairs.push_back({expression + "@" + std::to_string(hz) + "Hz", &takes[i++]});
+        for (double hz : s.frequencies)
+          pairs.push_back({expression + "@" + std::to_string(hz) + "Hz", &takes[i++]});
       }
       return pairs;
     };
     Json run = {{"seed", seed}};
-    const physics::FittedTwin clean_twin = Check(physics::FitTwin(face, named(clean), physics::TwinFitOptions()), "clean fit");
+    const physics::FittedTwin clean_twin =
+        Check(physics::FitTwin(face, named(clean), physics::TwinFitOptions()), "clean fit");
     run["clean"] = FitJson(clean_twin, s);
     clean_hz.push_back(run["clean"]["score"]["hz_error_percent"].get<double>());
     clean_damping.push_back(run["clean"]["score"]["damping_error_percent"].get<double>());
     if (s.reconstruct) {
       const physics::FittedTwin rec_twin =
-          Check(physics::FitTwin(face, named(reconstructed), physics::TwinFitOptions()), "reconstructed fit");
+          Check(physics::FitTwin(face, named(reconstructed), physics::TwinFitOptions()),
+                "reconstructed fit");
       run["reconstructed"] = FitJson(rec_twin, s);
       rec_hz.push_back(run["reconstructed"]["score"]["hz_error_percent"].get<double>());
       rec_damping.push_back(run["reconstructed"]["score"]["damping_error_percent"].get<double>());
       fit_seconds.push_back(rec_twin.seconds);
     }
-    run["seconds"] = {{"simulate", simulate_s}, {"reconstruct", reconstruct_s}, {"total", Seconds(seed_start)}};
+    run["seconds"] = {
+        {"simulate", simulate_s}, {"reconstruct", reconstruct_s}, {"total", Seconds(seed_start)}};
     runs.push_back(run);
-    std::fprintf(stderr, "twin_bench: seed %llu done in %.0f s\n", static_cast<unsigned long long>(seed),
-                 Seconds(seed_start));
+    std::fprintf(stderr, "twin_bench: seed %llu done in %.0f s\n",
+                 static_cast<unsigned long long>(seed), Seconds(seed_start));
   }
   auto spread = [](const std::vector<double>& values) {
     const eval::Spread sp = eval::SpreadOf(values);
-    return Json{{"mean", sp.mean}, {"sd", sp.sd}, {"min", sp.min}, {"max", sp.max}, {"count", sp.count}};
+    return Json{
+        {"mean", sp.mean}, {"sd", sp.sd}, {"min", sp.min}, {"max", sp.max}, {"count", sp.count}};
   };
   Json summary = {{"clean_hz_error_percent", spread(clean_hz)},
                   {"clean_damping_error_percent", spread(clean_damping)}};

@@ -74,7 +74,8 @@ StatusOr<SimulatedCameraRig> CalibrateSimulatedCameraRig(int board_views, uint64
   return rig;
 }
 
-StatusOr<Reconstruction> ReconstructSimulatedTake(const FaceRig& face, const SimulatedCameraRig& cameras,
+StatusOr<Reconstruction> ReconstructSimulatedTake(const FaceRig& face,
+                                                  const SimulatedCameraRig& cameras,
                                                   const Take& simulated, uint64_t seed) {
   if (simulated.frame_count() == 0) return InvalidArgumentError("the simulated take is empty");
   if (simulated.vertex_count() != face.vertex_count()) {

@@ -204,14 +204,18 @@ Eigen::VectorXd HarmonicTissueResponse::InitialParameters() const {
   return theta;
 }
 
-Status HarmonicTissueResponse::Evaluate(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion,
-                                        Eigen::Matrix3Xcd* response, std::vector<Eigen::Matrix3Xcd>* jacobian) const {
+Status HarmonicTissueResponse::Evaluate(const Eigen::VectorXd& theta,
+                                        const HarmonicSkullMotion& motion,
+                                        Eigen::Matrix3Xcd* response,
+                                        std::vector<Eigen::Matrix3Xcd>* jacobian) const {
   FACEDYN_CHECK(response != nullptr, "response is required");
   if (theta.size() != parameter_count() || !theta.allFinite()) {
     return InvalidArgumentError(
-        fmt::format("harmonic response: {} parameters, expected {} finite values", theta.size(), parameter_count()));
+        fmt::format("harmonic response: {} parameters, expected {} finite values", theta.size(),
+                    parameter_count()));
   }
-  if (!(motion.frequency_hz > 0)) return InvalidArgumentError("harmonic response: the frequency must be positive");
+  if (!(motion.frequency_hz > 0))
+    return InvalidArgumentError("harmonic response: the frequency must be positive");
   return reduced_ ? EvaluateReduced(theta, motion, response, jacobian)
                   : EvaluateFull(theta, motion, response, jacobian);
 }
@@ -219,15 +223,19 @@ Status HarmonicTissueResponse::Evaluate(const Eigen::VectorXd& theta, const Harm
 Status HarmonicTissueResponse::ReduceAt(const Eigen::VectorXd& theta, int blocks) {
   if (theta.size() != parameter_count() || !theta.allFinite()) {
     return InvalidArgumentError(
-        fmt::format("harmonic reduction: {} parameters, expected {} finite values", theta.size(), parameter_count()));
+        fmt::format("harmonic reduction: {} parameters, expected {} finite values", theta.size(),
+                    parameter_count()));
   }
-  if (blocks < 1) return InvalidArgumentError(fmt::format("harmonic reduction: {} blocks, need at least 1", blocks));
+  if (blocks < 1)
+    return InvalidArgumentError(
+        fmt::format("harmonic reduction: {} blocks, need at least 1", blocks));
   const int groups = group_count();
   Eigen::SparseMatrix<double> k = std::exp(theta[0]) * parts_.stiffness_by_group[0];
   for (int g = 1; g < groups; ++g) k += std::exp(theta[g]) * parts_.stiffness_by_group[g];
   for (Eigen::Index d = 0; d < k.rows(); ++d) k.coeffRef(d, d) += parts_.spring_dofs[d];
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> cholesky(k);
-  if (cholesky.info() != Eigen::Success) return InternalError("harmonic reduction: the stiffness is not positive definite");
+  if (cholesky.info() != Eigen::Success)
+    return InternalError("harmonic reduction: the stiffness is not positive definite");
   const Eigen::VectorXd& mass = parts_.mass_dofs;
   // Block Krylov with M-orthonormalisation (modified Gram-Schmidt, twice), dropping columns that
   // are numerically dependent on the basis so far.
@@ -261,13 +269,15 @@ Status HarmonicTissueResponse::ReduceAt(const Eigen::VectorXd& theta, int blocks
   basis_.resize(mass.size(), static_cast<Eigen::Index>(vectors.size()));
   for (size_t c = 0; c < vectors.size(); ++c) basis_.col(static_cast<Eigen::Index>(c)) = vectors[c];
   reduced_stiffness_.clear();
-  for (int g = 0; g < groups; ++g) reduced_stiffness_.push_back(basis_.transpose() * (parts_.stiffness_by_group[g] * basis_));
+  for (int g = 0; g < groups; ++g)
+    reduced_stiffness_.push_back(basis_.transpose() * (parts_.stiffness_by_group[g] * basis_));
   reduced_springs_ = basis_.transpose() * parts_.spring_dofs.asDiagonal() * basis_;
   reduced_mass_ = basis_.transpose() * mass.asDiagonal() * basis_;
   reduced_loads_ = basis_.transpose() * parts_.load_fields;
   observed_basis_.resize(3 * static_cast<Eigen::Index>(observed_.size()), basis_.cols());
   for (size_t i = 0; i < observed_.size(); ++i) {
-    observed_basis_.middleRows<3>(3 * static_cast<Eigen::Index>(i)) = basis_.middleRows<3>(parts_.skin_dof[observed_[i]]);
+    observed_basis_.middleRows<3>(3 * static_cast<Eigen::Index>(i)) =
+        basis_.middleRows<3>(parts_.skin_dof[observed_[i]]);
   }
   reduced_ = true;
   return Status::Ok();
@@ -283,7 +293,8 @@ StatusOr<double> HarmonicTissueResponse::ReductionError(const Eigen::VectorXd& t
   return (reduced - full).norm() / full.norm();
 }
 
-Status HarmonicTissueResponse::EvaluateReduced(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion,
+Status HarmonicTissueResponse::EvaluateReduced(const Eigen::VectorXd& theta,
+                                               const HarmonicSkullMotion& motion,
                                                Eigen::Matrix3Xcd* response,
                                                std::vector<Eigen::Matrix3Xcd>* jacobian) const {
   const int groups = group_count();
@@ -293,14 +304,16 @@ Status HarmonicTissueResponse::EvaluateReduced(const Eigen::VectorXd& theta, con
   const Complex mass_factor(-omega * omega, omega * alpha);
   Eigen::MatrixXd k = reduced_springs_;
   for (int g = 0; g < groups; ++g) k += std::exp(theta[g]) * reduced_stiffness_[g];
-  const Eigen::MatrixXcd a = stiffness_factor * k.cast<Complex>() + mass_factor * reduced_mass_.cast<Complex>();
+  const Eigen::MatrixXcd a =
+      stiffness_factor * k.cast<Complex>() + mass_factor * reduced_mass_.cast<Complex>();
   Eigen::Matrix<Complex, 6, 1> load;
   load.head<3>() = motion.uniform_acceleration_in_skull;
   load.tail<3>() = -motion.angular_acceleration_in_skull;
   const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(a);
   const Eigen::VectorXcd q = lu.solve(reduced_loads_.cast<Complex>() * load);
   if (!q.allFinite()) {
-    return InternalError(fmt::format("harmonic response: the reduced system at {} Hz is singular", motion.frequency_hz));
+    return InternalError(fmt::format("harmonic response: the reduced system at {} Hz is singular",
+                                     motion.frequency_hz));
   }
   const Eigen::MatrixXcd observed = observed_basis_.cast<Complex>();
   const Eigen::Index n = static_cast<Eigen::Index>(observed_.size());
@@ -309,7 +322,8 @@ Status HarmonicTissueResponse::EvaluateReduced(const Eigen::VectorXd& theta, con
   if (jacobian == nullptr) return Status::Ok();
   Eigen::MatrixXcd rhs(q.size(), parameter_count());
   for (int g = 0; g < groups; ++g) {
-    rhs.col(g) = stiffness_factor * std::exp(theta[g]) * (reduced_stiffness_[g].cast<Complex>() * q);
+    rhs.col(g) =
+        stiffness_factor * std::exp(theta[g]) * (reduced_stiffness_[g].cast<Complex>() * q);
   }
   rhs.col(groups) = Complex(0, omega * alpha) * (reduced_mass_.cast<Complex>() * q);
   rhs.col(groups + 1) = Complex(0, omega * beta) * (k.cast<Complex>() * q);
@@ -322,7 +336,8 @@ Status HarmonicTissueResponse::EvaluateReduced(const Eigen::VectorXd& theta, con
   return Status::Ok();
 }
 
-Status HarmonicTissueResponse::EvaluateFull(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion,
+Status HarmonicTissueResponse::EvaluateFull(const Eigen::VectorXd& theta,
+                                            const HarmonicSkullMotion& motion,
                                             Eigen::Matrix3Xcd* response,
                                             std::vector<Eigen::Matrix3Xcd>* jacobian) const {
   const int groups = group_count();

@@ -91,7 +91,8 @@ class HarmonicTissueResponse {
   bool reduced() const { return reduced_; }
   int basis_size() const { return static_cast<int>(basis_.cols()); }
   // |reduced - full| / |full| of the response at theta and motion (one full factorisation).
-  StatusOr<double> ReductionError(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion) const;
+  StatusOr<double> ReductionError(const Eigen::VectorXd& theta,
+                                  const HarmonicSkullMotion& motion) const;
 
   // Phasors (3 x n, mm) of the observed skin vertices' displacement from their targets, and if
   // `jacobian` is given its derivative per parameter (parameter_count() matrices).
@@ -106,10 +107,11 @@ class HarmonicTissueResponse {
   std::vector<int> observed_;
   std::vector<int> diagonal_entry_;  // per DOF: index of (d, d) in the shared value array
   std::unique_ptr<Solver> solver_;
-  Status EvaluateFull(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion, Eigen::Matrix3Xcd* response,
-                      std::vector<Eigen::Matrix3Xcd>* jacobian) const;
+  Status EvaluateFull(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion,
+                      Eigen::Matrix3Xcd* response, std::vector<Eigen::Matrix3Xcd>* jacobian) const;
   Status EvaluateReduced(const Eigen::VectorXd& theta, const HarmonicSkullMotion& motion,
-                         Eigen::Matrix3Xcd* response, std::vector<Eigen::Matrix3Xcd>* jacobian) const;
+                         Eigen::Matrix3Xcd* response,
+                         std::vector<Eigen::Matrix3Xcd>* jacobian) const;
   // The reduction: basis V (DOFs x N), V^T K_g V per group, V^T diag(springs) V, V^T M V (= I),
   // V^T load_fields, and the observed DOFs' rows of V.
   bool reduced_ = false;

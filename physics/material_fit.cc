@@ -85,7 +85,8 @@ StatusOr<MaterialFitResult> FitTissueMaterial(const std::vector<PlatformObservat
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (observations.empty()) return InvalidArgumentError("material fit: no platform observations");
   const HarmonicTissueResponse* first = observations.front().model;
-  if (first == nullptr) return InvalidArgumentError("material fit: " + observations.front().name + " has no model");
+  if (first == nullptr)
+    return InvalidArgumentError("material fit: " + observations.front().name + " has no model");
   for (const PlatformObservation& observation : observations) {
     if (observation.model == nullptr)
       return InvalidArgumentError(fmt::format("material fit: {} has no model", observation.name));
@@ -129,7 +130,8 @@ StatusOr<MaterialFitResult> FitTissueMaterial(const std::vector<PlatformObservat
   const int rounds = options.reduction_blocks > 0 ? options.max_reductions : 1;
   for (int round = 0; round < rounds; ++round) {
     if (options.reduction_blocks > 0) {
-      for (HarmonicTissueResponse* model : models) FACEDYN_RETURN_IF_ERROR(model->ReduceAt(theta, options.reduction_blocks));
+      for (HarmonicTissueResponse* model : models)
+        FACEDYN_RETURN_IF_ERROR(model->ReduceAt(theta, options.reduction_blocks));
     }
     if (round == 0) result.rms_initial_mm = ResidualRms(observations, initial);
     const Eigen::VectorXd before = theta;
@@ -159,7 +161,8 @@ StatusOr<MaterialFitResult> FitTissueMaterial(const std::vector<PlatformObservat
   result.message = summary.BriefReport();
   if (options.reduction_blocks > 0 && options.check_reduction) {
     for (const PlatformObservation& observation : observations) {
-      FACEDYN_ASSIGN_OR_RETURN(const double error, observation.model->ReductionError(theta, observation.motion));
+      FACEDYN_ASSIGN_OR_RETURN(const double error,
+                               observation.model->ReductionError(theta, observation.motion));
       result.reduction_error = std::max(result.reduction_error, error);
     }
   }

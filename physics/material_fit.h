@@ -28,7 +28,7 @@ namespace facedyn::physics {
 
 // One platform take's steady state.
 struct PlatformObservation {
-  std::string name;                               // for messages, e.g. the take folder
+  std::string name;                         // for messages, e.g. the take folder
   HarmonicTissueResponse* model = nullptr;  // linearised about the take's held expression
   HarmonicSkullMotion motion;
   Eigen::Matrix3Xcd skin_phasors_mm;  // per observed vertex of `model`, skull frame
@@ -36,26 +36,27 @@ struct PlatformObservation {
 
 struct MaterialFitOptions {
   int max_iterations = 40;
-  double max_scale = 20.0;       // stiffness groups within [1/max_scale, max_scale] x initial
+  double max_scale = 20.0;  // stiffness groups within [1/max_scale, max_scale] x initial
   double damping_decades = 2.0;
   // Load-dependent Ritz blocks per reduction (HarmonicTissueResponse::ReduceAt); 0 fits on the
   // full system (one complex sparse LU per observation and evaluation: slow on a face).
   int reduction_blocks = 12;
-  int max_reductions = 4;              // refreshes of the basis at the current parameters
-  double reduction_tolerance = 1e-3;   // stop refreshing when no parameter moved more (log)
-  bool check_reduction = true;         // compare with the full system at the result (one LU each)  // alpha and beta within 10^(+-decades) x initial
+  int max_reductions = 4;             // refreshes of the basis at the current parameters
+  double reduction_tolerance = 1e-3;  // stop refreshing when no parameter moved more (log)
+  bool check_reduction = true;  // compare with the full system at the result (one LU each)  //
+                                // alpha and beta within 10^(+-decades) x initial
   Status Check() const;
 };
 
 struct MaterialFitResult {
   Eigen::VectorXd theta;         // HarmonicTissueResponse's parameters
   Eigen::VectorXd theta_stddev;  // one standard deviation each (NaN when not estimable)
-  Eigen::MatrixXd covariance;  // of theta (NaN when not estimable)
+  Eigen::MatrixXd covariance;    // of theta (NaN when not estimable)
   double rms_initial_mm = 0.0;   // RMS of the phasor residual (per coordinate, complex modulus)
   double rms_final_mm = 0.0;
-  int iterations = 0;                // over every reduction round
-  int reductions = 0;                // bases built (0: the full system)
-  double reduction_error = 0.0;      // max |reduced - full| / |full| at the result (if checked)
+  int iterations = 0;            // over every reduction round
+  int reductions = 0;            // bases built (0: the full system)
+  double reduction_error = 0.0;  // max |reduced - full| / |full| at the result (if checked)
   bool converged = false;
   std::string message;  // Ceres' one-line summary
 };

@@ -1,14 +1,14 @@
 #include "physics/twin.h"
 
+#include <ceres/ceres.h>
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <map>
 #include <memory>
 #include <set>
-
-#include <ceres/ceres.h>
-#include <fmt/format.h>
 
 #include "core/progress.h"
 #include "physics/face_anatomy.h"
@@ -20,16 +20,18 @@ namespace {
 // Residual of the blendshape fit: skin(w) - observed at the vertices, linear in w.
 class BlendshapeResidual : public ceres::CostFunction {
  public:
-  BlendshapeResidual(Eigen::MatrixXd basis, Eigen::VectorXd offset) : basis_(std::move(basis)), offset_(std::move(offset)) {
+  BlendshapeResidual(Eigen::MatrixXd basis, Eigen::VectorXd offset)
+      : basis_(std::move(basis)), offset_(std::move(offset)) {
     set_num_residuals(static_cast<int>(basis_.rows()));
     mutable_parameter_block_sizes()->assign(1, static_cast<int>(basis_.cols()));
   }
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
     const Eigen::Map<const Eigen::VectorXd> w(parameters[0], basis_.cols());
     Eigen::Map<Eigen::VectorXd>(residuals, basis_.rows()) = basis_ * w - offset_;
     if (jacobians != nullptr && jacobians[0] != nullptr) {
-      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(jacobians[0], basis_.rows(),
-                                                                                          basis_.cols()) = basis_;
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+          jacobians[0], basis_.rows(), basis_.cols()) = basis_;
     }
     return true;
   }
@@ -62,10 +64,12 @@ double Seconds(std::chrono::steady_clock::time_point since) {
 StatusOr<BlendshapeFit> FitBlendshapeWeights(const FaceRig& rig, const std::vector<int>& vertices,
                                              const Eigen::Matrix3Xd& positions_in_skull) {
   const int k = static_cast<int>(rig.blendshape_deltas_mm.size());
-  if (k == 0) return FailedPreconditionError(fmt::format("face rig '{}' has no blendshapes to fit", rig.name));
+  if (k == 0)
+    return FailedPreconditionError(
+        fmt::format("face rig '{}' has no blendshapes to fit", rig.name));
   if (positions_in_skull.cols() != static_cast<Eigen::Index>(vertices.size()) || vertices.empty()) {
-    return InvalidArgumentError(fmt::format("blendshape fit: {} positions for {} vertices", positions_in_skull.cols(),
-                                            vertices.size()));
+    return InvalidArgumentError(fmt::format("blendshape fit: {} positions for {} vertices",
+                                            positions_in_skull.cols(), vertices.size()));
   }
   const int n = static_cast<int>(vertices.size());
   Eigen::MatrixXd basis(3 * n, k);
@@ -73,8 +77,8 @@ StatusOr<BlendshapeFit> FitBlendshapeWeights(const FaceRig& rig, const std::vect
   for (int i = 0; i < n; ++i) {
     const int v = vertices[i];
     if (v < 0 || v >= rig.vertex_count()) {
-      return InvalidArgumentError(fmt::format("blendshape fit: vertex {} is not on the rig's {} vertices", v,
-                                              rig.vertex_count()));
+      return InvalidArgumentError(fmt::format(
+          "blendshape fit: vertex {} is not on the rig's {} vertices", v, rig.vertex_count()));
     }
     for (int j = 0; j < k; ++j) basis.block<3, 1>(3 * i, j) = rig.blendshape_deltas_mm[j].col(v);
     offset.segment<3>(3 * i) = positions_in_skull.col(i) - rig.neutral.positions_mm.col(v);
@@ -112,7 +116,8 @@ double FittedJawOpenAngleRad(const FaceRig& rig) {
     points.col(i) = rig.neutral.positions_mm.col(vertices[i]);
     deltas.col(i) = rig.blendshape_deltas_mm[k].col(vertices[i]);
   }
-  return FitHingeAngleRad(points, deltas, rig.jaw.axis_in_skull.normalized(), rig.jaw.pivot_in_skull);
+  return FitHingeAngleRad(points, deltas, rig.jaw.axis_in_skull.normalized(),
+                          rig.jaw.pivot_in_skull);
 }
 
 double FittedJawAngleRad(const FaceRig& rig, const Eigen::VectorXd& weights) {
@@ -123,7 +128,9 @@ double FittedJawAngleRad(const FaceRig& rig, const Eigen::VectorXd& weights) {
 }
 
 std::vector<StiffnessGroup> DefaultStiffnessGroups() {
-  return {{"cheeks", {"cheeks", "mouth_corners"}}, {"mouth", {"upper_lip", "lower_lip", "chin"}}, {"rest", {}}};
+  return {{"cheeks", {"cheeks", "mouth_corners"}},
+          {"mouth", {"upper_lip", "lower_lip", "chin"}},
+          {"rest", {}}};
 }
 
 StatusOr<Eigen::VectorXi> TetStiffnessGroups(const FaceRig& rig, const TetShell& shell,
@@ -134,8 +141,9 @@ StatusOr<Eigen::VectorXi> TetStiffnessGroups(const FaceRig& rig, const TetShell&
   for (size_t g = 0; g < groups.size(); ++g) {
     if (groups[g].regions.empty()) {
       if (catch_all >= 0) {
-        return InvalidArgumentError(fmt::format("stiffness groups '{}' and '{}' both have no regions; only one may",
-                                                groups[catch_all].name, groups[g].name));
+        return InvalidArgumentError(
+            fmt::format("stiffness groups '{}' and '{}' both have no regions; only one may",
+                        groups[catch_all].name, groups[g].name));
       }
       catch_all = static_cast<int>(g);
       continue;
@@ -143,13 +151,15 @@ StatusOr<Eigen::VectorXi> TetStiffnessGroups(const FaceRig& rig, const TetShell&
     for (const std::string& region : groups[g].regions) {
       const auto found = rig.regions.find(region);
       if (found == rig.regions.end()) {
-        return InvalidArgumentError(fmt::format("stiffness group '{}': face rig '{}' has no region '{}'",
-                                                groups[g].name, rig.name, region));
+        return InvalidArgumentError(
+            fmt::format("stiffness group '{}': face rig '{}' has no region '{}'", groups[g].name,
+                        rig.name, region));
       }
       for (int v : found->second) {
         if (vertex_group[v] >= 0 && vertex_group[v] != static_cast<int>(g)) {
-          return InvalidArgumentError(fmt::format("stiffness groups '{}' and '{}' share region vertices ('{}')",
-                                                  groups[vertex_group[v]].name, groups[g].name, region));
+          return InvalidArgumentError(
+              fmt::format("stiffness groups '{}' and '{}' share region vertices ('{}')",
+                          groups[vertex_group[v]].name, groups[g].name, region));
         }
         vertex_group[v] = static_cast<int>(g);
       }
@@ -161,15 +171,18 @@ StatusOr<Eigen::VectorXi> TetStiffnessGroups(const FaceRig& rig, const TetShell&
     int g = vertex_group[shell.tet_surface_vertex[e]];
     if (g < 0) g = catch_all;
     if (g < 0) {
-      return InvalidArgumentError(fmt::format(
-          "stiffness groups: skin vertex {} is in no group's regions; add a group without regions for the rest",
-          shell.tet_surface_vertex[e]));
+      return InvalidArgumentError(
+          fmt::format("stiffness groups: skin vertex {} is in no group's regions; add a group "
+                      "without regions for the rest",
+                      shell.tet_surface_vertex[e]));
     }
     tet_group[e] = g;
     ++counts[g];
   }
   for (size_t g = 0; g < groups.size(); ++g) {
-    if (counts[g] == 0) return InvalidArgumentError(fmt::format("stiffness group '{}' has no tissue", groups[g].name));
+    if (counts[g] == 0)
+      return InvalidArgumentError(
+          fmt::format("stiffness group '{}' has no tissue", groups[g].name));
   }
   return tet_group;
 }
@@ -183,23 +196,70 @@ Status TwinFitOptions::Check() const {
   return Status::Ok();
 }
 
-StatusOr<FittedTwin> FitTwin(const FaceRig& rig, const std::vector<std::pair<std::string, const Take*>>& takes,
+StatusOr<FittedTwin> FitTwin(const FaceRig& rig,
+                             const std::vector<std::pair<std::string, const Take*>>& takes,
                              const TwinFitOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (takes.empty()) return InvalidArgumentError("twin fit: no platform takes");
-  FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<SoftTissueModel> model, SoftTissueModel::Create(rig, options.prior));
-  FACEDYN_ASSIGN_OR_RETURN(const Eigen::VectorXi tet_group, TetStiffnessGroups(rig, model->shell(), options.groups));
+  // Every take is checked before the model is built (seconds on a face).
+  for (const auto& [name, take] : takes) {
+    if (take == nullptr) return InvalidArgumentError(fmt::format("twin fit: {} is missing", name));
+    if (!take->info.platform_hz || !(*take->info.platform_hz > 0)) {
+      return InvalidArgumentError(
+          fmt::format("twin fit: {} has no platform frequency (platform_hz); only platform "
+                      "takes identify the material",
+                      name));
+    }
+    if (take->vertex_count() != rig.vertex_count()) {
+      return InvalidArgumentError(fmt::format("twin fit: {} has {} vertices, face rig '{}' has {}",
+                                              name, take->vertex_count(), rig.name,
+                                              rig.vertex_count()));
+    }
+    if (static_cast<int>(take->world_from_skull.size()) != take->frame_count() ||
+        static_cast<int>(take->time_s.size()) != take->frame_count()) {
+      return InvalidArgumentError(
+          fmt::format("twin fit: {} lacks a skull pose or a time per frame", name));
+    }
+    const double hz = *take->info.platform_hz;
+    const int first = FirstHeldFrame(*take);
+    const int held = take->frame_count() - first;
+    const double span = held > 1 ? take->time_s.back() - take->time_s[first] : 0.0;
+    if (held < 8 || span * hz < 2.0) {
+      return InvalidArgumentError(
+          fmt::format("twin fit: {} holds its expression for {} frames ({:.2f} s), need 8 frames "
+                      "over two periods of {} Hz",
+                      name, held, span, hz));
+    }
+  }
+  FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<SoftTissueModel> model,
+                           SoftTissueModel::Create(rig, options.prior));
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::VectorXi tet_group,
+                           TetStiffnessGroups(rig, model->shell(), options.groups));
   const int group_count = static_cast<int>(options.groups.size());
   FittedTwin twin;
   twin.rig_name = rig.name;
   twin.prior = options.prior;
   twin.groups = options.groups;
+  // The prior as a continuous-time material: Create calibrates the modulus for Newmark's step
+  // (its continuous mode sits above fundamental_hz, physics/soft_tissue.h "Material"); a twin
+  // describes the face itself, so its cheek mode is set to the prior's frequency and damping.
+  {
+    FACEDYN_ASSIGN_OR_RETURN(const DampedMode calibrated, model->CheekMode());
+    const double omega = 2 * M_PI * options.prior.fundamental_hz,
+                 zeta = options.prior.damping_ratio;
+    TissueMaterial prior = model->material();
+    prior.youngs_modulus_kpa *= std::pow(omega / calibrated.omega_rad_s, 2);
+    prior.rayleigh_mass = 2 * options.prior.mass_damping_share * zeta * omega;
+    prior.rayleigh_stiffness = 2 * (1 - options.prior.mass_damping_share) * zeta / omega;
+    FACEDYN_RETURN_IF_ERROR(model->SetMaterial(prior));
+  }
   FACEDYN_ASSIGN_OR_RETURN(twin.prior_cheek_mode, model->CheekMode());
 
   // Observed points: the markers' vertices that the tissue moves (not held by bone).
   const std::vector<int> observed = MarkerVertices(rig);
-  if (observed.size() < 3) return FailedPreconditionError(fmt::format("face rig '{}' has fewer than 3 markers", rig.name));
+  if (observed.size() < 3)
+    return FailedPreconditionError(fmt::format("face rig '{}' has fewer than 3 markers", rig.name));
 
   Progress progress("twin fit", static_cast<long>(takes.size()) + 2 + group_count);
   struct Prepared {
@@ -209,29 +269,9 @@ StatusOr<FittedTwin> FitTwin(const FaceRig& rig, const std::vector<std::pair<std
   };
   std::vector<Prepared> prepared;
   for (const auto& [name, take] : takes) {
-    if (take == nullptr) return InvalidArgumentError(fmt::format("twin fit: {} is missing", name));
-    if (!take->info.platform_hz || !(*take->info.platform_hz > 0)) {
-      return InvalidArgumentError(fmt::format("twin fit: {} has no platform frequency (platform_hz); only platform "
-                                              "takes identify the material",
-                                              name));
-    }
-    if (take->vertex_count() != rig.vertex_count()) {
-      return InvalidArgumentError(fmt::format("twin fit: {} has {} vertices, face rig '{}' has {}", name,
-                                              take->vertex_count(), rig.name, rig.vertex_count()));
-    }
-    if (static_cast<int>(take->world_from_skull.size()) != take->frame_count() ||
-        static_cast<int>(take->time_s.size()) != take->frame_count()) {
-      return InvalidArgumentError(fmt::format("twin fit: {} lacks a skull pose or a time per frame", name));
-    }
     const double hz = *take->info.platform_hz;
     const int first = FirstHeldFrame(*take);
     const int held = take->frame_count() - first;
-    const double span = held > 1 ? take->time_s.back() - take->time_s[first] : 0.0;
-    if (held < 8 || span * hz < 2.0) {
-      return InvalidArgumentError(fmt::format(
-          "twin fit: {} holds its expression for {} frames ({:.2f} s), need 8 frames over two periods of {} Hz", name,
-          held, span, hz));
-    }
     std::vector<double> times;
     std::vector<Rigid3> poses;
     std::vector<Eigen::Matrix3Xd> points;
@@ -252,7 +292,8 @@ StatusOr<FittedTwin> FitTwin(const FaceRig& rig, const std::vector<std::pair<std
     p.summary.name = name;
     p.summary.platform_hz = hz;
     p.summary.held_frames = held;
-    FACEDYN_ASSIGN_OR_RETURN(const BlendshapeFit expression, FitBlendshapeWeights(rig, observed, mean));
+    FACEDYN_ASSIGN_OR_RETURN(const BlendshapeFit expression,
+                             FitBlendshapeWeights(rig, observed, mean));
     p.summary.weights = expression.weights;
     p.summary.blendshape_rms_mm = expression.rms_mm;
     FACEDYN_ASSIGN_OR_RETURN(p.motion, FitHarmonicSkullMotion(times, poses, hz));
@@ -263,32 +304,42 @@ StatusOr<FittedTwin> FitTwin(const FaceRig& rig, const std::vector<std::pair<std
     progress.Advance();
   }
 
-  // One linearisation per distinct held expression.
-  std::vector<Eigen::VectorXd> expressions;
+  // One linearisation per distinct held expression: takes join the first cluster whose first
+  // member's weights are within the tolerance; each cluster is linearised about its mean.
+  std::vector<Eigen::VectorXd> expressions, seeds;
+  std::vector<int> members;
   for (Prepared& p : prepared) {
     int found = -1;
-    for (size_t e = 0; e < expressions.size() && found < 0; ++e) {
-      if ((expressions[e] - p.summary.weights).cwiseAbs().maxCoeff() < options.same_expression_tolerance) {
+    for (size_t e = 0; e < seeds.size() && found < 0; ++e) {
+      if ((seeds[e] - p.summary.weights).cwiseAbs().maxCoeff() <
+          options.same_expression_tolerance) {
         found = static_cast<int>(e);
       }
     }
     if (found < 0) {
-      found = static_cast<int>(expressions.size());
-      expressions.push_back(p.summary.weights);
+      found = static_cast<int>(seeds.size());
+      seeds.push_back(p.summary.weights);
+      expressions.push_back(Eigen::VectorXd::Zero(p.summary.weights.size()));
+      members.push_back(0);
     }
+    expressions[found] += p.summary.weights;
+    ++members[found];
     p.summary.linearisation = found;
   }
+  for (size_t e = 0; e < expressions.size(); ++e) expressions[e] /= members[e];
   std::vector<std::unique_ptr<HarmonicTissueResponse>> responses;
   double youngs_at_step = 0.0;
   for (const Eigen::VectorXd& weights : expressions) {
     FACEDYN_RETURN_IF_ERROR(
-        model->SetReference(weights, FittedJawAngleRad(rig, weights), options.prior.max_step_s).status());
-    youngs_at_step = model->youngs_modulus_kpa();
+        model->SetReference(weights, FittedJawAngleRad(rig, weights), options.prior.max_step_s)
+            .status());
+    youngs_at_step = model->material().youngs_modulus_kpa;
     FACEDYN_ASSIGN_OR_RETURN(TissueSystemParts parts, model->SystemParts(tet_group, group_count));
     std::vector<int> free_observed;
     for (int v : observed) {
       if (parts.skin_dof[v] < 0) {
-        return FailedPreconditionError(fmt::format("face rig '{}': marker vertex {} has no tissue under it", rig.name, v));
+        return FailedPreconditionError(
+            fmt::format("face rig '{}': marker vertex {} has no tissue under it", rig.name, v));
       }
       free_observed.push_back(v);
     }
@@ -310,8 +361,7 @@ StatusOr<FittedTwin> FitTwin(const FaceRig& rig, const std::vector<std::pair<std
   FACEDYN_ASSIGN_OR_RETURN(twin.fit, FitTissueMaterial(observations, options.fit));
   progress.Advance();
 
-  // The material: the prior's modulus (at the step the prior was calibrated for), scaled per
-  // group, with the fitted damping.
+  // The material: the prior's modulus scaled per group, with the fitted damping.
   const Eigen::VectorXd& theta = twin.fit.theta;
   twin.group_scale = theta.head(group_count).array().exp();
   twin.group_scale_log_stddev = twin.fit.theta_stddev.head(group_count);
@@ -323,7 +373,8 @@ StatusOr<FittedTwin> FitTwin(const FaceRig& rig, const std::vector<std::pair<std
     TissueMaterial material;
     material.youngs_modulus_kpa = youngs_at_step;
     material.tet_stiffness_scale.resize(tet_group.size());
-    for (Eigen::Index e = 0; e < tet_group.size(); ++e) material.tet_stiffness_scale[e] = scales[tet_group[e]];
+    for (Eigen::Index e = 0; e < tet_group.size(); ++e)
+      material.tet_stiffness_scale[e] = scales[tet_group[e]];
     material.rayleigh_mass = twin.rayleigh_mass;
     material.rayleigh_stiffness = twin.rayleigh_stiffness;
     return material;
@@ -346,7 +397,8 @@ StatusOr<FittedTwin> FitTwin(const FaceRig& rig, const std::vector<std::pair<std
     jacobian(0, g) = (shifted.omega_rad_s - omega) / kStep;
     progress.Advance();
   }
-  const double dzeta_domega = -twin.rayleigh_mass / (2 * omega * omega) + twin.rayleigh_stiffness / 2;
+  const double dzeta_domega =
+      -twin.rayleigh_mass / (2 * omega * omega) + twin.rayleigh_stiffness / 2;
   jacobian.row(1) = dzeta_domega * jacobian.row(0);
   jacobian(1, group_count) = twin.rayleigh_mass / (2 * omega);
   jacobian(1, group_count + 1) = twin.rayleigh_stiffness * omega / 2;
@@ -358,7 +410,8 @@ StatusOr<FittedTwin> FitTwin(const FaceRig& rig, const std::vector<std::pair<std
   for (const Prepared& prep : prepared) twin.takes.push_back(prep.summary);
   twin.marker_count = static_cast<int>(observed.size());
   twin.seconds = Seconds(start);
-  progress.Finish(fmt::format("cheeks {:.2f} Hz, damping {:.3f}", twin.cheek_mode.omega_rad_s / (2 * M_PI),
+  progress.Finish(fmt::format("cheeks {:.2f} Hz, damping {:.3f}",
+                              twin.cheek_mode.omega_rad_s / (2 * M_PI),
                               twin.cheek_mode.damping_ratio));
   return twin;
 }

@@ -21,10 +21,9 @@
 //    standard deviation propagated from the fit's covariance.
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/face_rig.h"
 #include "core/json_io.h"
@@ -79,35 +78,36 @@ struct TwinTake {
   std::string name;
   double platform_hz = 0.0;
   int held_frames = 0;
-  Eigen::VectorXd weights;        // fitted held expression
+  Eigen::VectorXd weights;  // fitted held expression
   double blendshape_rms_mm = 0.0;
-  double marker_amplitude_rms_mm = 0.0;  // RMS phasor modulus of the markers (skull frame)
+  double marker_amplitude_rms_mm = 0.0;   // RMS phasor modulus of the markers (skull frame)
   double skull_acceleration_mm_s2 = 0.0;  // modulus of the uniform acceleration load
-  int linearisation = 0;          // index of the shared linearisation
+  int linearisation = 0;                  // index of the shared linearisation
 };
 
 struct FittedTwin {
   std::string rig_name;
   TissueOptions prior;
   std::vector<StiffnessGroup> groups;
-  TissueMaterial material;                // ready for SoftTissueModel::SetMaterial
-  Eigen::VectorXd group_scale;            // stiffness scale per group (relative to the prior)
-  Eigen::VectorXd group_scale_log_stddev; // standard deviation of each scale's logarithm
+  TissueMaterial material;                 // ready for SoftTissueModel::SetMaterial
+  Eigen::VectorXd group_scale;             // stiffness scale per group (relative to the prior)
+  Eigen::VectorXd group_scale_log_stddev;  // standard deviation of each scale's logarithm
   double rayleigh_mass = 0.0, rayleigh_mass_log_stddev = 0.0;
   double rayleigh_stiffness = 0.0, rayleigh_stiffness_log_stddev = 0.0;
-  DampedMode prior_cheek_mode;            // the prior's neutral cheek mode (continuous time)
-  DampedMode cheek_mode;                  // the fitted twin's
+  DampedMode prior_cheek_mode;  // the prior's neutral cheek mode (continuous time)
+  DampedMode cheek_mode;        // the fitted twin's
   double cheek_hz_stddev = 0.0, cheek_damping_ratio_stddev = 0.0;
   MaterialFitResult fit;
   std::vector<TwinTake> takes;
   int marker_count = 0;
-  double seconds = 0.0;                   // wall time of the fit
+  double seconds = 0.0;  // wall time of the fit
 };
 
 // Fits the twin to `takes` (each with platform_hz; their names are for messages). Takes without
 // a platform frequency, or with fewer than 8 held frames over at least two periods, are refused
 // by name. Progress on stderr.
-StatusOr<FittedTwin> FitTwin(const FaceRig& rig, const std::vector<std::pair<std::string, const Take*>>& takes,
+StatusOr<FittedTwin> FitTwin(const FaceRig& rig,
+                             const std::vector<std::pair<std::string, const Take*>>& takes,
                              const TwinFitOptions& options);
 
 // The twin as JSON (format "facedyn-twin" version 1): rig, prior, groups with scales and their

@@ -1,0 +1,187 @@
+// `facedyn twin fit`: the subject's physical twin identified from a session's platform takes
+// (physics/twin.h). app/ only wires: reconstructed takes and the subject's FaceRig in, the
+// twin's JSON out. Nothing here reads a simulator's truth: no option takes a ground-truth
+// folder or channel, and the takes' channels are not read by the fit.
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "app/command.h"
+#include "core/file_util.h"
+#include "core/json_io.h"
+#include "core/take.h"
+#include "physics/twin.h"
+
+namespace facedyn::app {
+namespace {
+
+// "name:region+region;name:region;name" -> groups (a name alone takes the remaining tissue).
+StatusOr<std::vector<physics::StiffnessGroup>> ParseGroups(const std::string& spec) {
+  std::vector<physics::StiffnessGroup> groups;
+  std::stringstream stream(spec);
+  std::string item;
+  while (std::getline(stream, item, ';')) {
+    if (item.empty()) continue;
+    physics::StiffnessGroup group;
+    const size_t colon = item.find(':');
+    group.name = item.substr(0, colon);
+    if (group.name.empty())
+      return InvalidArgumentError("--groups: a group has no name in '" + spec + "'");
+    if (colon != std::string::npos) {
+      std::stringstream regions(item.substr(colon + 1));
+      std::string region;
+      while (std::getline(regions, region, '+')) {
+        if (!region.empty()) group.regions.push_back(region);
+      }
+      if (group.regions.empty()) {
+        return InvalidArgumentError("--groups: group '" + group.name +
+                                    "' lists no regions after ':'");
+      }
+    }
+    groups.push_back(group);
+  }
+  if (groups.empty()) return InvalidArgumentError("--groups: no groups in '" + spec + "'");
+  return groups;
+}
+
+std::string GroupsSpec(const std::vector<physics::StiffnessGroup>& groups) {
+  std::string spec;
+  for (const physics::StiffnessGroup& group : groups) {
+    if (!spec.empty()) spec += ";";
+    spec += group.name;
+    for (size_t i = 0; i < group.regions.size(); ++i)
+      spec += (i == 0 ? ":" : "+") + group.regions[i];
+  }
+  return spec;
+}
+
+}  // namespace
+
+void AddTwinCommands(CLI::App& app, CommandRunner* selected) {
+  auto* twin = app.add_subcommand(
+      "twin", "The subject's physical twin: the face model fitted to a capture (Bao et al. 2018)");
+  twin->require_subcommand(1);
+
+  struct FitOptions {
+    std::vector<std::string> takes;
+    std::string processed;
+    std::string face = "procedural";
+    std::string out;
+    std::string groups = GroupsSpec(physics::DefaultStiffnessGroups());
+    double prior_hz = physics::TissueOptions{}.fundamental_hz;
+    double prior_damping = physics::TissueOptions{}.damping_ratio;
+    int max_iterations = physics::MaterialFitOptions{}.max_iterations;
+    bool json = false;
+  };
+  auto options = std::make_shared<FitOptions>();
+  auto* fit = twin->add_subcommand("fit",
+                                   "Identify the twin's tissue (stiffness per region group, "
+                                   "damping) from reconstructed platform "
+                                   "takes of held expressions");
+  fit->add_option("--takes", options->takes,
+                  "Reconstructed platform takes (each with its platform frequency and hold time)");
+  fit->add_option("--processed", options->processed,
+                  "A `facedyn process` output folder: its reconstructed takes that have a platform "
+                  "frequency (the others are skipped and listed)");
+  fit->add_option("--face", options->face, "The subject's FaceRig folder, or 'procedural'")
+      ->capture_default_str();
+  fit->add_option("--out", options->out, "Twin JSON file to write")->required();
+  fit->add_option("--groups", options->groups,
+                  "Stiffness groups: 'name:region+region;...;name' (a name alone takes the rest)")
+      ->capture_default_str();
+  fit->add_option("--prior-hz", options->prior_hz, "The twin's cheek frequency before the fit (Hz)")
+      ->capture_default_str();
+  fit->add_option("--prior-damping", options->prior_damping,
+                  "The twin's damping ratio before the fit")
+      ->capture_default_str();
+  fit->add_option("--max-iterations", options->max_iterations,
+                  "Levenberg-Marquardt iterations per round")
+      ->capture_default_str();
+  fit->add_flag("--json", options->json, "Print the twin's JSON on stdout");
+  fit->callback([options, selected] {
+    *selected = [options]() -> Status {
+      const FitOptions& o = *options;
+      if (o.takes.empty() == o.processed.empty()) {
+        return InvalidArgumentError("twin fit: give either --takes or --processed (one of them)");
+      }
+      physics::TwinFitOptions fit_options;
+      fit_options.prior.fundamental_hz = o.prior_hz;
+      fit_options.prior.damping_ratio = o.prior_damping;
+      fit_options.fit.max_iterations = o.max_iterations;
+      FACEDYN_ASSIGN_OR_RETURN(fit_options.groups, ParseGroups(o.groups));
+      if (Status status = fit_options.Check(); !status.ok()) {
+        return InvalidArgumentError("twin fit: " + status.message() +
+                                    " (--prior-hz, --prior-damping, --max-iterations)");
+      }
+      FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(o.face));
+
+      std::vector<std::string> dirs = o.takes;
+      std::vector<std::string> skipped;
+      if (!o.processed.empty()) {
+        const std::filesystem::path root = std::filesystem::path(o.processed) / "takes";
+        std::error_code error;
+        if (!std::filesystem::is_directory(root, error)) {
+          return NotFoundError("twin fit: " + root.string() +
+                               " is not a folder (is --processed a `facedyn process` output?)");
+        }
+        std::vector<std::string> candidates;
+        for (const auto& entry : std::filesystem::directory_iterator(root, error)) {
+          const std::filesystem::path take = entry.path() / "reconstructed";
+          if (std::filesystem::exists(take / "take.json")) candidates.push_back(take.string());
+        }
+        std::sort(candidates.begin(), candidates.end());
+        for (const std::string& dir : candidates) {
+          FACEDYN_ASSIGN_OR_RETURN(const Take take, LoadTake(dir));
+          if (take.info.platform_hz) {
+            dirs.push_back(dir);
+          } else {
+            skipped.push_back(dir);
+          }
+        }
+        if (dirs.empty()) {
+          return NotFoundError("twin fit: " + o.processed +
+                               " has no reconstructed takes with a platform frequency");
+        }
+      }
+      std::vector<Take> takes;
+      takes.reserve(dirs.size());
+      for (const std::string& dir : dirs) {
+        FACEDYN_ASSIGN_OR_RETURN(Take take, LoadTake(dir));
+        takes.push_back(std::move(take));
+      }
+      std::vector<std::pair<std::string, const Take*>> named;
+      for (size_t i = 0; i < takes.size(); ++i) named.push_back({dirs[i], &takes[i]});
+      FACEDYN_ASSIGN_OR_RETURN(const physics::FittedTwin fitted,
+                               physics::FitTwin(rig, named, fit_options));
+      Json json = physics::TwinToJson(fitted);
+      json["skipped_takes"] = skipped;
+      FACEDYN_RETURN_IF_ERROR(WriteJsonFile(o.out, json));
+      if (o.json) {
+        std::printf("%s\n", json.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
+      } else {
+        spdlog::info(
+            "twin of '{}' from {} platform takes: cheeks {:.3f} +- {:.3f} Hz, damping ratio {:.4f} "
+            "+- {:.4f} "
+            "(prior {:.2f} Hz, {:.3f}); phasor residual {:.3f} -> {:.3f} mm; wrote {}",
+            rig.name, takes.size(), fitted.cheek_mode.omega_rad_s / (2 * M_PI),
+            fitted.cheek_hz_stddev, fitted.cheek_mode.damping_ratio,
+            fitted.cheek_damping_ratio_stddev, fitted.prior_cheek_mode.omega_rad_s / (2 * M_PI),
+            fitted.prior_cheek_mode.damping_ratio, fitted.fit.rms_initial_mm,
+            fitted.fit.rms_final_mm, o.out);
+        for (const std::string& dir : skipped)
+          spdlog::info("skipped (no platform frequency): {}", dir);
+      }
+      return Status::Ok();
+    };
+  });
+}
+
+}  // namespace facedyn::app

@@ -77,10 +77,13 @@ void AddSimCommands(CLI::App& app, CommandRunner* selected) {
       ->add_option("--expression", p.expression,
                    "Expression name, or 'speech' or 'range_of_motion'")
       ->capture_default_str();
-  perform->add_option("--motion", perform_options->motion, "platform | walk | run | jump | none | file:SKULL.csv")
+  perform->add_option("--motion", perform_options->motion, "platform | walk | run | jump | nod | shake | none | file:SKULL.csv")
       ->capture_default_str();
   perform->add_option("--hz", p.motion.platform_hz, "Platform frequency (Hz)")->capture_default_str();
   perform->add_option("--amplitude-mm", p.motion.amplitude_mm, "Platform amplitude (mm, peak)")->capture_default_str();
+  perform->add_option("--head-hz", p.motion.head_motion_hz, "Nod or shake frequency (Hz)")->capture_default_str();
+  perform->add_option("--head-deg", p.motion.head_motion_deg, "Nod or shake amplitude (degrees, peak)")
+      ->capture_default_str();
   perform->add_option("--seconds", p.seconds, "Duration (s)")->capture_default_str();
   perform->add_option("--fps", p.fps, "Frame rate")->capture_default_str();
   perform->add_option("--seed", p.seed, "Random seed (expression drift, motion phases)")->capture_default_str();

@@ -57,6 +57,11 @@ Json MotionJson(const MotionOptions& m) {
       json.update({{"jump_period_s", m.jump_period_s}, {"jump_flight_s", m.jump_flight_s},
                    {"jump_impact_g", m.jump_impact_g}, {"jump_impact_s", m.jump_impact_s}});
       break;
+    case MotionKind::kNod:
+    case MotionKind::kShake:
+      json.update({{"head_motion_hz", m.head_motion_hz}, {"head_motion_deg", m.head_motion_deg},
+                   {"neck_pivot_y_mm", m.neck_pivot_y_mm}, {"neck_pivot_z_mm", m.neck_pivot_z_mm}});
+      break;
     case MotionKind::kFile:
       json["file"] = m.file;
       break;

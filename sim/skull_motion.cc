@@ -160,6 +160,9 @@ class SynthesizedMotion : public SkullMotion {
   double forward_speed_mm_per_s = 0.0;
   double ramp_in_s = 0.25;
   double phase_offset_s = 0.0;
+  // The rotations turn the head about this point of the skull frame (the skull origin by
+  // default): world_from_skull = translation * pivot * rotation * pivot^-1.
+  Eigen::Vector3d pivot_in_skull = Eigen::Vector3d::Zero();
 
   Rigid3 WorldFromSkull(double t_s) const override {
     const double r = Ramp(t_s / ramp_in_s);
@@ -171,6 +174,7 @@ class SynthesizedMotion : public SkullMotion {
         Eigen::AngleAxisd(r * yaw_rad.Value(tc), Eigen::Vector3d::UnitY()) *
         Eigen::AngleAxisd(r * pitch_rad.Value(tc), Eigen::Vector3d::UnitX()) *
         Eigen::AngleAxisd(r * roll_rad.Value(tc), Eigen::Vector3d::UnitZ());
+    translation += pivot_in_skull - rotation * pivot_in_skull;
     return Rigid3(rotation, translation);
   }
 };
@@ -317,6 +321,17 @@ std::unique_ptr<SkullMotion> MakeJump(const MotionOptions& o) {
   return motion;
 }
 
+// Nodding (pitch) or shaking (yaw) the head about the neck: one sinusoid, seeded phase.
+std::unique_ptr<SkullMotion> MakeHeadRotation(const MotionOptions& o, bool shake) {
+  auto motion = std::make_unique<SynthesizedMotion>();
+  motion->ramp_in_s = o.ramp_in_s;
+  motion->pivot_in_skull = Eigen::Vector3d(0.0, o.neck_pivot_y_mm, o.neck_pivot_z_mm);
+  Random random(o.seed);
+  Channel& channel = shake ? motion->yaw_rad : motion->pitch_rad;
+  channel.sinusoids.push_back({o.head_motion_deg * kDegToRad, o.head_motion_hz, random.Uniform(0.0, kTwoPi)});
+  return motion;
+}
+
 // Rotation vector of a unit quaternion (the log map), taking the shorter arc.
 Eigen::Vector3d LogMap(Eigen::Quaterniond q) {
   if (q.w() < 0.0) q.coeffs() = -q.coeffs();
@@ -455,6 +470,10 @@ const char* MotionKindName(MotionKind kind) {
       return "run";
     case MotionKind::kJump:
       return "jump";
+    case MotionKind::kNod:
+      return "nod";
+    case MotionKind::kShake:
+      return "shake";
     case MotionKind::kNone:
       return "none";
     case MotionKind::kFile:
@@ -464,8 +483,9 @@ const char* MotionKindName(MotionKind kind) {
 }
 
 StatusOr<MotionKind> ParseMotionKind(const std::string& spec, std::string* file_path) {
-  static constexpr MotionKind kNamed[] = {MotionKind::kPlatform, MotionKind::kWalk,
-                                          MotionKind::kRun, MotionKind::kJump, MotionKind::kNone};
+  static constexpr MotionKind kNamed[] = {MotionKind::kPlatform, MotionKind::kWalk, MotionKind::kRun,
+                                          MotionKind::kJump,     MotionKind::kNod,  MotionKind::kShake,
+                                          MotionKind::kNone};
   for (MotionKind kind : kNamed) {
     if (spec == MotionKindName(kind)) return kind;
   }
@@ -479,7 +499,7 @@ StatusOr<MotionKind> ParseMotionKind(const std::string& spec, std::string* file_
     return MotionKind::kFile;
   }
   return InvalidArgumentError("motion '" + spec +
-                              "' is not one of platform, walk, run, jump, none, file:PATH");
+                              "' is not one of platform, walk, run, jump, nod, shake, none, file:PATH");
 }
 
 std::complex<double> BodyTransmissibility(double hz, double resonance_hz, double zeta) {
@@ -499,6 +519,10 @@ Status MotionOptions::Check() const {
   FACEDYN_RETURN_IF_ERROR(CheckRange("sway_mm", sway_mm, 0.0, 50.0, "mm"));
   FACEDYN_RETURN_IF_ERROR(CheckRange("sway_min_hz", sway_min_hz, 0.01, 5.0, "Hz"));
   FACEDYN_RETURN_IF_ERROR(CheckRange("sway_max_hz", sway_max_hz, sway_min_hz, 5.0, "Hz"));
+  FACEDYN_RETURN_IF_ERROR(CheckRange("head_motion_hz", head_motion_hz, 0.2, 6.0, "Hz"));
+  FACEDYN_RETURN_IF_ERROR(CheckRange("head_motion_deg", head_motion_deg, 0.0, 45.0, "deg"));
+  FACEDYN_RETURN_IF_ERROR(CheckRange("neck_pivot_y_mm", neck_pivot_y_mm, -200.0, 0.0, "mm"));
+  FACEDYN_RETURN_IF_ERROR(CheckRange("neck_pivot_z_mm", neck_pivot_z_mm, -150.0, 50.0, "mm"));
 
   FACEDYN_RETURN_IF_ERROR(CheckRange("walk_step_hz", walk_step_hz, 0.5, 4.0, "Hz"));
   FACEDYN_RETURN_IF_ERROR(
@@ -578,6 +602,10 @@ StatusOr<std::unique_ptr<SkullMotion>> MakeSkullMotion(const MotionOptions& opti
       return MakeRun(options);
     case MotionKind::kJump:
       return MakeJump(options);
+    case MotionKind::kNod:
+      return MakeHeadRotation(options, /*shake=*/false);
+    case MotionKind::kShake:
+      return MakeHeadRotation(options, /*shake=*/true);
     case MotionKind::kNone:
       return std::unique_ptr<SkullMotion>(std::make_unique<NoMotion>());
     case MotionKind::kFile: {

@@ -1,6 +1,6 @@
 // SkullMotion: the head's rigid trajectory world_from_skull(t) (the paper's T(t)) that drives
-// the soft-tissue simulation — a vibrating platform, walking, running, jumping, no motion, or a
-// recorded skull.csv.
+// the soft-tissue simulation — a vibrating platform, walking, running, jumping, nodding or
+// shaking the head, no motion, or a recorded skull.csv.
 //
 // Why it is shaped this way:
 // - The tissue is simulated in the skull frame, where head motion enters only through the
@@ -37,12 +37,12 @@
 
 namespace facedyn::sim {
 
-enum class MotionKind { kPlatform, kWalk, kRun, kJump, kNone, kFile };
+enum class MotionKind { kPlatform, kWalk, kRun, kJump, kNod, kShake, kNone, kFile };
 
-// "platform", "walk", "run", "jump", "none", "file".
+// "platform", "walk", "run", "jump", "nod", "shake", "none", "file".
 const char* MotionKindName(MotionKind kind);
 
-// Parses "platform|walk|run|jump|none|file:PATH". For "file:PATH" stores PATH in *file_path
+// Parses "platform|walk|run|jump|nod|shake|none|file:PATH". For "file:PATH" stores PATH in *file_path
 // (when non-null). An unknown spec or an empty PATH is an InvalidArgument error listing the
 // valid kinds.
 StatusOr<MotionKind> ParseMotionKind(const std::string& spec, std::string* file_path);
@@ -95,6 +95,15 @@ struct MotionOptions {
   double jump_flight_s = 0.4;   // time in the air; stance = period - flight
   double jump_impact_g = 3.0;   // landing transient added to the stance force, peak in g
   double jump_impact_s = 0.04;  // duration of the landing transient
+
+  // --- nod / shake: the head rotating on the neck, the motions Zoss et al. 2020 (section 8.1)
+  // could not capture on a platform (issue 23's augmentation). A sinusoidal pitch (nod) or yaw
+  // (shake) of head_motion_deg peak at head_motion_hz about a pivot at the top of the cervical
+  // spine, below and behind the skull origin, so the face also translates as the head turns. ---
+  double head_motion_hz = 2.0;      // allowed 0.2..6
+  double head_motion_deg = 15.0;    // peak, allowed 0..45
+  double neck_pivot_y_mm = -80.0;   // pivot in the skull frame (x = 0), allowed -200..0
+  double neck_pivot_z_mm = -20.0;   // allowed -150..50
 
   // Every field in range, and the pulses fit their stance phases. Messages name the field.
   Status Check() const;

@@ -1,7 +1,10 @@
-// `facedyn twin fit`: the subject's physical twin identified from a session's platform takes
-// (physics/twin.h). app/ only wires: reconstructed takes and the subject's FaceRig in, the
-// twin's JSON out. Nothing here reads a simulator's truth: no option takes a ground-truth
-// folder or channel, and the takes' channels are not read by the fit.
+// `facedyn twin fit` and `facedyn twin perform`: the subject's physical twin identified from a
+// session's platform takes (physics/twin.h), and the twin simulated under motions nobody
+// captured. app/ only wires: reconstructed takes and the subject's FaceRig in, the twin's JSON
+// out; `perform` runs the face model (through sim/'s performance generator: expression curves,
+// motions) with the twin's material instead of a configured one. Nothing here reads a
+// simulator's truth: no option takes a ground-truth folder or channel, and the takes' channels
+// are not read by the fit.
 
 #include <spdlog/spdlog.h>
 
@@ -19,6 +22,8 @@
 #include "core/json_io.h"
 #include "core/take.h"
 #include "physics/twin.h"
+#include "sim/performance.h"
+#include "sim/skull_motion.h"
 
 namespace facedyn::app {
 namespace {
@@ -64,6 +69,8 @@ std::string GroupsSpec(const std::vector<physics::StiffnessGroup>& groups) {
 }
 
 }  // namespace
+
+void AddTwinPerformCommand(CLI::App* twin, CommandRunner* selected);
 
 void AddTwinCommands(CLI::App& app, CommandRunner* selected) {
   auto* twin = app.add_subcommand(
@@ -179,6 +186,75 @@ void AddTwinCommands(CLI::App& app, CommandRunner* selected) {
         for (const std::string& dir : skipped)
           spdlog::info("skipped (no platform frequency): {}", dir);
       }
+      return Status::Ok();
+    };
+  });
+  AddTwinPerformCommand(twin, selected);
+}
+
+void AddTwinPerformCommand(CLI::App* twin_command, CommandRunner* selected) {
+  struct PerformOptions {
+    std::string twin;
+    std::string face = "procedural";
+    std::string motion = "nod";
+    std::string out;
+    sim::PerformanceOptions performance;
+  };
+  auto options = std::make_shared<PerformOptions>();
+  auto& p = options->performance;
+  auto* perform = twin_command->add_subcommand(
+      "perform",
+      "Simulate the twin: its fitted tissue under an expression and a head motion (training data)");
+  perform->add_option("--twin", options->twin, "Twin JSON from `facedyn twin fit`")->required();
+  perform
+      ->add_option("--face", options->face, "The FaceRig the twin was fitted to, or 'procedural'")
+      ->capture_default_str();
+  perform->add_option("--expression", p.expression, "Expression name, or 'speech'")
+      ->capture_default_str();
+  perform
+      ->add_option("--motion", options->motion,
+                   "nod | shake | platform | walk | run | jump | none | file:SKULL.csv")
+      ->capture_default_str();
+  perform->add_option("--hz", p.motion.platform_hz, "Platform frequency (Hz)")
+      ->capture_default_str();
+  perform->add_option("--amplitude-mm", p.motion.amplitude_mm, "Platform amplitude (mm, peak)")
+      ->capture_default_str();
+  perform->add_option("--head-hz", p.motion.head_motion_hz, "Nod or shake frequency (Hz)")
+      ->capture_default_str();
+  perform
+      ->add_option("--head-deg", p.motion.head_motion_deg, "Nod or shake amplitude (degrees, peak)")
+      ->capture_default_str();
+  perform->add_option("--seconds", p.seconds, "Duration (s)")->capture_default_str();
+  perform->add_option("--fps", p.fps, "Frame rate")->capture_default_str();
+  perform->add_option("--seed", p.seed, "Random seed (expression drift, motion phases)")
+      ->capture_default_str();
+  perform->add_option("--step-s", p.tissue.max_step_s, "Largest integration step (s)")
+      ->capture_default_str();
+  perform->add_option("--out", options->out, "Take folder to write")->required();
+  perform->callback([options, selected] {
+    *selected = [options]() -> Status {
+      sim::PerformanceOptions performance = options->performance;
+      FACEDYN_ASSIGN_OR_RETURN(performance.motion.kind,
+                               sim::ParseMotionKind(options->motion, &performance.motion.file));
+      performance.motion.seed = performance.seed;
+      FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(options->face));
+      FACEDYN_ASSIGN_OR_RETURN(const physics::LoadedTwin twin,
+                               physics::LoadTwin(options->twin, rig));
+      const double step_s = performance.tissue.max_step_s;
+      performance.tissue = twin.tissue;
+      performance.tissue.max_step_s = step_s;
+      performance.material = twin.material;
+      sim::PerformanceSummary summary;
+      FACEDYN_ASSIGN_OR_RETURN(Take take, sim::SimulatePerformance(rig, performance, &summary));
+      take.info.source = "twin perform";
+      take.info.metadata["generator"] = "facedyn twin perform";
+      take.info.metadata["twin"] = options->twin;
+      take.info.metadata["twin_cheek_mode"] = {{"hz", twin.cheek_mode.omega_rad_s / (2 * M_PI)},
+                                               {"damping_ratio", twin.cheek_mode.damping_ratio}};
+      FACEDYN_RETURN_IF_ERROR(SaveTake(take, options->out));
+      spdlog::info("wrote {} ({} frames of the twin, cheeks {:.2f} Hz; simulated in {:.1f} s)",
+                   options->out, take.frame_count(), twin.cheek_mode.omega_rad_s / (2 * M_PI),
+                   summary.simulate_s);
       return Status::Ok();
     };
   });

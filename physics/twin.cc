@@ -10,6 +10,7 @@
 #include <memory>
 #include <set>
 
+#include "core/config_node.h"
 #include "core/progress.h"
 #include "physics/face_anatomy.h"
 #include "physics/harmonic_response.h"
@@ -469,6 +470,70 @@ Json TwinToJson(const FittedTwin& twin) {
   }
   json["takes"] = takes;
   return json;
+}
+
+StatusOr<LoadedTwin> LoadTwin(const std::string& path, const FaceRig& rig) {
+  FACEDYN_ASSIGN_OR_RETURN(const ConfigNode root, ConfigNode::ReadFile(path));
+  FACEDYN_ASSIGN_OR_RETURN(const std::string format, root.Get<std::string>("format"));
+  if (format != "facedyn-twin")
+    return root.Error("format", "is '" + format + "', expected 'facedyn-twin'");
+  FACEDYN_ASSIGN_OR_RETURN(const int version, root.Get<int>("version"));
+  if (version != 1)
+    return root.Error("version", fmt::format("{} is not supported (1 is)", version));
+  FACEDYN_ASSIGN_OR_RETURN(const std::string rig_name, root.Get<std::string>("face_rig"));
+  if (rig_name != rig.name) {
+    return root.Error("face_rig", fmt::format("the twin was fitted to face rig '{}', not '{}'",
+                                              rig_name, rig.name));
+  }
+  LoadedTwin twin;
+  FACEDYN_ASSIGN_OR_RETURN(const ConfigNode prior, root.Child("prior"));
+  FACEDYN_ASSIGN_OR_RETURN(twin.tissue.layers, prior.Get<int>("layers"));
+  FACEDYN_ASSIGN_OR_RETURN(twin.tissue.poisson_ratio, prior.Get<double>("poisson_ratio"));
+  FACEDYN_ASSIGN_OR_RETURN(twin.tissue.density_kg_per_mm3, prior.Get<double>("density_kg_per_mm3"));
+  FACEDYN_ASSIGN_OR_RETURN(twin.tissue.muscle_hz, prior.Get<double>("muscle_hz"));
+  FACEDYN_ASSIGN_OR_RETURN(twin.tissue.fundamental_hz, prior.Get<double>("fundamental_hz"));
+  FACEDYN_ASSIGN_OR_RETURN(twin.tissue.damping_ratio, prior.Get<double>("damping_ratio"));
+  if (Status status = twin.tissue.Check(); !status.ok()) return prior.Error(status.message());
+  FACEDYN_ASSIGN_OR_RETURN(const ConfigNode groups, root.Child("stiffness_groups"));
+  if (!groups.IsSequence() || groups.size() == 0)
+    return root.Error("stiffness_groups", "must be a non-empty list");
+  std::vector<double> scales;
+  for (size_t g = 0; g < groups.size(); ++g) {
+    FACEDYN_ASSIGN_OR_RETURN(const ConfigNode group, groups.At(g));
+    StiffnessGroup entry;
+    FACEDYN_ASSIGN_OR_RETURN(entry.name, group.Get<std::string>("name"));
+    FACEDYN_ASSIGN_OR_RETURN(entry.regions, group.GetOr<std::vector<std::string>>("regions", {}));
+    FACEDYN_ASSIGN_OR_RETURN(const double scale, group.Get<double>("stiffness_scale"));
+    if (!(scale > 0)) return group.Error("stiffness_scale", "must be positive");
+    twin.groups.push_back(entry);
+    scales.push_back(scale);
+  }
+  FACEDYN_ASSIGN_OR_RETURN(twin.material.youngs_modulus_kpa,
+                           root.Get<double>("youngs_modulus_kpa"));
+  FACEDYN_ASSIGN_OR_RETURN(twin.material.rayleigh_mass, root.Get<double>("rayleigh_mass_per_s"));
+  FACEDYN_ASSIGN_OR_RETURN(twin.material.rayleigh_stiffness,
+                           root.Get<double>("rayleigh_stiffness_s"));
+  if (!(twin.material.youngs_modulus_kpa > 0))
+    return root.Error("youngs_modulus_kpa", "must be positive");
+  if (!(twin.material.rayleigh_mass >= 0)) return root.Error("rayleigh_mass_per_s", "must be >= 0");
+  if (!(twin.material.rayleigh_stiffness >= 0))
+    return root.Error("rayleigh_stiffness_s", "must be >= 0");
+  FACEDYN_ASSIGN_OR_RETURN(const ConfigNode mode, root.Child("cheek_mode"));
+  FACEDYN_ASSIGN_OR_RETURN(const double hz, mode.Get<double>("hz"));
+  FACEDYN_ASSIGN_OR_RETURN(twin.cheek_mode.damping_ratio, mode.Get<double>("damping_ratio"));
+  twin.cheek_mode.omega_rad_s = 2 * M_PI * hz;
+
+  if (rig.skull.vertex_count() != rig.vertex_count()) {
+    return FailedPreconditionError(
+        fmt::format("face rig '{}' has no skull sharing the skin's topology", rig.name));
+  }
+  const TetShell shell = BuildTetShell(rig.neutral, rig.skull.positions_mm, twin.tissue.layers);
+  StatusOr<Eigen::VectorXi> tet_group = TetStiffnessGroups(rig, shell, twin.groups);
+  if (!tet_group.ok()) return root.Error("stiffness_groups", tet_group.status().message());
+  twin.material.tet_stiffness_scale.resize(tet_group->size());
+  for (Eigen::Index e = 0; e < tet_group->size(); ++e)
+    twin.material.tet_stiffness_scale[e] = scales[(*tet_group)[e]];
+  return twin;
 }
 
 }  // namespace facedyn::physics

@@ -114,4 +114,15 @@ StatusOr<FittedTwin> FitTwin(const FaceRig& rig,
 // uncertainty, material, cheek mode, the fit's figures and each take's.
 Json TwinToJson(const FittedTwin& twin);
 
+// A twin file read back for simulation: the prior's tissue options (layers, Poisson ratio,
+// density, muscles) and the fitted material expanded to `rig`'s tetrahedra. Errors name the file
+// and field; a twin fitted to another rig (by name) is refused.
+struct LoadedTwin {
+  TissueOptions tissue;
+  TissueMaterial material;
+  std::vector<StiffnessGroup> groups;
+  DampedMode cheek_mode;
+};
+StatusOr<LoadedTwin> LoadTwin(const std::string& path, const FaceRig& rig);
+
 }  // namespace facedyn::physics

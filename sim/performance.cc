@@ -120,6 +120,7 @@ StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions&
   }
   FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<SkullMotion> motion, MakeSkullMotion(options.motion));
   FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<physics::SoftTissueModel> model, physics::SoftTissueModel::Create(rig, options.tissue));
+  if (options.material) FACEDYN_RETURN_IF_ERROR(model->SetMaterial(*options.material));
 
   const int frames = static_cast<int>(std::lround(options.seconds * options.fps));
   const double frame_dt = 1.0 / options.fps;
@@ -203,6 +204,7 @@ StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions&
       {"seed", options.seed},
       {"motion", MotionJson(options.motion)},
       {"tissue", TissueJson(options.tissue)},
+      {"material", options.material ? "explicit" : "calibrated"},
       {"youngs_modulus_kpa", model->youngs_modulus_kpa()},
       {"rayleigh_mass_per_s", model->rayleigh_mass()},
       {"rayleigh_stiffness_s", model->rayleigh_stiffness()},

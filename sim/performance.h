@@ -28,6 +28,9 @@ struct PerformanceOptions {
   double fps = 128.0;
   uint64_t seed = 1;  // expression drift/speech timing; the motion has its own seed
   physics::TissueOptions tissue;
+  // An explicit material in place of tissue's calibration (a fitted twin's, physics/twin.h
+  // LoadTwin); tissue's other fields (layers, Poisson ratio, density, muscles, step) still apply.
+  std::optional<physics::TissueMaterial> material;
 
   Status Check() const;
 };

@@ -328,7 +328,8 @@ std::unique_ptr<SkullMotion> MakeHeadRotation(const MotionOptions& o, bool shake
   motion->pivot_in_skull = Eigen::Vector3d(0.0, o.neck_pivot_y_mm, o.neck_pivot_z_mm);
   Random random(o.seed);
   Channel& channel = shake ? motion->yaw_rad : motion->pitch_rad;
-  channel.sinusoids.push_back({o.head_motion_deg * kDegToRad, o.head_motion_hz, random.Uniform(0.0, kTwoPi)});
+  channel.sinusoids.push_back(
+      {o.head_motion_deg * kDegToRad, o.head_motion_hz, random.Uniform(0.0, kTwoPi)});
   return motion;
 }
 
@@ -483,9 +484,9 @@ const char* MotionKindName(MotionKind kind) {
 }
 
 StatusOr<MotionKind> ParseMotionKind(const std::string& spec, std::string* file_path) {
-  static constexpr MotionKind kNamed[] = {MotionKind::kPlatform, MotionKind::kWalk, MotionKind::kRun,
-                                          MotionKind::kJump,     MotionKind::kNod,  MotionKind::kShake,
-                                          MotionKind::kNone};
+  static constexpr MotionKind kNamed[] = {
+      MotionKind::kPlatform, MotionKind::kWalk,  MotionKind::kRun, MotionKind::kJump,
+      MotionKind::kNod,      MotionKind::kShake, MotionKind::kNone};
   for (MotionKind kind : kNamed) {
     if (spec == MotionKindName(kind)) return kind;
   }
@@ -498,8 +499,8 @@ StatusOr<MotionKind> ParseMotionKind(const std::string& spec, std::string* file_
     if (file_path != nullptr) *file_path = path;
     return MotionKind::kFile;
   }
-  return InvalidArgumentError("motion '" + spec +
-                              "' is not one of platform, walk, run, jump, nod, shake, none, file:PATH");
+  return InvalidArgumentError(
+      "motion '" + spec + "' is not one of platform, walk, run, jump, nod, shake, none, file:PATH");
 }
 
 std::complex<double> BodyTransmissibility(double hz, double resonance_hz, double zeta) {

@@ -42,9 +42,9 @@ enum class MotionKind { kPlatform, kWalk, kRun, kJump, kNod, kShake, kNone, kFil
 // "platform", "walk", "run", "jump", "nod", "shake", "none", "file".
 const char* MotionKindName(MotionKind kind);
 
-// Parses "platform|walk|run|jump|nod|shake|none|file:PATH". For "file:PATH" stores PATH in *file_path
-// (when non-null). An unknown spec or an empty PATH is an InvalidArgument error listing the
-// valid kinds.
+// Parses "platform|walk|run|jump|nod|shake|none|file:PATH". For "file:PATH" stores PATH in
+// *file_path (when non-null). An unknown spec or an empty PATH is an InvalidArgument error listing
+// the valid kinds.
 StatusOr<MotionKind> ParseMotionKind(const std::string& spec, std::string* file_path);
 
 struct MotionOptions {
@@ -100,10 +100,10 @@ struct MotionOptions {
   // could not capture on a platform (issue 23's augmentation). A sinusoidal pitch (nod) or yaw
   // (shake) of head_motion_deg peak at head_motion_hz about a pivot at the top of the cervical
   // spine, below and behind the skull origin, so the face also translates as the head turns. ---
-  double head_motion_hz = 2.0;      // allowed 0.2..6
-  double head_motion_deg = 15.0;    // peak, allowed 0..45
-  double neck_pivot_y_mm = -80.0;   // pivot in the skull frame (x = 0), allowed -200..0
-  double neck_pivot_z_mm = -20.0;   // allowed -150..50
+  double head_motion_hz = 2.0;     // allowed 0.2..6
+  double head_motion_deg = 15.0;   // peak, allowed 0..45
+  double neck_pivot_y_mm = -80.0;  // pivot in the skull frame (x = 0), allowed -200..0
+  double neck_pivot_z_mm = -20.0;  // allowed -150..50
 
   // Every field in range, and the pulses fit their stance phases. Messages name the field.
   Status Check() const;

@@ -109,6 +109,29 @@ TEST(TwinCli, FitsThePlatformTakesWithoutTheirTruth) {
             0)
       << out;
   const auto stripped = nlohmann::json::parse(out);
+
+  // The twin simulated under a motion nobody captured: a short nod with its material.
+  ASSERT_EQ(RunCommand(Facedyn("--quiet twin perform --twin " + dir.Join("twin.json") +
+                               " --motion nod --seconds 0.5 --fps 32 --out " + dir.Join("nod")),
+                       &out),
+            0)
+      << out;
+  const auto nod = ReadJson(dir.Join("nod/take.json"));
+  EXPECT_EQ(nod["metadata"]["generator"], "facedyn twin perform");
+  EXPECT_EQ(nod["metadata"]["material"], "explicit");
+  EXPECT_EQ(nod["metadata"]["motion"]["kind"], "nod");
+  EXPECT_DOUBLE_EQ(nod["metadata"]["twin_cheek_mode"]["hz"].get<double>(),
+                   twin["cheek_mode"]["hz"].get<double>());
+  // A twin of another face is refused by name.
+  nlohmann::json other = twin;
+  other["face_rig"] = "someone_else";
+  std::ofstream(dir.Join("other.json")) << other.dump();
+  EXPECT_NE(RunCommand(Facedyn("twin perform --twin " + dir.Join("other.json") + " --out " +
+                               dir.Join("x")),
+                       &out),
+            0);
+  EXPECT_THAT(out, HasSubstr("someone_else"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("x")));
   EXPECT_EQ(stripped["cheek_mode"], twin["cheek_mode"]);
   EXPECT_EQ(stripped["stiffness_groups"], twin["stiffness_groups"]);
   ASSERT_EQ(stripped["skipped_takes"].size(), 1u);

@@ -203,9 +203,8 @@ TEST(SkullMotionKinematics, MatchesAnalyticForConstantRateRotation) {
 // formula straddling those instants is off by O(h * jump); that window is checked on its own
 // with a tolerance that reflects it.
 TEST(SkullMotionKinematics, AgreesWithFiniteDifferencesForGaits) {
-  for (MotionKind kind :
-       {MotionKind::kWalk, MotionKind::kRun, MotionKind::kJump, MotionKind::kPlatform, MotionKind::kNod,
-        MotionKind::kShake}) {
+  for (MotionKind kind : {MotionKind::kWalk, MotionKind::kRun, MotionKind::kJump,
+                          MotionKind::kPlatform, MotionKind::kNod, MotionKind::kShake}) {
     SCOPED_TRACE(MotionKindName(kind));
     const auto motion = Make(OptionsFor(kind));
     ASSERT_NE(motion, nullptr);
@@ -477,7 +476,8 @@ TEST(HeadRotationMotion, TurnsAboutTheNeckPivot) {
     const auto motion = Make(options);
     ASSERT_NE(motion, nullptr);
     const Eigen::Vector3d pivot(0.0, options.neck_pivot_y_mm, options.neck_pivot_z_mm);
-    const Eigen::Vector3d axis = kind == MotionKind::kNod ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+    const Eigen::Vector3d axis =
+        kind == MotionKind::kNod ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
     double peak_rad = 0.0, pivot_drift_mm = 0.0, off_axis_rad = 0.0;
     std::vector<double> angle;
     const double dt = 1.0 / 256;
@@ -498,9 +498,10 @@ TEST(HeadRotationMotion, TurnsAboutTheNeckPivot) {
     // The face (100 mm in front of the skull origin) moves by centimetres.
     double face_travel_mm = 0.0;
     for (double t = 1.0; t < 1.5; t += dt) {
-      face_travel_mm = std::max(face_travel_mm, (motion->WorldFromSkull(t).Apply(Eigen::Vector3d(0, 0, 100)) -
-                                                 Eigen::Vector3d(0, 0, 100))
-                                                    .norm());
+      face_travel_mm = std::max(
+          face_travel_mm,
+          (motion->WorldFromSkull(t).Apply(Eigen::Vector3d(0, 0, 100)) - Eigen::Vector3d(0, 0, 100))
+              .norm());
     }
     EXPECT_GT(face_travel_mm, 20.0);
   }
@@ -508,8 +509,9 @@ TEST(HeadRotationMotion, TurnsAboutTheNeckPivot) {
 
 TEST(ParseMotionKind, AcceptsKindsAndFilePaths) {
   std::string path;
-  for (MotionKind kind : {MotionKind::kPlatform, MotionKind::kWalk, MotionKind::kRun, MotionKind::kJump,
-                          MotionKind::kNod, MotionKind::kShake, MotionKind::kNone}) {
+  for (MotionKind kind :
+       {MotionKind::kPlatform, MotionKind::kWalk, MotionKind::kRun, MotionKind::kJump,
+        MotionKind::kNod, MotionKind::kShake, MotionKind::kNone}) {
     StatusOr<MotionKind> parsed = ParseMotionKind(MotionKindName(kind), &path);
     ASSERT_TRUE(parsed.ok()) << parsed.status().ToString();
     EXPECT_EQ(*parsed, kind);
@@ -525,7 +527,8 @@ TEST(ParseMotionKind, BadSpecListsValidKinds) {
   StatusOr<MotionKind> parsed = ParseMotionKind("wobble", &path);
   ASSERT_FALSE(parsed.ok());
   EXPECT_EQ(parsed.status().code(), StatusCode::kInvalidArgument);
-  for (const char* name : {"wobble", "platform", "walk", "run", "jump", "nod", "shake", "none", "file:PATH"}) {
+  for (const char* name :
+       {"wobble", "platform", "walk", "run", "jump", "nod", "shake", "none", "file:PATH"}) {
     EXPECT_NE(parsed.status().message().find(name), std::string::npos)
         << parsed.status().ToString();
   }

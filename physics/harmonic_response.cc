@@ -62,6 +62,30 @@ Eigen::Vector3cd Cross(const Eigen::Vector3cd& a, const Eigen::Vector3cd& b) {
                           a[0] * b[1] - a[1] * b[0]);
 }
 
+// A = stiffness K + mass M at the motion's frequency for theta's damping:
+// (1 + i w beta) K + (i w alpha - w^2) M.
+struct Factors {
+  double omega, alpha, beta;
+  Complex stiffness, mass;
+};
+Factors FactorsOf(const Eigen::VectorXd& theta, int groups, const HarmonicSkullMotion& motion) {
+  Factors f;
+  f.omega = 2 * M_PI * motion.frequency_hz;
+  f.alpha = std::exp(theta[groups]);
+  f.beta = std::exp(theta[groups + 1]);
+  f.stiffness = Complex(1.0, f.omega * f.beta);
+  f.mass = Complex(-f.omega * f.omega, f.omega * f.alpha);
+  return f;
+}
+
+// The load_fields' coefficients (physics/soft_tissue.h TissueSystemParts).
+Eigen::Matrix<Complex, 6, 1> LoadOf(const HarmonicSkullMotion& motion) {
+  Eigen::Matrix<Complex, 6, 1> load;
+  load.head<3>() = motion.uniform_acceleration_in_skull;
+  load.tail<3>() = -motion.angular_acceleration_in_skull;
+  return load;
+}
+
 Eigen::Vector3d RotationVector(const Eigen::Quaterniond& q) {
   const Eigen::AngleAxisd angle_axis(q);
   return angle_axis.angle() * angle_axis.axis();
@@ -298,17 +322,14 @@ Status HarmonicTissueResponse::EvaluateReduced(const Eigen::VectorXd& theta,
                                                Eigen::Matrix3Xcd* response,
                                                std::vector<Eigen::Matrix3Xcd>* jacobian) const {
   const int groups = group_count();
-  const double omega = 2 * M_PI * motion.frequency_hz;
-  const double alpha = std::exp(theta[groups]), beta = std::exp(theta[groups + 1]);
-  const Complex stiffness_factor(1.0, omega * beta);
-  const Complex mass_factor(-omega * omega, omega * alpha);
+  const Factors f = FactorsOf(theta, groups, motion);
+  const double omega = f.omega, alpha = f.alpha, beta = f.beta;
+  const Complex stiffness_factor = f.stiffness, mass_factor = f.mass;
   Eigen::MatrixXd k = reduced_springs_;
   for (int g = 0; g < groups; ++g) k += std::exp(theta[g]) * reduced_stiffness_[g];
   const Eigen::MatrixXcd a =
       stiffness_factor * k.cast<Complex>() + mass_factor * reduced_mass_.cast<Complex>();
-  Eigen::Matrix<Complex, 6, 1> load;
-  load.head<3>() = motion.uniform_acceleration_in_skull;
-  load.tail<3>() = -motion.angular_acceleration_in_skull;
+  const Eigen::Matrix<Complex, 6, 1> load = LoadOf(motion);
   const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(a);
   const Eigen::VectorXcd q = lu.solve(reduced_loads_.cast<Complex>() * load);
   if (!q.allFinite()) {
@@ -341,10 +362,9 @@ Status HarmonicTissueResponse::EvaluateFull(const Eigen::VectorXd& theta,
                                             Eigen::Matrix3Xcd* response,
                                             std::vector<Eigen::Matrix3Xcd>* jacobian) const {
   const int groups = group_count();
-  const double omega = 2 * M_PI * motion.frequency_hz;
-  const double alpha = std::exp(theta[groups]), beta = std::exp(theta[groups + 1]);
-  const Complex stiffness_factor(1.0, omega * beta);
-  const Complex mass_factor(-omega * omega, omega * alpha);
+  const Factors f = FactorsOf(theta, groups, motion);
+  const double omega = f.omega, alpha = f.alpha, beta = f.beta;
+  const Complex stiffness_factor = f.stiffness, mass_factor = f.mass;
   const Eigen::Index nnz = parts_.stiffness_by_group.front().nonZeros();
   const Eigen::Index dofs = parts_.mass_dofs.size();
 
@@ -365,9 +385,7 @@ Status HarmonicTissueResponse::EvaluateFull(const Eigen::VectorXd& theta,
     return InternalError(
         fmt::format("harmonic response: the system at {} Hz is singular", motion.frequency_hz));
   }
-  Eigen::Matrix<Complex, 6, 1> load;
-  load.head<3>() = motion.uniform_acceleration_in_skull;
-  load.tail<3>() = -motion.angular_acceleration_in_skull;
+  const Eigen::Matrix<Complex, 6, 1> load = LoadOf(motion);
   const Eigen::VectorXcd force = parts_.load_fields.cast<Complex>() * load;
   const Eigen::VectorXcd u = solver_->lu.solve(force);
   if (solver_->lu.info() != Eigen::Success)

@@ -7,6 +7,7 @@
 #include <spdlog/spdlog.h>
 
 #include "app/command.h"
+#include "app/performance_flags.h"
 #include "core/face_rig.h"
 #include "core/take.h"
 #include "physics/face_anatomy.h"
@@ -73,20 +74,7 @@ void AddSimCommands(CLI::App& app, CommandRunner* selected) {
   auto* perform = sim->add_subcommand(
       "perform", "Simulate a take: dynamic skin plus the exact quasistatic channel");
   perform->add_option("--face", perform_options->face, "FaceRig folder, or 'procedural'")->capture_default_str();
-  perform
-      ->add_option("--expression", p.expression,
-                   "Expression name, or 'speech' or 'range_of_motion'")
-      ->capture_default_str();
-  perform->add_option("--motion", perform_options->motion, "platform | walk | run | jump | nod | shake | none | file:SKULL.csv")
-      ->capture_default_str();
-  perform->add_option("--hz", p.motion.platform_hz, "Platform frequency (Hz)")->capture_default_str();
-  perform->add_option("--amplitude-mm", p.motion.amplitude_mm, "Platform amplitude (mm, peak)")->capture_default_str();
-  perform->add_option("--head-hz", p.motion.head_motion_hz, "Nod or shake frequency (Hz)")->capture_default_str();
-  perform->add_option("--head-deg", p.motion.head_motion_deg, "Nod or shake amplitude (degrees, peak)")
-      ->capture_default_str();
-  perform->add_option("--seconds", p.seconds, "Duration (s)")->capture_default_str();
-  perform->add_option("--fps", p.fps, "Frame rate")->capture_default_str();
-  perform->add_option("--seed", p.seed, "Random seed (expression drift, motion phases)")->capture_default_str();
+  AddPerformanceFlags(perform, &p, &perform_options->motion);
   perform->add_option("--fundamental-hz", p.tissue.fundamental_hz, "Neutral tissue's lowest natural frequency")
       ->capture_default_str();
   perform->add_option("--damping-ratio", p.tissue.damping_ratio, "Tissue damping ratio at the fundamental")

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "app/command.h"
+#include "app/performance_flags.h"
 #include "core/file_util.h"
 #include "core/json_io.h"
 #include "core/take.h"
@@ -209,25 +210,7 @@ void AddTwinPerformCommand(CLI::App* twin_command, CommandRunner* selected) {
   perform
       ->add_option("--face", options->face, "The FaceRig the twin was fitted to, or 'procedural'")
       ->capture_default_str();
-  perform->add_option("--expression", p.expression, "Expression name, or 'speech'")
-      ->capture_default_str();
-  perform
-      ->add_option("--motion", options->motion,
-                   "nod | shake | platform | walk | run | jump | none | file:SKULL.csv")
-      ->capture_default_str();
-  perform->add_option("--hz", p.motion.platform_hz, "Platform frequency (Hz)")
-      ->capture_default_str();
-  perform->add_option("--amplitude-mm", p.motion.amplitude_mm, "Platform amplitude (mm, peak)")
-      ->capture_default_str();
-  perform->add_option("--head-hz", p.motion.head_motion_hz, "Nod or shake frequency (Hz)")
-      ->capture_default_str();
-  perform
-      ->add_option("--head-deg", p.motion.head_motion_deg, "Nod or shake amplitude (degrees, peak)")
-      ->capture_default_str();
-  perform->add_option("--seconds", p.seconds, "Duration (s)")->capture_default_str();
-  perform->add_option("--fps", p.fps, "Frame rate")->capture_default_str();
-  perform->add_option("--seed", p.seed, "Random seed (expression drift, motion phases)")
-      ->capture_default_str();
+  AddPerformanceFlags(perform, &p, &options->motion);
   perform->add_option("--step-s", p.tissue.max_step_s, "Largest integration step (s)")
       ->capture_default_str();
   perform->add_option("--out", options->out, "Take folder to write")->required();

@@ -323,12 +323,10 @@ Status HarmonicTissueResponse::EvaluateReduced(const Eigen::VectorXd& theta,
                                                std::vector<Eigen::Matrix3Xcd>* jacobian) const {
   const int groups = group_count();
   const Factors f = FactorsOf(theta, groups, motion);
-  const double omega = f.omega, alpha = f.alpha, beta = f.beta;
-  const Complex stiffness_factor = f.stiffness, mass_factor = f.mass;
   Eigen::MatrixXd k = reduced_springs_;
   for (int g = 0; g < groups; ++g) k += std::exp(theta[g]) * reduced_stiffness_[g];
   const Eigen::MatrixXcd a =
-      stiffness_factor * k.cast<Complex>() + mass_factor * reduced_mass_.cast<Complex>();
+      f.stiffness * k.cast<Complex>() + f.mass * reduced_mass_.cast<Complex>();
   const Eigen::Matrix<Complex, 6, 1> load = LoadOf(motion);
   const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(a);
   const Eigen::VectorXcd q = lu.solve(reduced_loads_.cast<Complex>() * load);
@@ -343,11 +341,10 @@ Status HarmonicTissueResponse::EvaluateReduced(const Eigen::VectorXd& theta,
   if (jacobian == nullptr) return Status::Ok();
   Eigen::MatrixXcd rhs(q.size(), parameter_count());
   for (int g = 0; g < groups; ++g) {
-    rhs.col(g) =
-        stiffness_factor * std::exp(theta[g]) * (reduced_stiffness_[g].cast<Complex>() * q);
+    rhs.col(g) = f.stiffness * std::exp(theta[g]) * (reduced_stiffness_[g].cast<Complex>() * q);
   }
-  rhs.col(groups) = Complex(0, omega * alpha) * (reduced_mass_.cast<Complex>() * q);
-  rhs.col(groups + 1) = Complex(0, omega * beta) * (k.cast<Complex>() * q);
+  rhs.col(groups) = Complex(0, f.omega * f.alpha) * (reduced_mass_.cast<Complex>() * q);
+  rhs.col(groups + 1) = Complex(0, f.omega * f.beta) * (k.cast<Complex>() * q);
   const Eigen::MatrixXcd dq = -lu.solve(rhs);
   jacobian->resize(parameter_count());
   for (int j = 0; j < parameter_count(); ++j) {
@@ -363,8 +360,6 @@ Status HarmonicTissueResponse::EvaluateFull(const Eigen::VectorXd& theta,
                                             std::vector<Eigen::Matrix3Xcd>* jacobian) const {
   const int groups = group_count();
   const Factors f = FactorsOf(theta, groups, motion);
-  const double omega = f.omega, alpha = f.alpha, beta = f.beta;
-  const Complex stiffness_factor = f.stiffness, mass_factor = f.mass;
   const Eigen::Index nnz = parts_.stiffness_by_group.front().nonZeros();
   const Eigen::Index dofs = parts_.mass_dofs.size();
 
@@ -377,9 +372,9 @@ Status HarmonicTissueResponse::EvaluateFull(const Eigen::VectorXd& theta,
   for (Eigen::Index d = 0; d < dofs; ++d) k_values[diagonal_entry_[d]] += parts_.spring_dofs[d];
   ComplexSparse& a = solver_->system;
   Eigen::Map<Eigen::VectorXcd> a_values(a.valuePtr(), nnz);
-  a_values = stiffness_factor * k_values.cast<Complex>();
+  a_values = f.stiffness * k_values.cast<Complex>();
   for (Eigen::Index d = 0; d < dofs; ++d)
-    a_values[diagonal_entry_[d]] += mass_factor * parts_.mass_dofs[d];
+    a_values[diagonal_entry_[d]] += f.mass * parts_.mass_dofs[d];
   solver_->lu.factorize(a);
   if (solver_->lu.info() != Eigen::Success) {
     return InternalError(
@@ -407,12 +402,13 @@ Status HarmonicTissueResponse::EvaluateFull(const Eigen::VectorXd& theta,
   Eigen::VectorXcd k_u = Eigen::VectorXcd::Zero(dofs);
   for (int g = 0; g < groups; ++g) {
     const Eigen::VectorXcd kg_u = multiply(parts_.stiffness_by_group[g], std::exp(theta[g]));
-    rhs.col(g) = stiffness_factor * kg_u;
+    rhs.col(g) = f.stiffness * kg_u;
     k_u += kg_u;
   }
   k_u += parts_.spring_dofs.cast<Complex>().cwiseProduct(u);
-  rhs.col(groups) = Complex(0, omega * alpha) * parts_.mass_dofs.cast<Complex>().cwiseProduct(u);
-  rhs.col(groups + 1) = Complex(0, omega * beta) * k_u;
+  rhs.col(groups) =
+      Complex(0, f.omega * f.alpha) * parts_.mass_dofs.cast<Complex>().cwiseProduct(u);
+  rhs.col(groups + 1) = Complex(0, f.omega * f.beta) * k_u;
   const Eigen::MatrixXcd du = -solver_->lu.solve(rhs);
   jacobian->resize(parameter_count());
   for (int j = 0; j < parameter_count(); ++j) gather(du.col(j), &(*jacobian)[j]);

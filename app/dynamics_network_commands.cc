@@ -95,6 +95,8 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
   // --- train-removal ---
   struct TrainRemovalCommand {
     std::vector<std::string> takes;
+    std::vector<std::string> twin_takes;
+    double twin_weight = 1.0;
     std::string face = "procedural";
     std::string out;
     std::string targets = "moving-average";
@@ -108,6 +110,18 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
   train_removal_cmd->add_option("--takes", train_removal->takes, "Training take folders")
       ->required()
       ->expected(1, -1);
+  train_removal_cmd
+      ->add_option("--twin-takes", train_removal->twin_takes,
+                   "Takes of the subject's fitted twin (`facedyn twin perform`), trained beside "
+                   "--takes on the twin's own exact quasistatic: head motions the session could "
+                   "not capture")
+      ->expected(1, -1);
+  train_removal_cmd
+      ->add_option("--twin-weight", train_removal->twin_weight,
+                   "How much each twin take's frames count against a captured take's (each "
+                   "frame drawn this many times per epoch; fractions draw a seeded subset)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   train_removal_cmd->add_option("--face", train_removal->face, "FaceRig folder, or 'procedural'")
       ->capture_default_str();
   train_removal_cmd->add_option("--out", train_removal->out, "Model file to write (e.g. F.pt)")
@@ -162,10 +176,25 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       }
       FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(train_removal->face));
       FACEDYN_ASSIGN_OR_RETURN(const std::vector<Take> takes, LoadTakes(train_removal->takes));
+      FACEDYN_ASSIGN_OR_RETURN(const std::vector<Take> twin_takes,
+                               LoadTakes(train_removal->twin_takes));
+      std::vector<dynamics::TrainingTake> training = AsTraining(takes, rig);
+      for (size_t k = 0; k < twin_takes.size(); ++k) {
+        // Only the twin's own simulation may bring exact targets: a simulator take here would
+        // hand the method the world's truth.
+        if (twin_takes[k].info.source != "twin perform") {
+          return InvalidArgumentError(fmt::format(
+              "train-removal: --twin-takes {} is not a twin take (its source is \"{}\", not "
+              "\"twin perform\")",
+              train_removal->twin_takes[k], twin_takes[k].info.source));
+        }
+        training.push_back({&twin_takes[k], &rig, dynamics::RemovalTargets::kExact,
+                            train_removal->twin_weight});
+      }
       learn::MlpTrainSummary summary;
       FACEDYN_ASSIGN_OR_RETURN(
           const dynamics::RemovalModel model,
-          dynamics::TrainRemoval(AsTraining(takes, rig), train_removal->options, &summary));
+          dynamics::TrainRemoval(training, train_removal->options, &summary));
       FACEDYN_RETURN_IF_ERROR(model.Save(train_removal->out));
       spdlog::info("wrote {} ({} training rows, validation loss {:.4g})", train_removal->out,
                    summary.training_rows,

@@ -190,9 +190,15 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
                                     const RemovalTrainOptions& options, learn::MlpTrainSummary* summary) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (takes.empty()) return InvalidArgumentError("train-removal: no training takes");
-  for (const TrainingTake& training : takes) {
+  for (size_t k = 0; k < takes.size(); ++k) {
+    const TrainingTake& training = takes[k];
     FACEDYN_CHECK(training.take != nullptr && training.rig != nullptr,
                   "TrainRemoval: training take without take or rig");
+    if (!(std::isfinite(training.weight) && training.weight > 0)) {
+      return InvalidArgumentError("train-removal: training take " + std::to_string(k) +
+                                  " has weight " + std::to_string(training.weight) +
+                                  "; a weight must be finite and > 0");
+    }
   }
   RemovalConfig config = RemovalConfig::ForRig(*takes[0].rig, takes[0].take->info.fps);
   config.features.window_s = options.window_s;
@@ -229,8 +235,9 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
     // the ends than that have edge-clamped estimates (for the platform-synchronous fit, whose
     // window spans 1.5 platform periods, up to 0.3 mm wrong on a 11 Hz take) and are not used.
     int target_window = 0;
+    const RemovalTargets kind = takes[k].targets.value_or(options.targets);
     auto targets = [&]() -> StatusOr<PointCache> {
-      if (options.targets == RemovalTargets::kExact) {
+      if (kind == RemovalTargets::kExact) {
         const auto channel = take.channels.find("quasistatic");
         if (channel == take.channels.end()) {
           return FailedPreconditionError(
@@ -241,9 +248,8 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
       }
       QuasistaticOptions quasistatic;
       quasistatic.window_s = options.window_s;
-      if (options.targets == RemovalTargets::kPlatformSynchronous ||
-          (options.targets == RemovalTargets::kPlatformSynchronousWhereKnown &&
-           take.info.platform_hz)) {
+      if (kind == RemovalTargets::kPlatformSynchronous ||
+          (kind == RemovalTargets::kPlatformSynchronousWhereKnown && take.info.platform_hz)) {
         quasistatic.method = QuasistaticMethod::kPlatformSynchronous;
         quasistatic.trend_degree = options.target_trend_degree;
         quasistatic.min_periods = options.target_min_periods;
@@ -257,8 +263,7 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
     const int margin = std::max(window, target_window);
     // Estimated targets assume a held expression: frames before the take's hold start are not
     // trained on (training_frames.h). Exact targets hold everywhere.
-    const FrameRange range =
-        UsableFrames(take, margin, options.targets != RemovalTargets::kExact);
+    const FrameRange range = UsableFrames(take, margin, kind != RemovalTargets::kExact);
     if (learner && !range.empty()) {
       if (Status status = learner->Add(*offsets, range.begin, range.end); !status.ok()) {
         return status.WithContext(context);
@@ -279,9 +284,13 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
   const FrameSplit split =
       SplitByBlocks(ranges, options.validation_fraction, ValidationBlockFrames(window),
                     ValidationGapFrames(window), options.train.seed);
+  std::vector<double> weights;
+  for (const TrainingTake& training : takes) weights.push_back(training.weight);
+  const std::vector<TakeFrame> weighted_train =
+      WeightedFrames(split.train, weights, options.train.seed);
   std::vector<long> train_rows, validation_rows;
-  for (const auto& [frames, rows] :
-       {std::pair{&split.train, &train_rows}, std::pair{&split.validation, &validation_rows}}) {
+  for (const auto& [frames, rows] : {std::pair{&weighted_train, &train_rows},
+                                     std::pair{&split.validation, &validation_rows}}) {
     for (const TakeFrame& frame : *frames) {
       for (int i = 0; i < config.sample_count; ++i) {
         rows->push_back(data.RowOf(frame.first, frame.second, i));

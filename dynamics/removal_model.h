@@ -82,12 +82,6 @@ StatusOr<const SamplePropagation*> SelectPropagation(const SamplePropagation* mo
                                                      const FaceRig& rig,
                                                      std::optional<SamplePropagation>* built);
 
-// One training take: the dynamic take and the rig that defines its landmarks and samples.
-struct TrainingTake {
-  const Take* take = nullptr;
-  const FaceRig* rig = nullptr;
-};
-
 // Where the training targets dx come from.
 enum class RemovalTargets {
   kMovingAverage,  // Eq. (5)-(6) on held-expression takes, as in the paper (the default)
@@ -106,6 +100,25 @@ enum class RemovalTargets {
 // (InvalidArgument listing them).
 const char* RemovalTargetsName(RemovalTargets targets);
 StatusOr<RemovalTargets> ParseRemovalTargets(const std::string& name);
+
+// One training take: the dynamic take and the rig that defines its landmarks and samples.
+struct TrainingTake {
+  TrainingTake() = default;
+  TrainingTake(const Take* take_in, const FaceRig* rig_in,
+               std::optional<RemovalTargets> targets_in = std::nullopt, double weight_in = 1.0)
+      : take(take_in), rig(rig_in), targets(targets_in), weight(weight_in) {}
+
+  const Take* take = nullptr;
+  const FaceRig* rig = nullptr;
+  // This take's targets instead of RemovalTrainOptions::targets: a session's captured takes
+  // (estimated targets) trained beside twin takes (`facedyn twin perform`, whose exact
+  // quasistatic is the twin model's own, not a world's truth) need both kinds at once.
+  std::optional<RemovalTargets> targets;
+  // How much the take's training frames count: each is drawn `weight` times per epoch (the
+  // fractional part as a seeded subset of its frames), so twin takes can be weighted against
+  // captured ones. Validation frames count once. Must be finite and > 0.
+  double weight = 1.0;
+};
 
 struct RemovalTrainOptions {
   // Optimisation: the paper's 250 epochs, batch 10,000 and Adam at 1e-3 (sec. 5.2).

@@ -84,4 +84,35 @@ FrameSplit SplitByBlocks(const std::vector<FrameRange>& usable_per_take, double 
   return split;
 }
 
+std::vector<TakeFrame> WeightedFrames(const std::vector<TakeFrame>& frames,
+                                      const std::vector<double>& weights, uint64_t seed) {
+  for (double weight : weights) {
+    FACEDYN_CHECK(std::isfinite(weight) && weight > 0, "WeightedFrames: weight must be > 0");
+  }
+  std::vector<std::vector<TakeFrame>> per_take(weights.size());
+  for (const TakeFrame& frame : frames) {
+    FACEDYN_CHECK(frame.first >= 0 && frame.first < static_cast<int>(weights.size()),
+                  "WeightedFrames: frame of an unknown take");
+    per_take[frame.first].push_back(frame);
+  }
+  std::vector<TakeFrame> out;
+  std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ULL);  // apart from the validation split's draw
+  for (size_t k = 0; k < weights.size(); ++k) {
+    const std::vector<TakeFrame>& take = per_take[k];
+    const double whole = std::floor(weights[k]);
+    for (int r = 0; r < static_cast<int>(whole); ++r)
+      out.insert(out.end(), take.begin(), take.end());
+    const size_t extra =
+        static_cast<size_t>(std::lround((weights[k] - whole) * static_cast<double>(take.size())));
+    if (extra == 0) continue;
+    std::vector<size_t> order(take.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::shuffle(order.begin(), order.end(), rng);
+    order.resize(extra);
+    std::sort(order.begin(), order.end());
+    for (size_t i : order) out.push_back(take[i]);
+  }
+  return out;
+}
+
 }  // namespace facedyn::dynamics

@@ -63,6 +63,13 @@ struct FrameSplit {
 FrameSplit SplitByBlocks(const std::vector<FrameRange>& usable_per_take, double fraction,
                          int block_frames, int gap_frames, uint64_t seed);
 
+// Training frames repeated by their take's weight (weights[take] finite, > 0, one per take;
+// CHECKed): every frame of take k appears floor(w_k) times, and a seeded choice of
+// round(frac(w_k) * n_k) of its n_k frames once more, so a take of weight 0.5 contributes half
+// its frames and one of weight 2 each frame twice. Order: by take, then the input's order.
+std::vector<TakeFrame> WeightedFrames(const std::vector<TakeFrame>& frames,
+                                      const std::vector<double>& weights, uint64_t seed);
+
 // Block length and gap for a window of w frames: blocks of max(2w + 1, 4w) frames, gap 2w.
 int ValidationBlockFrames(int window_frames);
 inline int ValidationGapFrames(int window_frames) { return 2 * window_frames; }

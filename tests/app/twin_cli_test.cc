@@ -112,7 +112,7 @@ TEST(TwinCli, FitsThePlatformTakesWithoutTheirTruth) {
 
   // The twin simulated under a motion nobody captured: a short nod with its material.
   ASSERT_EQ(RunCommand(Facedyn("--quiet twin perform --twin " + dir.Join("twin.json") +
-                               " --motion nod --seconds 0.5 --fps 32 --out " + dir.Join("nod")),
+                               " --motion nod --seconds 0.5 --fps 64 --out " + dir.Join("nod")),
                        &out),
             0)
       << out;
@@ -122,6 +122,37 @@ TEST(TwinCli, FitsThePlatformTakesWithoutTheirTruth) {
   EXPECT_EQ(nod["metadata"]["motion"]["kind"], "nod");
   EXPECT_DOUBLE_EQ(nod["metadata"]["twin_cheek_mode"]["hz"].get<double>(),
                    twin["cheek_mode"]["hz"].get<double>());
+  // F trained on the captured takes (stripped of truth, moving-average targets) beside the twin
+  // take (the twin's own exact quasistatic), weighted; a simulator take passed as a twin take
+  // would bring the world's truth and is refused by name.
+  const std::string captured = " --takes " + dir.Join("processed/takes/p6/reconstructed") + " " +
+                               dir.Join("processed/takes/p8/reconstructed");
+  ASSERT_EQ(RunCommand(Facedyn("--quiet dynamics train-removal" + captured + " --twin-takes " +
+                               dir.Join("nod") + " --twin-weight 2 --epochs 1 --batch 256 --out " +
+                               dir.Join("F.pt") + " --json"),
+                       &out),
+            0)
+      << out;
+  const auto with_twin = nlohmann::json::parse(out);
+  ASSERT_EQ(RunCommand(Facedyn("--quiet dynamics train-removal" + captured +
+                               " --epochs 1 --batch 256 --out " + dir.Join("F0.pt") + " --json"),
+                       &out),
+            0)
+      << out;
+  EXPECT_GT(with_twin["training_rows"].get<long>(),
+            nlohmann::json::parse(out)["training_rows"].get<long>());
+  EXPECT_NE(RunCommand(Facedyn("dynamics train-removal" + captured + " --twin-takes " +
+                               takes.Join("p10") + " --out " + dir.Join("F1.pt")),
+                       &out),
+            0);
+  EXPECT_THAT(out, HasSubstr("is not a twin take"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("F1.pt")));
+  EXPECT_NE(RunCommand(Facedyn("dynamics train-removal" + captured + " --twin-takes " +
+                               dir.Join("nod") + " --twin-weight 0 --out " + dir.Join("F1.pt")),
+                       &out),
+            0);
+  EXPECT_THAT(out, HasSubstr("--twin-weight"));
+
   // A twin of another face is refused by name.
   nlohmann::json other = twin;
   other["face_rig"] = "someone_else";

@@ -338,6 +338,44 @@ TEST(TrainRemoval, PlatformSynchronousWhereKnownMixesTargetsPerTake) {
               HasSubstr("platform-synchronous-where-known"));
 }
 
+// Captured takes (estimated targets) beside twin takes (their exact quasistatic): a take's own
+// targets override the options' and give the same model as training with that kind alone; a
+// weight draws its frames that many times, and a weight that is not > 0 is refused by take.
+TEST(TrainRemoval, PerTakeTargetsAndWeights) {
+  const FaceRig rig = TinyRig();
+  const Take take = SyntheticTake(rig, 80, 128.0, 0.0);
+  RemovalTrainOptions moving = QuickOptions(2);
+  moving.targets = RemovalTargets::kMovingAverage;
+  const RemovalModel exact_alone = TrainRemoval({{&take, &rig}}, QuickOptions(2)).value();
+  const RemovalModel overridden =
+      TrainRemoval({{&take, &rig, RemovalTargets::kExact}}, moving).value();
+  EXPECT_EQ(overridden.FlatParameters(), exact_alone.FlatParameters());
+  EXPECT_NE(TrainRemoval({{&take, &rig}}, moving).value().FlatParameters(),
+            exact_alone.FlatParameters());
+
+  auto training_rows = [&](double weight_b) {
+    RemovalTrainOptions options = QuickOptions(1);
+    options.validation_fraction = 0.0;
+    learn::MlpTrainSummary summary;
+    EXPECT_TRUE(
+        TrainRemoval({{&take, &rig}, {&take, &rig, std::nullopt, weight_b}}, options, &summary)
+            .ok());
+    return summary.training_rows;
+  };
+  const long one = training_rows(1.0) / 2;  // rows of one take at weight 1
+  ASSERT_GT(one, 0);
+  EXPECT_EQ(training_rows(3.0), one + 3 * one);
+  const long samples = static_cast<long>(rig.skin_samples.size());
+  const long frames = one / samples;
+  EXPECT_EQ(training_rows(0.5), one + std::lround(0.5 * frames) * samples);
+  for (double bad : {0.0, -1.0, std::nan("")}) {
+    EXPECT_THAT(TrainRemoval({{&take, &rig}, {&take, &rig, std::nullopt, bad}}, QuickOptions(1))
+                    .status()
+                    .message(),
+                HasSubstr("training take 1 has weight"));
+  }
+}
+
 TEST(TrainRemoval, LearnsItsPropagationAndSavesIt) {
   const FaceRig rig = TinyRig();
   const Take take = SyntheticTake(rig, 80, 128.0, 0.0);

@@ -124,5 +124,30 @@ TEST(SplitByBlocks, BlocksAreContiguousAndSeeded) {
   EXPECT_TRUE(differs);
 }
 
+TEST(WeightedFrames, RepeatsWholeWeightsAndDrawsASeededFraction) {
+  std::vector<TakeFrame> frames;
+  for (int t = 0; t < 10; ++t) frames.emplace_back(0, t);
+  for (int t = 0; t < 20; ++t) frames.emplace_back(1, t);
+  // Weight 1 everywhere is the input itself, in its order.
+  EXPECT_EQ(WeightedFrames(frames, {1.0, 1.0}, 3), frames);
+  const std::vector<TakeFrame> weighted = WeightedFrames(frames, {2.0, 0.25}, 3);
+  std::map<TakeFrame, int> count;
+  for (const TakeFrame& frame : weighted) ++count[frame];
+  long take0 = 0, take1 = 0;
+  for (const auto& [frame, n] : count) {
+    if (frame.first == 0) {
+      EXPECT_EQ(n, 2) << frame.second;
+      take0 += n;
+    } else {
+      EXPECT_EQ(n, 1) << frame.second;
+      take1 += n;
+    }
+  }
+  EXPECT_EQ(take0, 20);
+  EXPECT_EQ(take1, 5);  // round(0.25 * 20)
+  EXPECT_EQ(WeightedFrames(frames, {2.0, 0.25}, 3), weighted);
+  EXPECT_NE(WeightedFrames(frames, {2.0, 0.25}, 4), weighted);
+}
+
 }  // namespace
 }  // namespace facedyn::dynamics

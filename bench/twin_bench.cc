@@ -16,8 +16,24 @@
 // damping ratio, which the simulator reproduces in its motion (physics/soft_tissue.h,
 // "Material"). Also the fit's seconds and phasor residuals.
 //
+// "augmentation" (issue 23's "augmentation pays"; needs the reconstructed takes): does training
+// data from the twin help F on head motions the session never captured? The subject is also
+// filmed nodding and shaking its head (each of --expressions, one nod and one shake whose
+// frequency and amplitude no training take has) and on the platform at --held-out-hz, all
+// reconstructed the same way and kept out of every training set. Two removal networks F:
+//   - "captured": the reconstructed platform takes only, platform-synchronous targets (the
+//     session's own estimate, dynamics/quasistatic.h);
+//   - "augmented": the same takes plus the twin simulated (as `facedyn twin perform` does, with
+//     the fitted material, never the subject's) nodding and shaking at other frequencies and
+//     amplitudes, on the twin's own exact quasistatic (dynamics::TrainingTake targets, weight
+//     --twin-weight), for the same number of optimiser steps.
+// Scored on each held-out take against the subject's exact quasistatic over its jiggling
+// vertices (eval/metrics.h), beside doing nothing; the per-seed ratio augmented / captured on
+// the nod and shake takes, and on the held-out platform frequency, is summarised over seeds.
+//
 //   twin_bench [--seeds 1,2,3] [--true-hz 9.0] [--true-damping 0.28] [--frequencies 6,7,8,9,10]
-//              [--expressions neutral,smile] [--seconds 2.5] [--no-reconstruct] [--quick]
+//              [--expressions neutral,smile] [--seconds 2.5] [--no-reconstruct] [--no-clean]
+//              [--no-augmentation] [--held-out-hz 11] [--twin-weight 1] [--epochs 40] [--quick]
 //
 // --quick: one seed, frequencies 6,8,10, neutral only, 2 s takes.
 
@@ -32,6 +48,9 @@
 #include "core/json_io.h"
 #include "core/log.h"
 #include "core/progress.h"
+#include "dynamics/removal_model.h"
+#include "dynamics/training_frames.h"
+#include "eval/metrics.h"
 #include "eval/replicates.h"
 #include "eval/simulated_stage.h"
 #include "physics/twin.h"
@@ -63,6 +82,25 @@ struct Settings {
   // the configured damping ratio (which free vibration shows exactly); at 1/512 s the warp is
   // 16 times smaller. See the header.
   double sim_step_s = 1.0 / 512;
+  bool clean = true;  // also fit the twin to the clean takes
+  bool augmentation = true;
+  double held_out_hz = 11.0;
+  double test_seconds = 3.0;
+  double twin_weight = 1.0;
+  int epochs = 40;
+  // The held-out head motions of the subject (kind, Hz, degrees peak) and the twin's training
+  // motions: every twin motion differs from every test motion in frequency and amplitude.
+  struct HeadMotion {
+    sim::MotionKind kind;
+    double hz, deg;
+  };
+  std::vector<HeadMotion> test_motions = {{sim::MotionKind::kNod, 2.2, 12.0},
+                                          {sim::MotionKind::kShake, 1.8, 16.0}};
+  std::vector<HeadMotion> twin_motions = {
+      {sim::MotionKind::kNod, 1.4, 8.0},    {sim::MotionKind::kNod, 3.0, 20.0},
+      {sim::MotionKind::kNod, 1.4, 20.0},   {sim::MotionKind::kNod, 3.0, 8.0},
+      {sim::MotionKind::kShake, 1.2, 10.0}, {sim::MotionKind::kShake, 2.6, 22.0},
+      {sim::MotionKind::kShake, 1.2, 22.0}, {sim::MotionKind::kShake, 2.6, 10.0}};
 };
 
 [[noreturn]] void Fail(const std::string& message) {
@@ -85,6 +123,174 @@ Json FitJson(const physics::FittedTwin& twin, const Settings& s) {
                    {"damping_error_percent",
                     100.0 * (twin.cheek_mode.damping_ratio - s.true_damping) / s.true_damping}};
   return json;
+}
+
+const char* MotionName(sim::MotionKind kind) {
+  return kind == sim::MotionKind::kNod ? "nod" : "shake";
+}
+
+// One held-out take of the subject: the simulation (truth kept, for scoring only) and its
+// reconstruction (what the methods get).
+struct HeldOutTake {
+  std::string name;
+  std::string protocol;  // "held-out head motion" or "held-out platform frequency"
+  facedyn::Take simulated;
+  facedyn::Take reconstructed;
+};
+
+// Mean error (mm) of `positions` against the simulated take's exact quasistatic over its
+// jiggling vertices and scored frames.
+double JiggleErrorMm(const facedyn::PointCache& positions, const HeldOutTake& take,
+                     int window_frames) {
+  const facedyn::dynamics::FrameRange scored =
+      facedyn::dynamics::ScoredFrames(take.simulated, window_frames);
+  const std::vector<int> jiggle =
+      eval::JigglingVertices(take.simulated.channels.at("dynamic_offset"), scored);
+  return eval::MeanDistanceOverVertices(positions, take.simulated.channels.at("quasistatic"),
+                                        jiggle, scored);
+}
+
+// The augmentation study of one seed (see the header). `captured` are the reconstructed
+// platform takes the twin was fitted to.
+Json RunAugmentation(const facedyn::FaceRig& face, const eval::SimulatedCameraRig& cameras,
+                     const Settings& s, uint64_t seed, const std::vector<facedyn::Take>& captured,
+                     const physics::FittedTwin& twin, std::vector<double>* motion_ratios,
+                     std::vector<double>* platform_ratios) {
+  namespace dynamics = facedyn::dynamics;
+  const auto start = Clock::now();
+  // The subject's held-out takes.
+  std::vector<HeldOutTake> tests;
+  uint64_t reconstruction_seed = seed * 1000 + 500;
+  auto film = [&](const std::string& name, const std::string& protocol,
+                  const sim::PerformanceOptions& options) {
+    HeldOutTake test{name, protocol, Check(sim::SimulatePerformance(face, options), name), {}};
+    test.reconstructed =
+        Check(eval::ReconstructSimulatedTake(face, cameras, test.simulated, reconstruction_seed++),
+              "reconstruct " + name)
+            .take;
+    tests.push_back(std::move(test));
+  };
+  for (const std::string& expression : s.expressions) {
+    sim::PerformanceOptions options;
+    options.expression = expression;
+    options.seconds = s.test_seconds;
+    options.seed = seed + 50;
+    options.tissue.fundamental_hz = s.true_hz;
+    options.tissue.damping_ratio = s.true_damping;
+    options.tissue.max_step_s = s.sim_step_s;
+    for (const Settings::HeadMotion& motion : s.test_motions) {
+      options.motion = sim::MotionOptions();
+      options.motion.kind = motion.kind;
+      options.motion.head_motion_hz = motion.hz;
+      options.motion.head_motion_deg = motion.deg;
+      options.motion.seed = seed * 100 + 77;
+      film(expression + " " + MotionName(motion.kind), "held-out head motion", options);
+    }
+    options.motion = sim::MotionOptions();
+    options.motion.kind = sim::MotionKind::kPlatform;
+    options.motion.platform_hz = s.held_out_hz;
+    options.motion.seed = seed * 100 + 99;
+    film(expression + "@" + std::to_string(s.held_out_hz) + "Hz", "held-out platform frequency",
+         options);
+  }
+  const double test_s = Seconds(start);
+
+  // The twin's training takes: its fitted material, never the subject's.
+  auto twin_start = Clock::now();
+  std::vector<facedyn::Take> twin_takes;
+  for (const std::string& expression : s.expressions) {
+    for (size_t m = 0; m < s.twin_motions.size(); ++m) {
+      sim::PerformanceOptions options;
+      options.expression = expression;
+      options.seconds = s.seconds;
+      options.seed = seed * 10 + m;
+      options.tissue = twin.prior;  // layers, density, muscles; the material is the fitted one
+      options.material = twin.material;
+      options.motion.kind = s.twin_motions[m].kind;
+      options.motion.head_motion_hz = s.twin_motions[m].hz;
+      options.motion.head_motion_deg = s.twin_motions[m].deg;
+      options.motion.seed = seed * 100 + 10 + m;
+      twin_takes.push_back(Check(sim::SimulatePerformance(face, options), "twin perform"));
+      twin_takes.back().info.source = "twin perform";
+    }
+  }
+  const double twin_s = Seconds(twin_start);
+
+  // The two networks, the same optimiser budget.
+  dynamics::RemovalTrainOptions options;
+  options.targets = dynamics::RemovalTargets::kPlatformSynchronous;
+  options.train.epochs = s.epochs;
+  options.train.final_learning_rate_fraction = 0.05;
+  options.train.seed = seed;
+  std::vector<dynamics::TrainingTake> training;
+  for (const facedyn::Take& take : captured) training.emplace_back(&take, &face);
+  facedyn::learn::MlpTrainSummary captured_summary, augmented_summary;
+  auto train_start = Clock::now();
+  const dynamics::RemovalModel f_captured =
+      Check(dynamics::TrainRemoval(training, options, &captured_summary), "train F (captured)");
+  for (const facedyn::Take& take : twin_takes) {
+    training.emplace_back(&take, &face, dynamics::RemovalTargets::kExact, s.twin_weight);
+  }
+  options.train.optimizer_steps = captured_summary.optimizer_steps;
+  const dynamics::RemovalModel f_augmented =
+      Check(dynamics::TrainRemoval(training, options, &augmented_summary), "train F (augmented)");
+  const double train_s = Seconds(train_start);
+
+  const int window = f_captured.config().features.window_frames();
+  Json takes = Json::array();
+  std::vector<double> motion_captured, motion_augmented, platform_captured, platform_augmented;
+  for (const HeldOutTake& test : tests) {
+    const facedyn::Take by_captured =
+        Check(dynamics::RemoveDynamics(f_captured, test.reconstructed, face), "remove");
+    const facedyn::Take by_augmented =
+        Check(dynamics::RemoveDynamics(f_augmented, test.reconstructed, face), "remove");
+    const double none = JiggleErrorMm(test.reconstructed.positions, test, window);
+    const double a = JiggleErrorMm(by_captured.positions, test, window);
+    const double b = JiggleErrorMm(by_augmented.positions, test, window);
+    const bool motion = test.protocol == "held-out head motion";
+    (motion ? motion_captured : platform_captured).push_back(a);
+    (motion ? motion_augmented : platform_augmented).push_back(b);
+    takes.push_back({{"take", test.name},
+                     {"protocol", test.protocol},
+                     {"methods",
+                      {{"no_removal", {{"jiggle_mean_mm", eval::Round4(none)}}},
+                       {"F_captured", {{"jiggle_mean_mm", eval::Round4(a)}}},
+                       {"F_augmented", {{"jiggle_mean_mm", eval::Round4(b)}}}}}});
+  }
+  auto mean = [](const std::vector<double>& v) {
+    double sum = 0;
+    for (double x : v) sum += x;
+    return v.empty() ? 0.0 : sum / static_cast<double>(v.size());
+  };
+  const double motion_ratio = mean(motion_augmented) / mean(motion_captured);
+  const double platform_ratio = mean(platform_augmented) / mean(platform_captured);
+  motion_ratios->push_back(motion_ratio);
+  platform_ratios->push_back(platform_ratio);
+  Json twin_motions = Json::array();
+  for (const Settings::HeadMotion& motion : s.twin_motions)
+    twin_motions.push_back(
+        {{"kind", MotionName(motion.kind)}, {"hz", motion.hz}, {"deg", motion.deg}});
+  std::fprintf(stderr,
+               "twin_bench: seed %llu augmentation: head motion %.3f -> %.3f mm (x%.2f), held-out "
+               "platform %.3f -> %.3f mm (x%.2f)\n",
+               static_cast<unsigned long long>(seed), mean(motion_captured), mean(motion_augmented),
+               motion_ratio, mean(platform_captured), mean(platform_augmented), platform_ratio);
+  return {{"takes", takes},
+          {"twin_takes", twin_takes.size()},
+          {"twin_motions", twin_motions},
+          {"training_rows",
+           {{"F_captured", captured_summary.training_rows},
+            {"F_augmented", augmented_summary.training_rows}}},
+          {"optimizer_steps",
+           {{"F_captured", captured_summary.optimizer_steps},
+            {"F_augmented", augmented_summary.optimizer_steps}}},
+          {"head_motion_mean_mm",
+           {{"F_captured", mean(motion_captured)}, {"F_augmented", mean(motion_augmented)}}},
+          {"held_out_platform_mean_mm",
+           {{"F_captured", mean(platform_captured)}, {"F_augmented", mean(platform_augmented)}}},
+          {"augmented_over_captured",
+           {{"head_motion", motion_ratio}, {"held_out_platform", platform_ratio}}},
+          {"seconds", {{"held_out_takes", test_s}, {"twin_takes", twin_s}, {"train", train_s}}}};
 }
 
 }  // namespace
@@ -127,11 +333,25 @@ int main(int argc, char** argv) {
       s.sim_step_s = facedyn::bench::FlagNumber("twin_bench", arg, next().c_str());
     } else if (arg == "--no-reconstruct") {
       s.reconstruct = false;
+    } else if (arg == "--no-clean") {
+      s.clean = false;
+    } else if (arg == "--no-augmentation") {
+      s.augmentation = false;
+    } else if (arg == "--held-out-hz") {
+      s.held_out_hz = facedyn::bench::FlagNumber("twin_bench", arg, next().c_str());
+    } else if (arg == "--twin-weight") {
+      s.twin_weight = facedyn::bench::FlagNumber("twin_bench", arg, next().c_str());
+      if (!(s.twin_weight > 0)) Fail("--twin-weight must be > 0");
+    } else if (arg == "--epochs") {
+      s.epochs = static_cast<int>(facedyn::bench::FlagInteger("twin_bench", arg, next().c_str()));
+      if (s.epochs < 1) Fail("--epochs must be >= 1");
     } else if (arg == "--quick") {
       s.seeds = {1};
       s.frequencies = {6, 8, 10};
       s.expressions = {"neutral"};
       s.seconds = 2.0;
+      s.test_seconds = 2.0;
+      s.epochs = 10;
     } else {
       Fail("unknown argument '" + arg + "' (see the header of bench/twin_bench.cc)");
     }
@@ -141,6 +361,7 @@ int main(int argc, char** argv) {
       Check(sim::MakeProceduralFace(sim::ProceduralFaceOptions()), "procedural face");
   Json runs = Json::array();
   std::vector<double> clean_hz, clean_damping, rec_hz, rec_damping, fit_seconds;
+  std::vector<double> motion_ratios, platform_ratios;  // augmented / captured F, per seed
   for (uint64_t seed : s.seeds) {
     const auto seed_start = Clock::now();
     eval::SimulatedCameraRig cameras;
@@ -185,11 +406,13 @@ int main(int argc, char** argv) {
       return pairs;
     };
     Json run = {{"seed", seed}};
-    const physics::FittedTwin clean_twin =
-        Check(physics::FitTwin(face, named(clean), physics::TwinFitOptions()), "clean fit");
-    run["clean"] = FitJson(clean_twin, s);
-    clean_hz.push_back(run["clean"]["score"]["hz_error_percent"].get<double>());
-    clean_damping.push_back(run["clean"]["score"]["damping_error_percent"].get<double>());
+    if (s.clean) {
+      const physics::FittedTwin clean_twin =
+          Check(physics::FitTwin(face, named(clean), physics::TwinFitOptions()), "clean fit");
+      run["clean"] = FitJson(clean_twin, s);
+      clean_hz.push_back(run["clean"]["score"]["hz_error_percent"].get<double>());
+      clean_damping.push_back(run["clean"]["score"]["damping_error_percent"].get<double>());
+    }
     if (s.reconstruct) {
       const physics::FittedTwin rec_twin =
           Check(physics::FitTwin(face, named(reconstructed), physics::TwinFitOptions()),
@@ -198,6 +421,10 @@ int main(int argc, char** argv) {
       rec_hz.push_back(run["reconstructed"]["score"]["hz_error_percent"].get<double>());
       rec_damping.push_back(run["reconstructed"]["score"]["damping_error_percent"].get<double>());
       fit_seconds.push_back(rec_twin.seconds);
+      if (s.augmentation) {
+        run["augmentation"] = RunAugmentation(face, cameras, s, seed, reconstructed, rec_twin,
+                                              &motion_ratios, &platform_ratios);
+      }
     }
     run["seconds"] = {
         {"simulate", simulate_s}, {"reconstruct", reconstruct_s}, {"total", Seconds(seed_start)}};
@@ -210,12 +437,19 @@ int main(int argc, char** argv) {
     return Json{
         {"mean", sp.mean}, {"sd", sp.sd}, {"min", sp.min}, {"max", sp.max}, {"count", sp.count}};
   };
-  Json summary = {{"clean_hz_error_percent", spread(clean_hz)},
-                  {"clean_damping_error_percent", spread(clean_damping)}};
+  Json summary = Json::object();
+  if (s.clean) {
+    summary["clean_hz_error_percent"] = spread(clean_hz);
+    summary["clean_damping_error_percent"] = spread(clean_damping);
+  }
   if (s.reconstruct) {
     summary["reconstructed_hz_error_percent"] = spread(rec_hz);
     summary["reconstructed_damping_error_percent"] = spread(rec_damping);
     summary["reconstructed_fit_seconds"] = spread(fit_seconds);
+    if (s.augmentation) {
+      summary["augmented_over_captured_head_motion"] = spread(motion_ratios);
+      summary["augmented_over_captured_held_out_platform"] = spread(platform_ratios);
+    }
   }
   Json frequencies = Json::array();
   for (double hz : s.frequencies) frequencies.push_back(hz);

@@ -4,8 +4,9 @@
 // (app/capture_demo.h); calibration and reconstruction of the 11 Hz take (app/reconstruct_demo.h);
 // a simulated-data reference study with exact targets (eval/dynamics_study.h); removal,
 // synthesis and retargeting trained on reconstructed takes (app/demo_dynamics.h); rig solving
-// (app/solve_demo.h); fine detail for a head-mounted camera's markers (app/detail_demo.h);
-// renders, metrics.json and the self-contained report.html (report/report.h).
+// (app/solve_demo.h); fine detail for a head-mounted camera's markers (app/detail_demo.h); the
+// subject's physical twin (app/twin_demo.h); renders, metrics.json and the self-contained
+// report.html (report/report.h).
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -29,6 +30,7 @@
 #include "report/report.h"
 #include "app/rig_demo.h"
 #include "app/solve_demo.h"
+#include "app/twin_demo.h"
 #include "core/file_util.h"
 #include "core/json_io.h"
 #include "core/mesh_primitives.h"
@@ -283,6 +285,17 @@ Status RunDemo(const DemoOptions& options) {
                          DetailDemoOptions::ForDemo(options.quick, options.seeds.front()),
                          options.out_dir));
   clock.Lap("fine detail from a head-mounted camera (Masquerade)");
+  // The physical twin of subject B (issue 23): its material identified from B's reconstructed
+  // platform takes, and removal under head motions nobody captured, with and without the twin's
+  // takes in training.
+  FACEDYN_ASSIGN_OR_RETURN(
+      metrics["twin"],
+      RunTwinDemoStage(artifacts.second_face, artifacts.second_subject_tissue,
+                       artifacts.second_subject_reconstructed, cameras,
+                       TwinDemoOptions::ForDemo(options.quick, options.seeds.front()),
+                       options.out_dir));
+  artifacts.second_subject_reconstructed.clear();
+  clock.Lap("the subject's physical twin");
   FACEDYN_ASSIGN_OR_RETURN(metrics["renders"],
                            RenderDemoDynamics(face, artifacts, options.out_dir));
   clock.Lap("renders");

@@ -764,6 +764,8 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
     artifacts->walk_step_hz = options.test_walk_step_hz;
     artifacts->walk_synthesised = std::move(walk_synthesised);
     artifacts->second_face = face_b;
+    artifacts->second_subject_tissue = tissue_b;
+    artifacts->second_subject_reconstructed = std::move(b.reconstructed);
     artifacts->retarget_truth = std::move(retarget_truth);
     artifacts->retargeted = std::move(retargeted);
     artifacts->naive = std::move(naive);

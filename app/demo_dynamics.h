@@ -39,6 +39,7 @@
 #include "core/status.h"
 #include "core/take.h"
 #include "dynamics/removal_model.h"
+#include "physics/soft_tissue.h"
 
 namespace facedyn::app {
 
@@ -106,10 +107,14 @@ struct DemoDynamicsArtifacts {
   Take walk_synthesised;      // H: A's quasistatic estimate carried by the walk
   double walk_step_hz = 0.0;  // the test walk's step rate
   FaceRig second_face;        // subject B
-  Take retarget_truth;        // B simulated walking A's walk
-  Take retargeted;            // B's H on B's quasistatic under A's walk
-  Take naive;                 // NaiveDeltaTransfer of A's walk offsets onto B
-  Take retargeted_modal;      // B's modal synthesis (dynamics/modal_synthesis.h) under A's walk
+  // B's configured tissue (the simulator's; for making and scoring B's takes only) and B's
+  // reconstructed training takes (platform and walks), for the twin stage (app/twin_demo.h).
+  physics::TissueOptions second_subject_tissue;
+  std::vector<Take> second_subject_reconstructed;
+  Take retarget_truth;    // B simulated walking A's walk
+  Take retargeted;        // B's H on B's quasistatic under A's walk
+  Take naive;             // NaiveDeltaTransfer of A's walk offsets onto B
+  Take retargeted_modal;  // B's modal synthesis (dynamics/modal_synthesis.h) under A's walk
   // The performance on the held-out frequency (options.performance_expression; empty takes when
   // there is none): as simulated (exact channels), reconstructed, and after F's removal.
   Take performance_simulated;

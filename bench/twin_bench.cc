@@ -49,7 +49,6 @@
 #include "core/log.h"
 #include "core/progress.h"
 #include "dynamics/removal_model.h"
-#include "dynamics/training_frames.h"
 #include "eval/metrics.h"
 #include "eval/replicates.h"
 #include "eval/simulated_stage.h"
@@ -137,18 +136,6 @@ struct HeldOutTake {
   facedyn::Take simulated;
   facedyn::Take reconstructed;
 };
-
-// Mean error (mm) of `positions` against the simulated take's exact quasistatic over its
-// jiggling vertices and scored frames.
-double JiggleErrorMm(const facedyn::PointCache& positions, const HeldOutTake& take,
-                     int window_frames) {
-  const facedyn::dynamics::FrameRange scored =
-      facedyn::dynamics::ScoredFrames(take.simulated, window_frames);
-  const std::vector<int> jiggle =
-      eval::JigglingVertices(take.simulated.channels.at("dynamic_offset"), scored);
-  return eval::MeanDistanceOverVertices(positions, take.simulated.channels.at("quasistatic"),
-                                        jiggle, scored);
-}
 
 // The augmentation study of one seed (see the header). `captured` are the reconstructed
 // platform takes the twin was fitted to.
@@ -244,9 +231,12 @@ Json RunAugmentation(const facedyn::FaceRig& face, const eval::SimulatedCameraRi
         Check(dynamics::RemoveDynamics(f_captured, test.reconstructed, face), "remove");
     const facedyn::Take by_augmented =
         Check(dynamics::RemoveDynamics(f_augmented, test.reconstructed, face), "remove");
-    const double none = JiggleErrorMm(test.reconstructed.positions, test, window);
-    const double a = JiggleErrorMm(by_captured.positions, test, window);
-    const double b = JiggleErrorMm(by_augmented.positions, test, window);
+    const double none = Check(
+        eval::JiggleMeanErrorMm(test.reconstructed.positions, test.simulated, window), test.name);
+    const double a =
+        Check(eval::JiggleMeanErrorMm(by_captured.positions, test.simulated, window), test.name);
+    const double b =
+        Check(eval::JiggleMeanErrorMm(by_augmented.positions, test.simulated, window), test.name);
     const bool motion = test.protocol == "held-out head motion";
     (motion ? motion_captured : platform_captured).push_back(a);
     (motion ? motion_augmented : platform_augmented).push_back(b);

@@ -306,4 +306,26 @@ double MeanDistanceOverVertices(const PointCache& a, const PointCache& b,
   return count > 0 ? sum / count : 0.0;
 }
 
+StatusOr<double> JiggleMeanErrorMm(const PointCache& predicted, const Take& simulated,
+                                   int window_frames) {
+  for (const char* channel : {"quasistatic", "dynamic_offset"}) {
+    if (simulated.channels.count(channel) == 0) {
+      return FailedPreconditionError(std::string("the simulated take has no \"") + channel +
+                                     "\" channel");
+    }
+  }
+  if (predicted.vertex_count != simulated.vertex_count() ||
+      predicted.frame_count() != simulated.frame_count()) {
+    return FailedPreconditionError(
+        "the prediction has " + std::to_string(predicted.vertex_count) + " vertices and " +
+        std::to_string(predicted.frame_count()) + " frames, the simulated take " +
+        std::to_string(simulated.vertex_count()) + " and " +
+        std::to_string(simulated.frame_count()));
+  }
+  const dynamics::FrameRange scored = dynamics::ScoredFrames(simulated, window_frames);
+  const std::vector<int> jiggle =
+      JigglingVertices(simulated.channels.at("dynamic_offset"), scored);
+  return MeanDistanceOverVertices(predicted, simulated.channels.at("quasistatic"), jiggle, scored);
+}
+
 }  // namespace facedyn::eval

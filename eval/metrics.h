@@ -90,6 +90,13 @@ std::vector<int> JigglingVertices(const PointCache& true_offsets, dynamics::Fram
 double MeanDistanceOverVertices(const PointCache& a, const PointCache& b,
                                 const std::vector<int>& vertices, dynamics::FrameRange frames);
 
+// The removal figure of a simulated take: mean |predicted - exact quasistatic| (mm, world frame)
+// over the take's jiggling vertices and its scored frames (dynamics::ScoredFrames with
+// `window_frames`). FailedPrecondition when the take lacks its quasistatic or dynamic_offset
+// channel, or `predicted` has other vertex or frame counts.
+StatusOr<double> JiggleMeanErrorMm(const PointCache& predicted, const Take& simulated,
+                                   int window_frames);
+
 // A figure rounded to 1e-4 (0.1 um for mm) for reports: more digits than that are noise.
 inline double Round4(double x) { return std::round(x * 1e4) / 1e4; }
 

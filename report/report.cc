@@ -596,6 +596,42 @@ StatusOr<std::string> DetailSection(const Json& detail, const std::filesystem::p
   return html;
 }
 
+// The subject's physical twin (app/twin_demo.h).
+std::string TwinSection(const Json& twin) {
+  const Json& fit = Field(twin, "fit");
+  std::string html = fmt::format(
+      "<h2>The subject's physical twin (after Bao et al. 2018)</h2><p>Subject B's tissue "
+      "material fitted to {} reconstructed platform takes (markers and skull pose only; {} "
+      "stiffness group(s)). Cheek mode: fitted {:.3f} &plusmn; {:.3f} Hz, damping ratio {:.4f} "
+      "&plusmn; {:.4f}; configured in the simulator (never told to the fit) {:.3f} Hz, {:.4f} "
+      "({:+.2f}%, {:+.2f}%); the twin's prior {:.3f} Hz, {:.4f}. {}</p>",
+      EscapeHtml(Text(fit, "takes")), EscapeHtml(Text(fit, "groups")), Number(fit, "fitted_hz"),
+      Number(fit, "fitted_hz_sd"), Number(fit, "fitted_damping_ratio"),
+      Number(fit, "fitted_damping_ratio_sd"), Number(fit, "true_hz"),
+      Number(fit, "true_damping_ratio"), Number(fit, "hz_error_percent"),
+      Number(fit, "damping_error_percent"), Number(fit, "prior_hz"),
+      Number(fit, "prior_damping_ratio"), EscapeHtml(Text(fit, "note")));
+  const Json& training = Field(twin, "training");
+  html += fmt::format(
+      "<p>Removal under head motions no training take has: F trained on B's {} reconstructed "
+      "takes alone, and with {} takes of the twin nodding and shaking (the twin's own exact "
+      "quasistatic as targets), the same {} optimiser steps. Error in mm against B's exact "
+      "quasistatic over the jiggling vertices; one seed (bench/twin_bench gives the spread "
+      "over seeds).</p><table><tr><th>held-out take</th><th>no removal</th>"
+      "<th>F, captured takes</th><th>F, with the twin's</th></tr>",
+      EscapeHtml(Text(training, "captured_takes")), EscapeHtml(Text(training, "twin_takes")),
+      EscapeHtml(Text(training, "optimizer_steps")));
+  for (const Json& take : Field(twin, "removal")) {
+    const Json& methods = Field(take, "methods");
+    html += fmt::format("<tr><td>{}</td><td>{:.3f}</td><td>{:.3f}</td><td>{:.3f}</td></tr>",
+                        EscapeHtml(Text(take, "take")),
+                        Number(Field(methods, "no_removal"), "jiggle_mean_mm"),
+                        Number(Field(methods, "F_captured"), "jiggle_mean_mm"),
+                        Number(Field(methods, "F_augmented"), "jiggle_mean_mm"));
+  }
+  return html + "</table>";
+}
+
 Status WriteDemoReport(const Json& metrics, const std::string& path, const std::string& files_dir) {
   const std::filesystem::path base = files_dir.empty() ? std::filesystem::path(path).parent_path()
                                                        : std::filesystem::path(files_dir);
@@ -659,6 +695,7 @@ Status WriteDemoReport(const Json& metrics, const std::string& path, const std::
     FACEDYN_ASSIGN_OR_RETURN(const std::string section, DetailSection(metrics["detail"], base));
     html += section;
   }
+  if (metrics.contains("twin")) html += TwinSection(metrics["twin"]);
   if (metrics.contains("renders")) {
     const Json& renders = metrics["renders"];
     html +=

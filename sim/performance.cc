@@ -62,6 +62,20 @@ Json MotionJson(const MotionOptions& m) {
       json.update({{"head_motion_hz", m.head_motion_hz}, {"head_motion_deg", m.head_motion_deg},
                    {"neck_pivot_y_mm", m.neck_pivot_y_mm}, {"neck_pivot_z_mm", m.neck_pivot_z_mm}});
       break;
+    case MotionKind::kSway:
+      json.update({{"head_motion_hz", m.head_motion_hz}, {"head_sway_mm", m.head_sway_mm}});
+      break;
+    case MotionKind::kTurnWalk:
+      json.update({{"walk_step_hz", m.walk_step_hz},
+                   {"walk_speed_mm_per_s", m.walk_speed_mm_per_s},
+                   {"head_motion_hz", m.head_motion_hz},
+                   {"head_motion_deg", m.head_motion_deg},
+                   {"neck_pivot_y_mm", m.neck_pivot_y_mm},
+                   {"neck_pivot_z_mm", m.neck_pivot_z_mm}});
+      break;
+    case MotionKind::kLieBack:
+      json.update({{"lie_back_deg", m.lie_back_deg}, {"lie_back_s", m.lie_back_s}});
+      break;
     case MotionKind::kFile:
       json["file"] = m.file;
       break;

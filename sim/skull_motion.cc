@@ -235,7 +235,7 @@ std::unique_ptr<SkullMotion> MakePlatform(const MotionOptions& o) {
 // potential energy exchange). The heel strike adds a short upward acceleration pulse whose
 // harmonics reach well above the step frequency. Lateral sway, roll and yaw repeat per stride
 // (two steps).
-std::unique_ptr<SkullMotion> MakeWalk(const MotionOptions& o) {
+std::unique_ptr<SynthesizedMotion> MakeWalk(const MotionOptions& o) {
   auto motion = std::make_unique<SynthesizedMotion>();
   motion->ramp_in_s = o.ramp_in_s;
   motion->forward_speed_mm_per_s = o.walk_speed_mm_per_s;
@@ -330,6 +330,31 @@ std::unique_ptr<SkullMotion> MakeHeadRotation(const MotionOptions& o, bool shake
   Channel& channel = shake ? motion->yaw_rad : motion->pitch_rad;
   channel.sinusoids.push_back(
       {o.head_motion_deg * kDegToRad, o.head_motion_hz, random.Uniform(0.0, kTwoPi)});
+  return motion;
+}
+
+// Swaying side to side: the head along X at the top of an inverted pendulum about the ankles,
+// rolling with it (to first order in the sway angle; the head's drop, L (1 - cos), is below
+// 0.6 mm at the default 40 mm and left out). Rolling about +Z by a positive angle tips the top of
+// the head towards -X, so a sway towards +X is a negative roll.
+std::unique_ptr<SkullMotion> MakeSway(const MotionOptions& o) {
+  auto motion = std::make_unique<SynthesizedMotion>();
+  motion->ramp_in_s = o.ramp_in_s;
+  Random random(o.seed);
+  const double phase = random.Uniform(0.0, kTwoPi);
+  motion->x_mm.sinusoids.push_back({o.head_sway_mm, o.head_motion_hz, phase});
+  motion->roll_rad.sinusoids.push_back(
+      {-std::atan(o.head_sway_mm / kStandingPendulumMm), o.head_motion_hz, phase});
+  return motion;
+}
+
+// Lying back: a constant pitch of -lie_back_deg faded in by the motion's C2 ramp over
+// lie_back_s (a sinusoid at 0 Hz with phase pi/2 is a constant), about the hips.
+std::unique_ptr<SkullMotion> MakeLieBack(const MotionOptions& o) {
+  auto motion = std::make_unique<SynthesizedMotion>();
+  motion->ramp_in_s = o.lie_back_s;
+  motion->pivot_in_skull = Eigen::Vector3d(0.0, -kHipBelowSkullMm, 0.0);
+  motion->pitch_rad.sinusoids.push_back({-o.lie_back_deg * kDegToRad, 0.0, 0.5 * kPi});
   return motion;
 }
 
@@ -475,6 +500,12 @@ const char* MotionKindName(MotionKind kind) {
       return "nod";
     case MotionKind::kShake:
       return "shake";
+    case MotionKind::kSway:
+      return "sway";
+    case MotionKind::kTurnWalk:
+      return "turn_walk";
+    case MotionKind::kLieBack:
+      return "lie_back";
     case MotionKind::kNone:
       return "none";
     case MotionKind::kFile:
@@ -485,8 +516,9 @@ const char* MotionKindName(MotionKind kind) {
 
 StatusOr<MotionKind> ParseMotionKind(const std::string& spec, std::string* file_path) {
   static constexpr MotionKind kNamed[] = {
-      MotionKind::kPlatform, MotionKind::kWalk,  MotionKind::kRun, MotionKind::kJump,
-      MotionKind::kNod,      MotionKind::kShake, MotionKind::kNone};
+      MotionKind::kPlatform, MotionKind::kWalk,  MotionKind::kRun,  MotionKind::kJump,
+      MotionKind::kNod,      MotionKind::kShake, MotionKind::kSway, MotionKind::kTurnWalk,
+      MotionKind::kLieBack,  MotionKind::kNone};
   for (MotionKind kind : kNamed) {
     if (spec == MotionKindName(kind)) return kind;
   }
@@ -500,7 +532,9 @@ StatusOr<MotionKind> ParseMotionKind(const std::string& spec, std::string* file_
     return MotionKind::kFile;
   }
   return InvalidArgumentError(
-      "motion '" + spec + "' is not one of platform, walk, run, jump, nod, shake, none, file:PATH");
+      "motion '" + spec +
+      "' is not one of platform, walk, run, jump, nod, shake, sway, turn_walk, lie_back, none, "
+      "file:PATH");
 }
 
 std::complex<double> BodyTransmissibility(double hz, double resonance_hz, double zeta) {
@@ -524,6 +558,9 @@ Status MotionOptions::Check() const {
   FACEDYN_RETURN_IF_ERROR(CheckRange("head_motion_deg", head_motion_deg, 0.0, 45.0, "deg"));
   FACEDYN_RETURN_IF_ERROR(CheckRange("neck_pivot_y_mm", neck_pivot_y_mm, -200.0, 0.0, "mm"));
   FACEDYN_RETURN_IF_ERROR(CheckRange("neck_pivot_z_mm", neck_pivot_z_mm, -150.0, 50.0, "mm"));
+  FACEDYN_RETURN_IF_ERROR(CheckRange("head_sway_mm", head_sway_mm, 0.0, 200.0, "mm"));
+  FACEDYN_RETURN_IF_ERROR(CheckRange("lie_back_deg", lie_back_deg, 0.0, 90.0, "deg"));
+  FACEDYN_RETURN_IF_ERROR(CheckRange("lie_back_s", lie_back_s, 0.3, 10.0, "s"));
 
   FACEDYN_RETURN_IF_ERROR(CheckRange("walk_step_hz", walk_step_hz, 0.5, 4.0, "Hz"));
   FACEDYN_RETURN_IF_ERROR(
@@ -598,7 +635,7 @@ StatusOr<std::unique_ptr<SkullMotion>> MakeSkullMotion(const MotionOptions& opti
     case MotionKind::kPlatform:
       return MakePlatform(options);
     case MotionKind::kWalk:
-      return MakeWalk(options);
+      return std::unique_ptr<SkullMotion>(MakeWalk(options));
     case MotionKind::kRun:
       return MakeRun(options);
     case MotionKind::kJump:
@@ -607,6 +644,18 @@ StatusOr<std::unique_ptr<SkullMotion>> MakeSkullMotion(const MotionOptions& opti
       return MakeHeadRotation(options, /*shake=*/false);
     case MotionKind::kShake:
       return MakeHeadRotation(options, /*shake=*/true);
+    case MotionKind::kSway:
+      return MakeSway(options);
+    case MotionKind::kTurnWalk: {
+      std::unique_ptr<SynthesizedMotion> walk = MakeWalk(options);
+      walk->pivot_in_skull = Eigen::Vector3d(0.0, options.neck_pivot_y_mm, options.neck_pivot_z_mm);
+      Random random(options.seed ^ 0x5bd1e995u);  // the turn's phase, apart from the gait's
+      walk->yaw_rad.sinusoids.push_back({options.head_motion_deg * kDegToRad,
+                                         options.head_motion_hz, random.Uniform(0.0, kTwoPi)});
+      return std::unique_ptr<SkullMotion>(std::move(walk));
+    }
+    case MotionKind::kLieBack:
+      return MakeLieBack(options);
     case MotionKind::kNone:
       return std::unique_ptr<SkullMotion>(std::make_unique<NoMotion>());
     case MotionKind::kFile: {

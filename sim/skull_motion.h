@@ -37,14 +37,27 @@
 
 namespace facedyn::sim {
 
-enum class MotionKind { kPlatform, kWalk, kRun, kJump, kNod, kShake, kNone, kFile };
+enum class MotionKind {
+  kPlatform,
+  kWalk,
+  kRun,
+  kJump,
+  kNod,
+  kShake,
+  kSway,
+  kTurnWalk,
+  kLieBack,
+  kNone,
+  kFile
+};
 
-// "platform", "walk", "run", "jump", "nod", "shake", "none", "file".
+// "platform", "walk", "run", "jump", "nod", "shake", "sway", "turn_walk", "lie_back", "none",
+// "file".
 const char* MotionKindName(MotionKind kind);
 
-// Parses "platform|walk|run|jump|nod|shake|none|file:PATH". For "file:PATH" stores PATH in
-// *file_path (when non-null). An unknown spec or an empty PATH is an InvalidArgument error listing
-// the valid kinds.
+// Parses "platform|walk|run|jump|nod|shake|sway|turn_walk|lie_back|none|file:PATH". For "file:PATH"
+// stores PATH in *file_path (when non-null). An unknown spec or an empty PATH is an InvalidArgument
+// error listing the valid kinds.
 StatusOr<MotionKind> ParseMotionKind(const std::string& spec, std::string* file_path);
 
 struct MotionOptions {
@@ -105,9 +118,29 @@ struct MotionOptions {
   double neck_pivot_y_mm = -80.0;  // pivot in the skull frame (x = 0), allowed -200..0
   double neck_pivot_z_mm = -20.0;  // allowed -150..50
 
+  // --- sway: the standing body swaying side to side, the lateral motion of section 8.1. The
+  // head moves along X by head_sway_mm peak at head_motion_hz and rolls with it as the top of an
+  // inverted pendulum about the ankles (kStandingPendulumMm tall), so the gravity direction in
+  // the skull frame swings too. ---
+  double head_sway_mm = 40.0;  // peak, allowed 0..200
+
+  // --- turn_walk: walking (the walk fields above) while turning the head left and right: a
+  // yaw of head_motion_deg peak at head_motion_hz about the neck pivot. ---
+
+  // --- lie_back: a change of the gravity direction: from standing upright the subject lies
+  // back by lie_back_deg (pitch, top of the head towards -Z) about the hips (kHipBelowSkullMm
+  // below the skull origin) over lie_back_s, a C2 transition, and then stays there. ---
+  double lie_back_deg = 60.0;  // allowed 0..90
+  double lie_back_s = 1.5;     // allowed 0.3..10
+
   // Every field in range, and the pulses fit their stance phases. Messages name the field.
   Status Check() const;
 };
+
+// Heights used by sway and lie_back: the standing body as an inverted pendulum from the ankles
+// to the skull origin, and the hips below the skull origin when lying back (adult figures).
+inline constexpr double kStandingPendulumMm = 1500.0;
+inline constexpr double kHipBelowSkullMm = 650.0;
 
 // Complex steady-state transmissibility T(f) = X_head / X_platform of a base-excited
 // single-DOF oscillator with natural frequency `resonance_hz` and damping ratio `zeta`:

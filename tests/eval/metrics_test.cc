@@ -196,5 +196,28 @@ TEST(JigglingVertices, KeepsVerticesAboveAFifthOfTheLargestAndAveragesOverThem) 
   EXPECT_EQ(MeanDistanceOverVertices(offsets, zero, {}, EdgeSkipped(5, 1)), 0.0);
 }
 
+// The removal figure of a simulated take: over its jiggling vertices (here 0 and 1, vertex 2's
+// offset is below a fifth of the largest) and its scored frames (the window margin, from frame 1
+// on); a take without its channels or a prediction of another size is a named error.
+TEST(JiggleMeanErrorMm, ScoresTheJigglingVerticesOverTheScoredFrames) {
+  Take simulated = TakeOf(Zeros(3, 20), 128.0);
+  simulated.channels["quasistatic"] = Zeros(3, 20);
+  EXPECT_THAT(JiggleMeanErrorMm(Zeros(3, 20), simulated, 2).status().message(),
+              HasSubstr("no \"dynamic_offset\" channel"));
+  PointCache offsets = Zeros(3, 20);
+  for (int t = 0; t < 20; ++t) {
+    offsets.Frame(t).col(0) << 1.0f, 0, 0;
+    offsets.Frame(t).col(1) << 0, 1.0f, 0;
+    offsets.Frame(t).col(2) << 0, 0, 0.1f;
+  }
+  simulated.channels["dynamic_offset"] = offsets;
+  PointCache predicted = KnownErrors(3, 20);  // vertex v is v + 1 mm off
+  predicted.Frame(0).setConstant(100.0f);     // frame 0 is never scored (a window from frame 1)
+  predicted.Frame(19).setConstant(100.0f);    // nor the end's margin
+  EXPECT_NEAR(JiggleMeanErrorMm(predicted, simulated, 2).value(), 1.5, 1e-6);
+  EXPECT_THAT(JiggleMeanErrorMm(Zeros(3, 19), simulated, 2).status().message(),
+              HasSubstr("19 frames"));
+}
+
 }  // namespace
 }  // namespace facedyn::eval

@@ -163,6 +163,35 @@ TEST(WriteDemoReport, PartialMetricsStillWrite) {
   EXPECT_THAT(testing::ReadBytes(dir.Join("report.html")), HasSubstr("n/a"));
 }
 
+// The twin section: fitted against configured cheek mode and the removal table, take names
+// escaped; an empty twin entry still writes.
+TEST(WriteDemoReport, TwinSection) {
+  testing::TempDir dir;
+  Json metrics;
+  metrics["twin"]["fit"] = {{"takes", 5},          {"groups", 3},
+                            {"fitted_hz", 8.61},   {"fitted_hz_sd", 0.02},
+                            {"fitted_damping_ratio", 0.1803}, {"fitted_damping_ratio_sd", 0.001},
+                            {"true_hz", 8.5},      {"true_damping_ratio", 0.17},
+                            {"hz_error_percent", 1.29}, {"damping_error_percent", 6.06},
+                            {"prior_hz", 11.0},    {"prior_damping_ratio", 0.22}};
+  metrics["twin"]["training"] = {{"captured_takes", 7}, {"twin_takes", 4}, {"optimizer_steps", 90}};
+  metrics["twin"]["removal"] = Json::array(
+      {{{"take", "neutral <nod>"},
+        {"methods",
+         {{"no_removal", {{"jiggle_mean_mm", 0.61}}},
+          {"F_captured", {{"jiggle_mean_mm", 1.94}}},
+          {"F_augmented", {{"jiggle_mean_mm", 0.276}}}}}}});
+  ASSERT_TRUE(WriteDemoReport(metrics, dir.Join("report.html")).ok());
+  const std::string html = testing::ReadBytes(dir.Join("report.html"));
+  EXPECT_THAT(html, HasSubstr("fitted 8.610 &plusmn; 0.020 Hz"));
+  EXPECT_THAT(html, HasSubstr("8.500 Hz, 0.1700 (+1.29%, +6.06%)"));
+  EXPECT_THAT(html, HasSubstr("<td>neutral &lt;nod&gt;</td><td>0.610</td><td>1.940</td>"
+                              "<td>0.276</td>"));
+  metrics["twin"] = Json::object();
+  ASSERT_TRUE(WriteDemoReport(metrics, dir.Join("empty.html")).ok());
+  EXPECT_THAT(testing::ReadBytes(dir.Join("empty.html")), HasSubstr("physical twin"));
+}
+
 // With --seeds the report has a Replicates section (means, spreads, verdicts) and the one-seed
 // section says it is one seed of several; without, it says it is no comparison.
 TEST(WriteDemoReport, ReplicatesSectionWithVerdicts) {

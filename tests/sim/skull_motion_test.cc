@@ -445,6 +445,15 @@ TEST(MotionOptionsCheck, ErrorsNameTheField) {
   o.neck_pivot_y_mm = 10;
   expect_field(o, "neck_pivot_y_mm");
   o = MotionOptions();
+  o.head_sway_mm = 250;
+  expect_field(o, "head_sway_mm");
+  o = MotionOptions();
+  o.lie_back_deg = 100;
+  expect_field(o, "lie_back_deg");
+  o = MotionOptions();
+  o.lie_back_s = 0.1;
+  expect_field(o, "lie_back_s");
+  o = MotionOptions();
   o.amplitude_mm = std::nan("");
   expect_field(o, "amplitude_mm");
   o = MotionOptions();
@@ -507,11 +516,98 @@ TEST(HeadRotationMotion, TurnsAboutTheNeckPivot) {
   }
 }
 
+// Sway: the head along X by head_sway_mm at head_motion_hz, rolling with it as the top of an
+// inverted pendulum, so gravity in the skull frame swings sideways by the same angle.
+TEST(SwayMotion, MovesSidewaysAndTiltsGravity) {
+  MotionOptions options = OptionsFor(MotionKind::kSway);
+  options.head_motion_hz = 1.0;
+  options.head_sway_mm = 40.0;
+  const auto motion = Make(options);
+  ASSERT_NE(motion, nullptr);
+  std::vector<double> x, roll, gravity_x;
+  const double dt = 1.0 / 128;
+  for (int i = 0; i < 256; ++i) {  // 2 whole periods after the ramp
+    const double t = 1.0 + i * dt;
+    const Rigid3 pose = motion->WorldFromSkull(t);
+    x.push_back(pose.translation().x());
+    const Eigen::AngleAxisd rotation(pose.rotation());
+    roll.push_back((rotation.angle() * rotation.axis()).z());
+    gravity_x.push_back(motion->Kinematics(t).GravityInSkull().x());
+    EXPECT_NEAR(pose.translation().y(), 0.0, 1e-9);
+  }
+  EXPECT_NEAR(AmplitudeAt(x, dt, 1.0), 40.0, 1e-6);
+  const double tilt = std::atan(40.0 / kStandingPendulumMm);
+  EXPECT_NEAR(AmplitudeAt(roll, dt, 1.0), tilt, 1e-9);
+  EXPECT_NEAR(AmplitudeAt(gravity_x, dt, 1.0), 9810.0 * std::sin(tilt), 1.0);
+  // Towards +X is a negative roll (the top of the head leads): in phase opposition.
+  double dot = 0;
+  for (size_t i = 0; i < x.size(); ++i) dot += x[i] * roll[i];
+  EXPECT_LT(dot, 0.0);
+}
+
+// Lying back: the pitch goes smoothly from 0 to -lie_back_deg over lie_back_s about the hips
+// and stays; gravity ends up along the skull's -Y rotated by that angle, the body at rest.
+TEST(LieBackMotion, TurnsGravityAndComesToRest) {
+  MotionOptions options = OptionsFor(MotionKind::kLieBack);
+  options.lie_back_deg = 60.0;
+  options.lie_back_s = 1.5;
+  const auto motion = Make(options);
+  ASSERT_NE(motion, nullptr);
+  EXPECT_TRUE(motion->WorldFromSkull(0.0).rotation().isApprox(Eigen::Quaterniond::Identity()));
+  const Eigen::Vector3d hip(0.0, -kHipBelowSkullMm, 0.0);
+  double previous_angle = 0.0;
+  for (double t = 0.0; t <= 3.0; t += 0.01) {
+    const Rigid3 pose = motion->WorldFromSkull(t);
+    EXPECT_LT((pose.Apply(hip) - hip).norm(), 1e-9) << t;  // about the hips
+    const Eigen::AngleAxisd rotation(pose.rotation());
+    const double pitch = (rotation.angle() * rotation.axis()).x();
+    EXPECT_LE(pitch, previous_angle + 1e-12) << t;  // monotone: lying back, never rocking
+    previous_angle = pitch;
+  }
+  EXPECT_NEAR(previous_angle, -60.0 * kPi / 180, 1e-12);
+  const physics::SkullKinematics end = motion->Kinematics(2.5);
+  EXPECT_LT(end.origin_acceleration_in_skull.norm(), 1e-3);
+  EXPECT_LT(end.angular_velocity_in_skull.norm(), 1e-9);
+  // Gravity (-Y world) seen from the reclined skull: towards the back of the head (-Z) by 60 deg.
+  const Eigen::Vector3d g = end.GravityInSkull() / 9810.0;
+  EXPECT_NEAR(g.y(), -std::cos(60.0 * kPi / 180), 1e-9);
+  EXPECT_NEAR(g.z(), -std::sin(60.0 * kPi / 180), 1e-9);
+  // C2: the angular acceleration is continuous through the transition.
+  double jump = 0.0;
+  for (double t = 0.01; t < 1.6; t += 0.01) {
+    jump = std::max(jump, (motion->Kinematics(t + 1e-4).angular_acceleration_in_skull -
+                           motion->Kinematics(t).angular_acceleration_in_skull)
+                              .norm());
+  }
+  EXPECT_LT(jump, 0.05);  // rad/s^2 over 0.1 ms; peak angular acceleration is ~1.9 rad/s^2
+}
+
+// Turning while walking: the walk's progress and bobbing plus a yaw of head_motion_deg at
+// head_motion_hz about the neck.
+TEST(TurnWalkMotion, WalksForwardWhileTurningTheHead) {
+  MotionOptions options = OptionsFor(MotionKind::kTurnWalk);
+  options.head_motion_hz = 0.5;
+  options.head_motion_deg = 30.0;
+  const auto motion = Make(options);
+  ASSERT_NE(motion, nullptr);
+  std::vector<double> yaw;
+  const double dt = 1.0 / 128;
+  for (int i = 0; i < 512; ++i) {  // 4 s: 2 head turns, 7.6 steps
+    const Eigen::AngleAxisd rotation(motion->WorldFromSkull(1.0 + i * dt).rotation());
+    yaw.push_back((rotation.angle() * rotation.axis()).y());
+  }
+  EXPECT_NEAR(AmplitudeAt(yaw, dt, 0.5), 30.0 * kPi / 180, 0.01);
+  const double advanced_mm =
+      motion->WorldFromSkull(3.0).translation().z() - motion->WorldFromSkull(1.0).translation().z();
+  EXPECT_NEAR(advanced_mm, 2.0 * options.walk_speed_mm_per_s, 100.0);
+}
+
 TEST(ParseMotionKind, AcceptsKindsAndFilePaths) {
   std::string path;
   for (MotionKind kind :
        {MotionKind::kPlatform, MotionKind::kWalk, MotionKind::kRun, MotionKind::kJump,
-        MotionKind::kNod, MotionKind::kShake, MotionKind::kNone}) {
+        MotionKind::kNod, MotionKind::kShake, MotionKind::kSway, MotionKind::kTurnWalk,
+        MotionKind::kLieBack, MotionKind::kNone}) {
     StatusOr<MotionKind> parsed = ParseMotionKind(MotionKindName(kind), &path);
     ASSERT_TRUE(parsed.ok()) << parsed.status().ToString();
     EXPECT_EQ(*parsed, kind);
@@ -527,8 +623,8 @@ TEST(ParseMotionKind, BadSpecListsValidKinds) {
   StatusOr<MotionKind> parsed = ParseMotionKind("wobble", &path);
   ASSERT_FALSE(parsed.ok());
   EXPECT_EQ(parsed.status().code(), StatusCode::kInvalidArgument);
-  for (const char* name :
-       {"wobble", "platform", "walk", "run", "jump", "nod", "shake", "none", "file:PATH"}) {
+  for (const char* name : {"wobble", "platform", "walk", "run", "jump", "nod", "shake", "sway",
+                           "turn_walk", "lie_back", "none", "file:PATH"}) {
     EXPECT_NE(parsed.status().message().find(name), std::string::npos)
         << parsed.status().ToString();
   }

@@ -32,6 +32,12 @@ MotionOptions OptionsFor(MotionKind kind) {
   return options;
 }
 
+// The rotation of a pose as a rotation vector (axis times angle, rad).
+Eigen::Vector3d RotationVector(const Rigid3& pose) {
+  const Eigen::AngleAxisd rotation(pose.rotation());
+  return rotation.angle() * rotation.axis();
+}
+
 // Amplitude of the component at `hz` of samples x_i = x(t0 + i dt) (single-bin DFT); the window
 // must hold a whole number of periods.
 double AmplitudeAt(const std::vector<double>& x, double dt, double hz) {
@@ -494,8 +500,7 @@ TEST(HeadRotationMotion, TurnsAboutTheNeckPivot) {
       const double t = 1.0 + i * dt;
       const Rigid3 pose = motion->WorldFromSkull(t);
       pivot_drift_mm = std::max(pivot_drift_mm, (pose.Apply(pivot) - pivot).norm());
-      const Eigen::AngleAxisd rotation(pose.rotation());
-      const Eigen::Vector3d vector = rotation.angle() * rotation.axis();
+      const Eigen::Vector3d vector = RotationVector(pose);
       angle.push_back(vector.dot(axis));
       peak_rad = std::max(peak_rad, std::abs(vector.dot(axis)));
       off_axis_rad = std::max(off_axis_rad, (vector - vector.dot(axis) * axis).norm());
@@ -530,8 +535,7 @@ TEST(SwayMotion, MovesSidewaysAndTiltsGravity) {
     const double t = 1.0 + i * dt;
     const Rigid3 pose = motion->WorldFromSkull(t);
     x.push_back(pose.translation().x());
-    const Eigen::AngleAxisd rotation(pose.rotation());
-    roll.push_back((rotation.angle() * rotation.axis()).z());
+    roll.push_back(RotationVector(pose).z());
     gravity_x.push_back(motion->Kinematics(t).GravityInSkull().x());
     EXPECT_NEAR(pose.translation().y(), 0.0, 1e-9);
   }
@@ -559,8 +563,7 @@ TEST(LieBackMotion, TurnsGravityAndComesToRest) {
   for (double t = 0.0; t <= 3.0; t += 0.01) {
     const Rigid3 pose = motion->WorldFromSkull(t);
     EXPECT_LT((pose.Apply(hip) - hip).norm(), 1e-9) << t;  // about the hips
-    const Eigen::AngleAxisd rotation(pose.rotation());
-    const double pitch = (rotation.angle() * rotation.axis()).x();
+    const double pitch = RotationVector(pose).x();
     EXPECT_LE(pitch, previous_angle + 1e-12) << t;  // monotone: lying back, never rocking
     previous_angle = pitch;
   }
@@ -593,8 +596,7 @@ TEST(TurnWalkMotion, WalksForwardWhileTurningTheHead) {
   std::vector<double> yaw;
   const double dt = 1.0 / 128;
   for (int i = 0; i < 512; ++i) {  // 4 s: 2 head turns, 7.6 steps
-    const Eigen::AngleAxisd rotation(motion->WorldFromSkull(1.0 + i * dt).rotation());
-    yaw.push_back((rotation.angle() * rotation.axis()).y());
+    yaw.push_back(RotationVector(motion->WorldFromSkull(1.0 + i * dt)).y());
   }
   EXPECT_NEAR(AmplitudeAt(yaw, dt, 0.5), 30.0 * kPi / 180, 0.01);
   const double advanced_mm =

@@ -148,6 +148,7 @@ StatusOr<ModalSynthesisModel> ModalSynthesisModel::Train(
     ModalSynthesisFit* fit) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (decomposed.empty()) return InvalidArgumentError("modal synthesis: no training takes");
+  FACEDYN_RETURN_IF_ERROR(CheckNoTargetsOrWeights(decomposed, "modal synthesis"));
   for (const TrainingTake& training : decomposed) {
     FACEDYN_CHECK(training.take != nullptr && training.rig != nullptr,
                   "ModalSynthesisModel::Train: training take without take or rig");

@@ -186,6 +186,17 @@ Status RemovalTrainOptions::Check() const {
   return Status::Ok();
 }
 
+Status CheckNoTargetsOrWeights(const std::vector<TrainingTake>& takes, const std::string& trainer) {
+  for (size_t k = 0; k < takes.size(); ++k) {
+    if (takes[k].targets.has_value() || takes[k].weight != 1.0) {
+      return InvalidArgumentError(trainer + ": training take " + std::to_string(k) +
+                                  " sets its own targets or a weight, which only the removal "
+                                  "network's training (TrainRemoval) uses");
+    }
+  }
+  return Status::Ok();
+}
+
 StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
                                     const RemovalTrainOptions& options, learn::MlpTrainSummary* summary) {
   FACEDYN_RETURN_IF_ERROR(options.Check());

@@ -120,6 +120,11 @@ struct TrainingTake {
   double weight = 1.0;
 };
 
+// For trainers that take TrainingTakes but honour neither `targets` nor `weight` (H's
+// TrainSynthesis, the modal model's Train): InvalidArgument naming `trainer` and the first take
+// that sets either, so they are refused rather than silently ignored.
+Status CheckNoTargetsOrWeights(const std::vector<TrainingTake>& takes, const std::string& trainer);
+
 struct RemovalTrainOptions {
   // Optimisation: the paper's 250 epochs, batch 10,000 and Adam at 1e-3 (sec. 5.2).
   learn::MlpTrainOptions train = Defaults();

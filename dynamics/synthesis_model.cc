@@ -211,6 +211,7 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
                                         learn::MlpTrainSummary* summary) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (decomposed.empty()) return InvalidArgumentError("train-synthesis: no training takes");
+  FACEDYN_RETURN_IF_ERROR(CheckNoTargetsOrWeights(decomposed, "train-synthesis"));
   for (const TrainingTake& training : decomposed) {
     FACEDYN_CHECK(training.take != nullptr && training.rig != nullptr,
                   "TrainSynthesis: training take without take or rig");

@@ -212,6 +212,11 @@ TEST(ModalSynthesis, ErrorsNameTheProblem) {
                   .status()
                   .message(),
               HasSubstr("fps"));
+  EXPECT_THAT(ModalSynthesisModel::Train({{&training, &Face(), RemovalTargets::kExact}},
+                                         ModalSynthesisOptions())
+                  .status()
+                  .message(),
+              HasSubstr("training take 0 sets its own targets or a weight"));
   ModalSynthesisOptions high;
   high.resonator_hz = {70.0};  // above 64 Hz, Nyquist at 128 fps
   EXPECT_THAT(ModalSynthesisModel::Train({{&training, &Face()}}, high).status().message(),

@@ -161,6 +161,13 @@ TEST(TrainSynthesis, RefusesATakeWithoutOffsets) {
   take.channels.clear();
   EXPECT_THAT(TrainSynthesis({{&take, &rig}}, SynthesisTrainOptions()).status().message(),
               HasSubstr("no dynamic_offset channel"));
+  // Per-take targets and weights are F's (TrainRemoval); H refuses them instead of ignoring them.
+  const Take decomposed = DecomposedTake(rig, 40, 0.0);
+  EXPECT_THAT(TrainSynthesis({{&decomposed, &rig}, {&decomposed, &rig, std::nullopt, 2.0}},
+                             SynthesisTrainOptions())
+                  .status()
+                  .message(),
+              HasSubstr("training take 1 sets its own targets or a weight"));
 }
 
 TEST(NaiveDeltaTransfer, CopiesPerSampleOffsetsOntoTheTarget) {

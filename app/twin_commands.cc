@@ -87,6 +87,7 @@ void AddTwinCommands(CLI::App& app, CommandRunner* selected) {
     double prior_hz = physics::TissueOptions{}.fundamental_hz;
     double prior_damping = physics::TissueOptions{}.damping_ratio;
     int max_iterations = physics::MaterialFitOptions{}.max_iterations;
+    double platform_amplitude_mm = 0.0;
     bool json = false;
   };
   auto options = std::make_shared<FitOptions>();
@@ -113,6 +114,9 @@ void AddTwinCommands(CLI::App& app, CommandRunner* selected) {
   fit->add_option("--max-iterations", options->max_iterations,
                   "Levenberg-Marquardt iterations per round")
       ->capture_default_str();
+  fit->add_option("--platform-amplitude-mm", options->platform_amplitude_mm,
+                  "The platform's peak displacement (mm, the rig config's amplitude_mm): fits the "
+                  "body's transmissibility from platform to skull too (needs 3 frequencies)");
   fit->add_flag("--json", options->json, "Print the twin's JSON on stdout");
   fit->callback([options, selected] {
     *selected = [options]() -> Status {
@@ -124,10 +128,12 @@ void AddTwinCommands(CLI::App& app, CommandRunner* selected) {
       fit_options.prior.fundamental_hz = o.prior_hz;
       fit_options.prior.damping_ratio = o.prior_damping;
       fit_options.fit.max_iterations = o.max_iterations;
+      fit_options.platform_amplitude_mm = o.platform_amplitude_mm;
       FACEDYN_ASSIGN_OR_RETURN(fit_options.groups, ParseGroups(o.groups));
       if (Status status = fit_options.Check(); !status.ok()) {
         return InvalidArgumentError("twin fit: " + status.message() +
-                                    " (--prior-hz, --prior-damping, --max-iterations)");
+                                    " (--prior-hz, --prior-damping, --max-iterations, "
+                                    "--platform-amplitude-mm)");
       }
       FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(o.face));
 
@@ -184,6 +190,16 @@ void AddTwinCommands(CLI::App& app, CommandRunner* selected) {
             fitted.cheek_damping_ratio_stddev, fitted.prior_cheek_mode.omega_rad_s / (2 * M_PI),
             fitted.prior_cheek_mode.damping_ratio, fitted.fit.rms_initial_mm,
             fitted.fit.rms_final_mm, o.out);
+        if (fitted.body) {
+          spdlog::info(
+              "body: resonance {:.2f} +- {:.2f} Hz, damping ratio {:.3f} +- {:.3f}, pitch "
+              "{:.4f} rad/g, from {} frequencies",
+              fitted.body->resonance_hz, fitted.body->resonance_hz_stddev,
+              fitted.body->damping_ratio, fitted.body->damping_ratio_stddev,
+              fitted.body->pitch_rad_per_g, fitted.body->distinct_frequencies);
+        } else {
+          spdlog::info("body: {}", fitted.body_note);
+        }
         for (const std::string& dir : skipped)
           spdlog::info("skipped (no platform frequency): {}", dir);
       }
@@ -227,6 +243,17 @@ void AddTwinPerformCommand(CLI::App* twin_command, CommandRunner* selected) {
       performance.tissue = twin.tissue;
       performance.tissue.max_step_s = step_s;
       performance.material = twin.material;
+      // The platform carries the twin through its own fitted body (when the fit had the
+      // platform's amplitude and three frequencies), not the simulator's standing-body default.
+      if (twin.body && performance.motion.kind == sim::MotionKind::kPlatform) {
+        performance.motion.body_resonance_hz = twin.body->resonance_hz;
+        performance.motion.body_damping_ratio = twin.body->damping_ratio;
+        performance.motion.pitch_rad_per_g = twin.body->pitch_rad_per_g;
+        spdlog::info(
+            "platform through the twin's body: resonance {:.2f} Hz, damping ratio {:.3f}, "
+            "pitch {:.4f} rad/g",
+            twin.body->resonance_hz, twin.body->damping_ratio, twin.body->pitch_rad_per_g);
+      }
       sim::PerformanceSummary summary;
       FACEDYN_ASSIGN_OR_RETURN(Take take, sim::SimulatePerformance(rig, performance, &summary));
       take.info.source = "twin perform";

@@ -14,7 +14,10 @@
 // the truth channels). Scored against the truth: the twin's neutral cheek mode (continuous
 // time, physics::SoftTissueModel::CheekMode) against the subject's configured fundamental and
 // damping ratio, which the simulator reproduces in its motion (physics/soft_tissue.h,
-// "Material"). Also the fit's seconds and phasor residuals.
+// "Material"). Also the fit's seconds and phasor residuals. The twin is given the platform's
+// amplitude (the rig's, 2 mm), so it also fits the body between platform and skull
+// (physics/body_transmissibility.h), scored against the subject's body (--true-body-hz,
+// --true-body-damping, --true-pitch-per-g; the simulator's standing body by default).
 //
 // "augmentation" (issue 23's "augmentation pays"; needs the reconstructed takes): does training
 // data from the twin help F on head motions the session never captured? The subject is also
@@ -31,7 +34,8 @@
 // vertices (eval/metrics.h), beside doing nothing; the per-seed ratio augmented / captured on
 // the nod and shake takes, and on the held-out platform frequency, is summarised over seeds.
 //
-//   twin_bench [--seeds 1,2,3] [--true-hz 9.0] [--true-damping 0.28] [--frequencies 6,7,8,9,10]
+//   twin_bench [--seeds 1,2,3] [--true-hz 9.0] [--true-damping 0.28] [--true-body-hz 5]
+//              [--true-body-damping 0.35] [--true-pitch-per-g 0.013] [--frequencies 6,7,8,9,10]
 //              [--expressions neutral,smile] [--seconds 2.5] [--no-reconstruct] [--no-clean]
 //              [--no-augmentation] [--held-out-hz 11] [--twin-weight 1] [--epochs 40] [--quick]
 //
@@ -72,6 +76,13 @@ struct Settings {
   std::vector<uint64_t> seeds = {1, 2, 3};
   double true_hz = 9.0;
   double true_damping = 0.28;
+  // The subject's body between platform and skull (sim::MotionOptions; the defaults are the
+  // simulator's standing body) and the platform's peak displacement, which the fit is given as
+  // a studio's rig config gives it.
+  double true_body_hz = sim::MotionOptions{}.body_resonance_hz;
+  double true_body_damping = sim::MotionOptions{}.body_damping_ratio;
+  double true_pitch_per_g = sim::MotionOptions{}.pitch_rad_per_g;
+  double platform_amplitude_mm = sim::MotionOptions{}.amplitude_mm;
   std::vector<double> frequencies = {6, 7, 8, 9, 10};
   std::vector<std::string> expressions = {"neutral", "smile"};
   double seconds = 2.5;
@@ -121,6 +132,17 @@ Json FitJson(const physics::FittedTwin& twin, const Settings& s) {
                    {"hz_error_percent", 100.0 * (hz - s.true_hz) / s.true_hz},
                    {"damping_error_percent",
                     100.0 * (twin.cheek_mode.damping_ratio - s.true_damping) / s.true_damping}};
+  if (twin.body) {
+    json["score"]["true_body_hz"] = s.true_body_hz;
+    json["score"]["true_body_damping_ratio"] = s.true_body_damping;
+    json["score"]["true_pitch_rad_per_g"] = s.true_pitch_per_g;
+    json["score"]["body_hz_error_percent"] =
+        100.0 * (twin.body->resonance_hz - s.true_body_hz) / s.true_body_hz;
+    json["score"]["body_damping_error_percent"] =
+        100.0 * (twin.body->damping_ratio - s.true_body_damping) / s.true_body_damping;
+    json["score"]["pitch_error_percent"] =
+        100.0 * (twin.body->pitch_rad_per_g - s.true_pitch_per_g) / s.true_pitch_per_g;
+  }
   return json;
 }
 
@@ -177,6 +199,10 @@ Json RunAugmentation(const facedyn::FaceRig& face, const eval::SimulatedCameraRi
     options.motion.kind = sim::MotionKind::kPlatform;
     options.motion.platform_hz = s.held_out_hz;
     options.motion.seed = seed * 100 + 99;
+    options.motion.amplitude_mm = s.platform_amplitude_mm;
+    options.motion.body_resonance_hz = s.true_body_hz;
+    options.motion.body_damping_ratio = s.true_body_damping;
+    options.motion.pitch_rad_per_g = s.true_pitch_per_g;
     film(expression + "@" + std::to_string(s.held_out_hz) + "Hz", "held-out platform frequency",
          options);
   }
@@ -311,6 +337,12 @@ int main(int argc, char** argv) {
       s.true_hz = facedyn::bench::FlagNumber("twin_bench", arg, next().c_str());
     } else if (arg == "--true-damping") {
       s.true_damping = facedyn::bench::FlagNumber("twin_bench", arg, next().c_str());
+    } else if (arg == "--true-body-hz") {
+      s.true_body_hz = facedyn::bench::FlagNumber("twin_bench", arg, next().c_str());
+    } else if (arg == "--true-body-damping") {
+      s.true_body_damping = facedyn::bench::FlagNumber("twin_bench", arg, next().c_str());
+    } else if (arg == "--true-pitch-per-g") {
+      s.true_pitch_per_g = facedyn::bench::FlagNumber("twin_bench", arg, next().c_str());
     } else if (arg == "--frequencies") {
       s.frequencies = list(next(), arg, [&](const std::string& t) {
         return facedyn::bench::FlagNumber("twin_bench", arg, t.c_str());
@@ -351,6 +383,7 @@ int main(int argc, char** argv) {
       Check(sim::MakeProceduralFace(sim::ProceduralFaceOptions()), "procedural face");
   Json runs = Json::array();
   std::vector<double> clean_hz, clean_damping, rec_hz, rec_damping, fit_seconds;
+  std::vector<double> clean_body_hz, clean_body_damping, rec_body_hz, rec_body_damping, rec_pitch;
   std::vector<double> motion_ratios, platform_ratios;  // augmented / captured F, per seed
   for (uint64_t seed : s.seeds) {
     const auto seed_start = Clock::now();
@@ -366,6 +399,10 @@ int main(int argc, char** argv) {
         options.motion.kind = sim::MotionKind::kPlatform;
         options.motion.platform_hz = hz;
         options.motion.seed = seed * 100 + static_cast<uint64_t>(hz);
+        options.motion.amplitude_mm = s.platform_amplitude_mm;
+        options.motion.body_resonance_hz = s.true_body_hz;
+        options.motion.body_damping_ratio = s.true_body_damping;
+        options.motion.pitch_rad_per_g = s.true_pitch_per_g;
         options.seconds = s.seconds;
         options.seed = seed;
         options.tissue.fundamental_hz = s.true_hz;
@@ -396,20 +433,32 @@ int main(int argc, char** argv) {
       return pairs;
     };
     Json run = {{"seed", seed}};
+    physics::TwinFitOptions fit_options;
+    fit_options.platform_amplitude_mm = s.platform_amplitude_mm;  // the rig's, not the body's
     if (s.clean) {
       const physics::FittedTwin clean_twin =
-          Check(physics::FitTwin(face, named(clean), physics::TwinFitOptions()), "clean fit");
+          Check(physics::FitTwin(face, named(clean), fit_options), "clean fit");
       run["clean"] = FitJson(clean_twin, s);
       clean_hz.push_back(run["clean"]["score"]["hz_error_percent"].get<double>());
       clean_damping.push_back(run["clean"]["score"]["damping_error_percent"].get<double>());
+      if (clean_twin.body) {
+        clean_body_hz.push_back(run["clean"]["score"]["body_hz_error_percent"].get<double>());
+        clean_body_damping.push_back(
+            run["clean"]["score"]["body_damping_error_percent"].get<double>());
+      }
     }
     if (s.reconstruct) {
       const physics::FittedTwin rec_twin =
-          Check(physics::FitTwin(face, named(reconstructed), physics::TwinFitOptions()),
-                "reconstructed fit");
+          Check(physics::FitTwin(face, named(reconstructed), fit_options), "reconstructed fit");
       run["reconstructed"] = FitJson(rec_twin, s);
       rec_hz.push_back(run["reconstructed"]["score"]["hz_error_percent"].get<double>());
       rec_damping.push_back(run["reconstructed"]["score"]["damping_error_percent"].get<double>());
+      if (rec_twin.body) {
+        const Json& score = run["reconstructed"]["score"];
+        rec_body_hz.push_back(score["body_hz_error_percent"].get<double>());
+        rec_body_damping.push_back(score["body_damping_error_percent"].get<double>());
+        rec_pitch.push_back(score["pitch_error_percent"].get<double>());
+      }
       fit_seconds.push_back(rec_twin.seconds);
       if (s.augmentation) {
         run["augmentation"] = RunAugmentation(face, cameras, s, seed, reconstructed, rec_twin,
@@ -431,11 +480,20 @@ int main(int argc, char** argv) {
   if (s.clean) {
     summary["clean_hz_error_percent"] = spread(clean_hz);
     summary["clean_damping_error_percent"] = spread(clean_damping);
+    if (!clean_body_hz.empty()) {
+      summary["clean_body_hz_error_percent"] = spread(clean_body_hz);
+      summary["clean_body_damping_error_percent"] = spread(clean_body_damping);
+    }
   }
   if (s.reconstruct) {
     summary["reconstructed_hz_error_percent"] = spread(rec_hz);
     summary["reconstructed_damping_error_percent"] = spread(rec_damping);
     summary["reconstructed_fit_seconds"] = spread(fit_seconds);
+    if (!rec_body_hz.empty()) {
+      summary["reconstructed_body_hz_error_percent"] = spread(rec_body_hz);
+      summary["reconstructed_body_damping_error_percent"] = spread(rec_body_damping);
+      summary["reconstructed_pitch_error_percent"] = spread(rec_pitch);
+    }
     if (s.augmentation) {
       summary["augmented_over_captured_head_motion"] = spread(motion_ratios);
       summary["augmented_over_captured_held_out_platform"] = spread(platform_ratios);
@@ -444,7 +502,13 @@ int main(int argc, char** argv) {
   Json frequencies = Json::array();
   for (double hz : s.frequencies) frequencies.push_back(hz);
   const Json out = {{"bench", "twin"},
-                    {"subject", {{"true_hz", s.true_hz}, {"true_damping_ratio", s.true_damping}}},
+                    {"subject",
+                     {{"true_hz", s.true_hz},
+                      {"true_damping_ratio", s.true_damping},
+                      {"true_body_hz", s.true_body_hz},
+                      {"true_body_damping_ratio", s.true_body_damping},
+                      {"true_pitch_rad_per_g", s.true_pitch_per_g},
+                      {"platform_amplitude_mm", s.platform_amplitude_mm}}},
                     {"frequencies_hz", frequencies},
                     {"expressions", s.expressions},
                     {"seconds_per_take", s.seconds},

@@ -159,6 +159,8 @@ StatusOr<HarmonicSkullMotion> FitHarmonicSkullMotion(const std::vector<double>& 
       -Cross(rotation, gravity_in_skull) +
       omega * omega * skull_from_world.cast<Complex>() * translation;
   motion.angular_acceleration_in_skull = -omega * omega * rotation;
+  motion.translation_in_world = translation;
+  motion.rotation_in_skull = rotation;
   return motion;
 }
 

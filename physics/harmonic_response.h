@@ -52,6 +52,10 @@ struct HarmonicSkullMotion {
   Eigen::Vector3cd uniform_acceleration_in_skull = Eigen::Vector3cd::Zero();
   // Angular acceleration of the skull, skull coordinates, rad/s^2.
   Eigen::Vector3cd angular_acceleration_in_skull = Eigen::Vector3cd::Zero();
+  // The motion itself: the skull origin's displacement (world, mm) and its rotation vector
+  // relative to the mean rotation (skull coordinates, rad), what the loads were made from.
+  Eigen::Vector3cd translation_in_world = Eigen::Vector3cd::Zero();
+  Eigen::Vector3cd rotation_in_skull = Eigen::Vector3cd::Zero();
 };
 
 // The harmonic skull motion of a sampled pose track at `frequency_hz`: each of the skull's

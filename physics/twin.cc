@@ -194,6 +194,11 @@ Status TwinFitOptions::Check() const {
   if (!(same_expression_tolerance >= 0 && same_expression_tolerance < 1)) {
     return InvalidArgumentError("twin fit: same_expression_tolerance must be in [0, 1)");
   }
+  if (!(platform_amplitude_mm >= 0 && platform_amplitude_mm <= 50)) {
+    return InvalidArgumentError(
+        fmt::format("twin fit: platform amplitude {} mm is not in [0, 50] (0: not known)",
+                    platform_amplitude_mm));
+  }
   return Status::Ok();
 }
 
@@ -410,6 +415,22 @@ StatusOr<FittedTwin> FitTwin(const FaceRig& rig,
 
   for (const Prepared& prep : prepared) twin.takes.push_back(prep.summary);
   twin.marker_count = static_cast<int>(observed.size());
+  // The body, from the same takes' skull motion.
+  twin.platform_amplitude_mm = options.platform_amplitude_mm;
+  if (options.platform_amplitude_mm > 0) {
+    BodyFitOptions body_options;
+    body_options.platform_amplitude_mm = options.platform_amplitude_mm;
+    StatusOr<BodyFit> body = FitBodyTransmissibility(takes, body_options);
+    if (body.ok()) {
+      twin.body = std::move(*body);
+    } else if (body.status().code() == StatusCode::kFailedPrecondition) {
+      twin.body_note = "not fitted: " + body.status().message();  // e.g. too few frequencies
+    } else {
+      return body.status();
+    }
+  } else {
+    twin.body_note = "not fitted: the platform amplitude was not given";
+  }
   twin.seconds = Seconds(start);
   progress.Finish(fmt::format("cheeks {:.2f} Hz, damping {:.3f}",
                               twin.cheek_mode.omega_rad_s / (2 * M_PI),
@@ -469,6 +490,12 @@ Json TwinToJson(const FittedTwin& twin) {
                      {"linearisation", take.linearisation}});
   }
   json["takes"] = takes;
+  if (twin.body) {
+    json["body"] = BodyFitToJson(*twin.body, twin.platform_amplitude_mm);
+    json["body"]["fitted"] = true;
+  } else {
+    json["body"] = {{"fitted", false}, {"note", twin.body_note}};
+  }
   return json;
 }
 
@@ -522,6 +549,21 @@ StatusOr<LoadedTwin> LoadTwin(const std::string& path, const FaceRig& rig) {
   FACEDYN_ASSIGN_OR_RETURN(const double hz, mode.Get<double>("hz"));
   FACEDYN_ASSIGN_OR_RETURN(twin.cheek_mode.damping_ratio, mode.Get<double>("damping_ratio"));
   twin.cheek_mode.omega_rad_s = 2 * M_PI * hz;
+  if (root.Has("body")) {
+    FACEDYN_ASSIGN_OR_RETURN(const ConfigNode body, root.Child("body"));
+    FACEDYN_ASSIGN_OR_RETURN(const bool fitted, body.GetOr<bool>("fitted", false));
+    if (fitted) {
+      LoadedTwin::Body loaded;
+      FACEDYN_ASSIGN_OR_RETURN(loaded.resonance_hz, body.Get<double>("resonance_hz"));
+      FACEDYN_ASSIGN_OR_RETURN(loaded.damping_ratio, body.Get<double>("damping_ratio"));
+      FACEDYN_ASSIGN_OR_RETURN(loaded.pitch_rad_per_g, body.Get<double>("pitch_rad_per_g"));
+      if (!(loaded.resonance_hz > 0)) return body.Error("resonance_hz", "must be positive");
+      if (!(loaded.damping_ratio > 0)) return body.Error("damping_ratio", "must be positive");
+      if (!std::isfinite(loaded.pitch_rad_per_g))
+        return body.Error("pitch_rad_per_g", "must be finite");
+      twin.body = loaded;
+    }
+  }
 
   if (rig.skull.vertex_count() != rig.vertex_count()) {
     return FailedPreconditionError(

@@ -19,9 +19,12 @@
 //    one linearisation (and one sparse factorisation per evaluation).
 // 4. The fitted material gives the twin's cheek mode (frequency and damping ratio), with a
 //    standard deviation propagated from the fit's covariance.
+// 5. Given the platform's amplitude, the body's transmissibility from platform to skull is
+//    fitted to the same takes' skull motion (physics/body_transmissibility.h).
 #pragma once
 
 #include <Eigen/Core>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,6 +32,7 @@
 #include "core/json_io.h"
 #include "core/status.h"
 #include "core/take.h"
+#include "physics/body_transmissibility.h"
 #include "physics/material_fit.h"
 #include "physics/soft_tissue.h"
 
@@ -70,6 +74,9 @@ struct TwinFitOptions {
   MaterialFitOptions fit;
   // Takes whose fitted weights differ by less than this (max abs) share one linearisation.
   double same_expression_tolerance = 0.05;
+  // The platform's peak displacement (mm; the rig config's amplitude_mm). When > 0 the body's
+  // transmissibility is fitted too (physics/body_transmissibility.h); 0: not known, not fitted.
+  double platform_amplitude_mm = 0.0;
   Status Check() const;
 };
 
@@ -101,6 +108,11 @@ struct FittedTwin {
   std::vector<TwinTake> takes;
   int marker_count = 0;
   double seconds = 0.0;  // wall time of the fit
+  // The body between platform and skull, when the platform amplitude was given and the takes
+  // span at least three frequencies; otherwise body_note says why it was not fitted.
+  std::optional<BodyFit> body;
+  double platform_amplitude_mm = 0.0;
+  std::string body_note;
 };
 
 // Fits the twin to `takes` (each with platform_hz; their names are for messages). Takes without
@@ -111,7 +123,8 @@ StatusOr<FittedTwin> FitTwin(const FaceRig& rig,
                              const TwinFitOptions& options);
 
 // The twin as JSON (format "facedyn-twin" version 1): rig, prior, groups with scales and their
-// uncertainty, material, cheek mode, the fit's figures and each take's.
+// uncertainty, material, cheek mode, the fit's figures and each take's, and "body" (the body
+// fit, or {"fitted": false, "note"}).
 Json TwinToJson(const FittedTwin& twin);
 
 // A twin file read back for simulation: the prior's tissue options (layers, Poisson ratio,
@@ -122,6 +135,11 @@ struct LoadedTwin {
   TissueMaterial material;
   std::vector<StiffnessGroup> groups;
   DampedMode cheek_mode;
+  // The fitted body (resonance, damping ratio, pitch per g), when the file has one.
+  struct Body {
+    double resonance_hz = 0.0, damping_ratio = 0.0, pitch_rad_per_g = 0.0;
+  };
+  std::optional<Body> body;
 };
 StatusOr<LoadedTwin> LoadTwin(const std::string& path, const FaceRig& rig);
 

@@ -4,10 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <utility>
 #include <vector>
 
 #include "core/take.h"
+#include "physics/body_transmissibility.h"
 
 namespace facedyn::sim {
 namespace {
@@ -209,7 +211,7 @@ std::unique_ptr<SkullMotion> MakePlatform(const MotionOptions& o) {
   motion->ramp_in_s = o.ramp_in_s;
   Random random(o.seed);
   const std::complex<double> t =
-      BodyTransmissibility(o.platform_hz, o.body_resonance_hz, o.body_damping_ratio);
+      physics::BodyTransmissibility(o.platform_hz, o.body_resonance_hz, o.body_damping_ratio);
   const double head_mm = std::abs(t) * o.amplitude_mm;
   const double phase = std::arg(t);
   motion->y_mm.sinusoids.push_back({head_mm, o.platform_hz, phase});
@@ -535,13 +537,6 @@ StatusOr<MotionKind> ParseMotionKind(const std::string& spec, std::string* file_
       "motion '" + spec +
       "' is not one of platform, walk, run, jump, nod, shake, sway, turn_walk, lie_back, none, "
       "file:PATH");
-}
-
-std::complex<double> BodyTransmissibility(double hz, double resonance_hz, double zeta) {
-  FACEDYN_CHECK(resonance_hz > 0.0, "BodyTransmissibility needs a positive resonance");
-  const double r = hz / resonance_hz;
-  const std::complex<double> damping(0.0, 2.0 * zeta * r);
-  return (1.0 + damping) / (1.0 - r * r + damping);
 }
 
 Status MotionOptions::Check() const {

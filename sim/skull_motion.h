@@ -26,7 +26,6 @@
 // Rz(roll). Units: mm, s, Hz, rad.
 #pragma once
 
-#include <complex>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -73,7 +72,7 @@ struct MotionOptions {
   double platform_hz = 8.0;   // oscillation frequency, 6..11 typical, allowed 0.5..30
   double amplitude_mm = 2.0;  // platform vertical amplitude A (peak), mm, allowed 0..50
   // Body transmissibility from platform to head: a base-excited single-DOF oscillator
-  // (see BodyTransmissibility). Standing-body figures: apparent-mass resonance near 5 Hz with
+  // (physics::BodyTransmissibility). Standing-body figures: apparent-mass resonance near 5 Hz with
   // damping ratio 0.3-0.4 (see the .cc for sources).
   double body_resonance_hz = 5.0;    // allowed 1..20
   double body_damping_ratio = 0.35;  // allowed 0.05..2
@@ -141,13 +140,6 @@ struct MotionOptions {
 // to the skull origin, and the hips below the skull origin when lying back (adult figures).
 inline constexpr double kStandingPendulumMm = 1500.0;
 inline constexpr double kHipBelowSkullMm = 650.0;
-
-// Complex steady-state transmissibility T(f) = X_head / X_platform of a base-excited
-// single-DOF oscillator with natural frequency `resonance_hz` and damping ratio `zeta`:
-//   T = (1 + i 2 zeta r) / (1 - r^2 + i 2 zeta r),  r = f / resonance_hz.
-// |T| peaks above 1 near resonance and falls below 1 for r > sqrt(2); arg T is the head's
-// phase lead (negative: the head lags the platform).
-std::complex<double> BodyTransmissibility(double hz, double resonance_hz, double zeta);
 
 // A world_from_skull(t) trajectory. Implementations are C2 unless stated (kFile is C1).
 class SkullMotion {

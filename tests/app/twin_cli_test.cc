@@ -24,7 +24,8 @@ using ::testing::HasSubstr;
 std::string Facedyn(const std::string& args) { return FacedynExecutable() + " " + args; }
 
 // The subject: 9 Hz cheeks, damping ratio 0.30 (the twin's prior is 11 Hz, 0.22). Three 1.5 s
-// platform takes at 6, 8 and 10 Hz, and one take without platform motion; made once.
+// platform takes at 6, 8 and 10 Hz (2 mm, the simulator's standing body), and one take without
+// platform motion; made once.
 const TempDir& Takes() {
   static const TempDir* dir = [] {
     auto* d = new TempDir();
@@ -74,11 +75,12 @@ TEST(TwinCli, FitsThePlatformTakesWithoutTheirTruth) {
   std::string out;
   const TempDir& takes = Takes();
   // In the order --processed lists them (by name), so the two fits see the same sequence.
-  ASSERT_EQ(RunCommand(Facedyn("--quiet twin fit --takes " + takes.Join("p10") + " " +
-                               takes.Join("p6") + " " + takes.Join("p8") + " --groups all --out " +
-                               dir.Join("twin.json") + " --json"),
-                       &out),
-            0)
+  ASSERT_EQ(
+      RunCommand(Facedyn("--quiet twin fit --takes " + takes.Join("p10") + " " + takes.Join("p6") +
+                         " " + takes.Join("p8") + " --groups all --platform-amplitude-mm 2 --out " +
+                         dir.Join("twin.json") + " --json"),
+                 &out),
+      0)
       << out;
   const auto twin = nlohmann::json::parse(out);
   EXPECT_EQ(twin["format"], "facedyn-twin");
@@ -96,6 +98,13 @@ TEST(TwinCli, FitsThePlatformTakesWithoutTheirTruth) {
   ASSERT_EQ(twin["takes"].size(), 3u);
   ASSERT_EQ(twin["stiffness_groups"].size(), 1u);  // --groups all: one scale for all tissue
   EXPECT_EQ(twin["stiffness_groups"][0]["name"], "all");
+  // The body between platform and skull, from the skull poses and the platform's 2 mm (the
+  // simulator's standing body: 5 Hz, damping ratio 0.35, 0.013 rad/g, never told to the fit).
+  ASSERT_TRUE(twin["body"]["fitted"].get<bool>()) << twin["body"];
+  EXPECT_NEAR(twin["body"]["resonance_hz"].get<double>(), 5.0, 0.03 * 5.0);
+  EXPECT_NEAR(twin["body"]["damping_ratio"].get<double>(), 0.35, 0.05 * 0.35);
+  EXPECT_NEAR(twin["body"]["pitch_rad_per_g"].get<double>(), 0.013, 0.1 * 0.013);
+  EXPECT_EQ(twin["body"]["distinct_frequencies"].get<int>(), 3);
 
   // The same takes without their truth channels, found through a process output folder; the
   // take without platform motion is skipped and listed.
@@ -109,6 +118,9 @@ TEST(TwinCli, FitsThePlatformTakesWithoutTheirTruth) {
             0)
       << out;
   const auto stripped = nlohmann::json::parse(out);
+  // Without the platform's amplitude the body is not fitted, and the file says why.
+  EXPECT_FALSE(stripped["body"]["fitted"].get<bool>());
+  EXPECT_THAT(stripped["body"]["note"].get<std::string>(), HasSubstr("amplitude"));
 
   // The twin simulated under a motion nobody captured: a short nod with its material.
   ASSERT_EQ(RunCommand(Facedyn("--quiet twin perform --twin " + dir.Join("twin.json") +
@@ -122,6 +134,18 @@ TEST(TwinCli, FitsThePlatformTakesWithoutTheirTruth) {
   EXPECT_EQ(nod["metadata"]["motion"]["kind"], "nod");
   EXPECT_DOUBLE_EQ(nod["metadata"]["twin_cheek_mode"]["hz"].get<double>(),
                    twin["cheek_mode"]["hz"].get<double>());
+  // On the platform the twin rides its own fitted body.
+  ASSERT_EQ(RunCommand(Facedyn("--quiet twin perform --twin " + dir.Join("twin.json") +
+                               " --motion platform --hz 7 --seconds 0.5 --fps 64 --out " +
+                               dir.Join("platform")),
+                       &out),
+            0)
+      << out;
+  const auto platform = ReadJson(dir.Join("platform/take.json"));
+  EXPECT_DOUBLE_EQ(platform["metadata"]["motion"]["body_resonance_hz"].get<double>(),
+                   twin["body"]["resonance_hz"].get<double>());
+  EXPECT_DOUBLE_EQ(platform["metadata"]["motion"]["body_damping_ratio"].get<double>(),
+                   twin["body"]["damping_ratio"].get<double>());
   // F trained on the captured takes (stripped of truth, moving-average targets) beside the twin
   // take (the twin's own exact quasistatic), weighted; a simulator take passed as a twin take
   // would bring the world's truth and is refused by name.
@@ -196,6 +220,11 @@ TEST(TwinCli, BadInputIsNamed) {
                        &out),
             0);
   EXPECT_THAT(out, HasSubstr("damping_ratio"));
+  EXPECT_NE(RunCommand(Facedyn("twin fit --takes " + takes.Join("p8") +
+                               " --platform-amplitude-mm -2 --out " + dir.Join("t.json")),
+                       &out),
+            0);
+  EXPECT_THAT(out, HasSubstr("platform amplitude"));
   EXPECT_FALSE(std::filesystem::exists(dir.Join("t.json")));
   // Nothing in the command reads a simulator's truth.
   ASSERT_EQ(RunCommand(Facedyn("twin fit --help"), &out), 0);

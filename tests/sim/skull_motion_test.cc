@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/take.h"
+#include "physics/body_transmissibility.h"
 #include "tests/support/test_support.h"
 
 namespace facedyn::sim {
@@ -104,7 +105,7 @@ TEST(MakeSkullMotion, NoneIsIdentity) {
 TEST(BodyTransmissibility, ResonanceAmplifiesAndHighFrequenciesAttenuate) {
   const MotionOptions o;
   const auto t = [&o](double hz) {
-    return BodyTransmissibility(hz, o.body_resonance_hz, o.body_damping_ratio);
+    return physics::BodyTransmissibility(hz, o.body_resonance_hz, o.body_damping_ratio);
   };
   EXPECT_NEAR(std::abs(t(1e-6)), 1.0, 1e-9);
   EXPECT_GT(std::abs(t(o.body_resonance_hz)), 1.0);
@@ -137,7 +138,7 @@ TEST(PlatformMotion, VerticalMotionIsTransmittedPlatformSinusoid) {
     }
     EXPECT_DOUBLE_EQ(best_hz, hz);
     const double expected =
-        std::abs(BodyTransmissibility(hz, o.body_resonance_hz, o.body_damping_ratio)) *
+        std::abs(physics::BodyTransmissibility(hz, o.body_resonance_hz, o.body_damping_ratio)) *
         o.amplitude_mm;
     EXPECT_NEAR(best, expected, 0.02 * expected) << hz << " Hz";
     // Peak of the time series as well (the vertical channel is the sinusoid alone).

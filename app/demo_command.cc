@@ -288,10 +288,16 @@ Status RunDemo(const DemoOptions& options) {
   // The physical twin of subject B (issue 23): its material identified from B's reconstructed
   // platform takes, and removal under head motions nobody captured, with and without the twin's
   // takes in training.
+  CapturedRemoval captured_b;
+  captured_b.model = artifacts.second_subject_removal ? &*artifacts.second_subject_removal : nullptr;
+  captured_b.targets = artifacts.second_subject_removal_targets;
+  captured_b.optimizer_steps = artifacts.second_subject_removal_steps;
+  captured_b.batch_size = artifacts.second_subject_removal_batch;
+  captured_b.seed = options.seeds.front();
   FACEDYN_ASSIGN_OR_RETURN(
       metrics["twin"],
       RunTwinDemoStage(artifacts.second_face, artifacts.second_subject_tissue,
-                       artifacts.second_subject_reconstructed, cameras,
+                       artifacts.second_subject_reconstructed, captured_b, cameras,
                        TwinDemoOptions::ForDemo(options.quick, options.seeds.front()),
                        options.out_dir));
   artifacts.second_subject_reconstructed.clear();

@@ -666,7 +666,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
 
   // --- 4. retargeting to subject B: B's own F and H, A's walk ---
   learn::MlpTrainSummary fb_summary, hb_summary;
-  FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel fb_model,
+  FACEDYN_ASSIGN_OR_RETURN(dynamics::RemovalModel fb_model,
                            TrainF(b.reconstructed, face_b, options.removal_targets,
                                   options.second_subject_removal_epochs, options.removal_batch,
                                   options.seed, "F_B", &fb_summary));
@@ -766,6 +766,10 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
     artifacts->second_face = face_b;
     artifacts->second_subject_tissue = tissue_b;
     artifacts->second_subject_reconstructed = std::move(b.reconstructed);
+    artifacts->second_subject_removal = std::move(fb_model);
+    artifacts->second_subject_removal_targets = options.removal_targets;
+    artifacts->second_subject_removal_steps = fb_summary.optimizer_steps;
+    artifacts->second_subject_removal_batch = options.removal_batch;
     artifacts->retarget_truth = std::move(retarget_truth);
     artifacts->retargeted = std::move(retargeted);
     artifacts->naive = std::move(naive);

@@ -30,6 +30,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -111,6 +112,14 @@ struct DemoDynamicsArtifacts {
   // reconstructed training takes (platform and walks), for the twin stage (app/twin_demo.h).
   physics::TissueOptions second_subject_tissue;
   std::vector<Take> second_subject_reconstructed;
+  // B's removal network F_B as the dynamics stage trained it on second_subject_reconstructed,
+  // with its targets, optimiser steps and batch: the twin stage's "captured" F, which the
+  // augmented F matches step for step (so F_B is not trained twice).
+  std::optional<dynamics::RemovalModel> second_subject_removal;
+  dynamics::RemovalTargets second_subject_removal_targets =
+      dynamics::RemovalTargets::kPlatformSynchronousWhereKnown;
+  long second_subject_removal_steps = 0;
+  int second_subject_removal_batch = 0;
   Take retarget_truth;    // B simulated walking A's walk
   Take retargeted;        // B's H on B's quasistatic under A's walk
   Take naive;             // NaiveDeltaTransfer of A's walk offsets onto B

@@ -50,16 +50,23 @@ TwinDemoOptions TwinDemoOptions::ForDemo(bool quick, uint64_t seed) {
     options.twin_seconds = 1.25;
     options.test_seconds = 1.5;
     options.single_group = true;
-    options.removal_epochs = 4;
   }
   return options;
 }
 
 StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOptions& true_tissue,
                                 const std::vector<Take>& captured,
+                                const CapturedRemoval& captured_removal,
                                 const eval::SimulatedCameraRig& cameras,
                                 const TwinDemoOptions& options, const std::string& out_dir) {
   const auto start = Clock::now();
+  if (captured_removal.model == nullptr || captured_removal.optimizer_steps < 1 ||
+      captured_removal.batch_size < 1) {
+    return InvalidArgumentError(fmt::format(
+        "twin stage: subject {}'s captured removal network is missing or has no optimiser steps "
+        "({}) or batch ({})",
+        subject.name, captured_removal.optimizer_steps, captured_removal.batch_size));
+  }
   std::vector<std::pair<std::string, const Take*>> platform;
   for (const Take& take : captured) {
     if (take.info.platform_hz) {
@@ -84,6 +91,7 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
     all.name = "all";
     fit_options.groups = {all};
   }
+  fit_options.platform_amplitude_mm = options.platform_amplitude_mm;
   FACEDYN_ASSIGN_OR_RETURN(const physics::FittedTwin twin,
                            physics::FitTwin(subject, platform, fit_options));
   const std::string models_dir = JoinPath(out_dir, "models");
@@ -121,6 +129,29 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
        "warp makes the forced response look about 6% more damped than configured "
        "(bench/twin_bench.cc); twin_bench simulates at 1/512 s"}};
 
+  const sim::MotionOptions configured_motion;  // B's body: the simulator's standing body
+  if (twin.body) {
+    std::printf(
+        "  body (platform to skull): fitted resonance %.3f +- %.3f Hz, damping ratio %.4f +- "
+        "%.4f, pitch %.4f rad/g; configured %.3f Hz, %.4f, %.4f rad/g\n",
+        twin.body->resonance_hz, twin.body->resonance_hz_stddev, twin.body->damping_ratio,
+        twin.body->damping_ratio_stddev, twin.body->pitch_rad_per_g,
+        configured_motion.body_resonance_hz, configured_motion.body_damping_ratio,
+        configured_motion.pitch_rad_per_g);
+    result["body"] = {{"fitted_hz", eval::Round4(twin.body->resonance_hz)},
+                      {"fitted_hz_sd", eval::Round4(twin.body->resonance_hz_stddev)},
+                      {"fitted_damping_ratio", eval::Round4(twin.body->damping_ratio)},
+                      {"fitted_damping_ratio_sd", eval::Round4(twin.body->damping_ratio_stddev)},
+                      {"fitted_pitch_rad_per_g", twin.body->pitch_rad_per_g},
+                      {"true_hz", configured_motion.body_resonance_hz},
+                      {"true_damping_ratio", configured_motion.body_damping_ratio},
+                      {"true_pitch_rad_per_g", configured_motion.pitch_rad_per_g},
+                      {"frequencies", twin.body->distinct_frequencies}};
+  } else {
+    std::printf("  body (platform to skull): %s\n", twin.body_note.c_str());
+    result["body"] = {{"note", twin.body_note}};
+  }
+
   // 2. The twin under head motions nobody captured: its fitted material, never the subject's.
   const double fps = captured.front().info.fps;
   std::vector<Take> twin_takes;
@@ -140,33 +171,31 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
     twin_takes.push_back(std::move(take));
   }
 
-  // 3. F on the captured takes alone and with the twin's, the same optimiser budget.
+  // 3. F with the twin's takes beside the captured ones, on the captured F's budget and targets.
+  const dynamics::RemovalModel& f_captured = *captured_removal.model;
   dynamics::RemovalTrainOptions train;
-  train.targets = dynamics::RemovalTargets::kPlatformSynchronousWhereKnown;
-  train.train.epochs = options.removal_epochs;
-  train.train.batch_size = options.removal_batch;
-  train.train.seed = options.seed;
+  train.targets = captured_removal.targets;
+  train.train.optimizer_steps = captured_removal.optimizer_steps;
+  train.train.batch_size = captured_removal.batch_size;
+  train.train.seed = captured_removal.seed;
   train.train.final_learning_rate_fraction = 0.05;
-  train.train.progress_label = "F_B captured";
+  train.train.progress_label = "F_B augmented";
   std::vector<dynamics::TrainingTake> training;
   for (const Take& take : captured) training.emplace_back(&take, &subject);
-  learn::MlpTrainSummary captured_summary, augmented_summary;
-  FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel f_captured,
-                           dynamics::TrainRemoval(training, train, &captured_summary));
   for (const Take& take : twin_takes) {
     training.emplace_back(&take, &subject, dynamics::RemovalTargets::kExact, options.twin_weight);
   }
-  train.train.optimizer_steps = captured_summary.optimizer_steps;
-  train.train.progress_label = "F_B augmented";
+  learn::MlpTrainSummary augmented_summary;
   FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel f_augmented,
                            dynamics::TrainRemoval(training, train, &augmented_summary));
   FACEDYN_RETURN_IF_ERROR(f_augmented.Save(JoinPath(models_dir, "F_B_augmented.pt")));
-  result["training"] = {{"captured_takes", captured.size()},
-                        {"twin_takes", twin_takes.size()},
-                        {"twin_weight", options.twin_weight},
-                        {"optimizer_steps", captured_summary.optimizer_steps},
-                        {"rows_captured", captured_summary.training_rows},
-                        {"rows_augmented", augmented_summary.training_rows}};
+  result["training"] = {
+      {"captured_takes", captured.size()},
+      {"twin_takes", twin_takes.size()},
+      {"twin_weight", options.twin_weight},
+      {"captured_targets", dynamics::RemovalTargetsName(captured_removal.targets)},
+      {"optimizer_steps", augmented_summary.optimizer_steps},
+      {"rows_augmented", augmented_summary.training_rows}};
   twin_takes.clear();
 
   // 4. The subject filmed under head motions no training take has, scored against its truth.

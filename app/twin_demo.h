@@ -2,13 +2,13 @@
 // tissue the methods are not told (app/demo_dynamics.h: another cheek frequency and damping
 // than the model's defaults). This stage
 //   1. fits B's twin (physics/twin.h FitTwin) to B's reconstructed platform takes — markers and
-//      skull pose only — and prints the fitted cheek mode beside the configured one (read only
-//      to score);
+//      skull pose only — and prints the fitted cheek mode (and body, from three frequencies)
+//      beside the configured one (read only to score);
 //   2. simulates the twin (its fitted material, as `facedyn twin perform` does) nodding and
 //      shaking its head at frequencies and amplitudes of its own;
-//   3. trains two removal networks for B on the same budget of optimiser steps: on B's
-//      reconstructed takes alone ("captured") and with the twin's takes beside them on the
-//      twin's own exact quasistatic ("augmented", dynamics::TrainingTake);
+//   3. trains B's removal network with the twin's takes beside B's reconstructed ones, on the
+//      twin's own exact quasistatic ("augmented", dynamics::TrainingTake), for as many optimiser
+//      steps as the dynamics stage's F_B took on B's reconstructed takes alone ("captured");
 //   4. films B nodding and shaking at a frequency and amplitude no training take has
 //      (reconstructed from projected marker centres, like every demo take) and scores both
 //      networks, and no removal, against B's exact quasistatic.
@@ -23,6 +23,7 @@
 #include "core/json_io.h"
 #include "core/status.h"
 #include "core/take.h"
+#include "dynamics/removal_model.h"
 #include "eval/simulated_stage.h"
 #include "physics/soft_tissue.h"
 #include "sim/skull_motion.h"
@@ -49,21 +50,37 @@ struct TwinDemoOptions {
   // One stiffness scale for all the tissue (DefaultStiffnessGroups() when false): the quick
   // demo's subject B has a single platform take, too little for three regions.
   bool single_group = false;
-  int removal_epochs = 10;
-  int removal_batch = 2000;
   double twin_weight = 1.0;
+  // The platform's peak displacement as the demo's rig is configured (the simulator's default):
+  // the twin fit is given it, as a studio's rig config gives it, to fit the body between
+  // platform and skull (needs takes at three frequencies: not the quick demo's).
+  double platform_amplitude_mm = sim::MotionOptions{}.amplitude_mm;
   uint64_t seed = 1;
   static TwinDemoOptions ForDemo(bool quick, uint64_t seed);
 };
 
+// The subject's removal network on its captured takes alone, as the dynamics stage trained it
+// (app/demo_dynamics.h DemoDynamicsArtifacts): the augmented network is trained with the same
+// targets for the captured takes, the same batch and the same number of optimiser steps.
+struct CapturedRemoval {
+  const dynamics::RemovalModel* model = nullptr;
+  dynamics::RemovalTargets targets = dynamics::RemovalTargets::kPlatformSynchronousWhereKnown;
+  long optimizer_steps = 0;
+  int batch_size = 0;
+  uint64_t seed = 1;
+};
+
 // Runs the stage for `subject` (its reconstructed takes `captured`: the platform ones fit the
-// twin, all of them train F) and writes <out_dir>/models/twin_B.json. `true_tissue` is the
+// twin, all of them trained `captured_removal` and train the augmented F beside the twin's) and
+// writes <out_dir>/models/twin_B.json. `true_tissue` is the
 // subject's configured tissue: it makes the held-out takes and scores the fit, and never
 // reaches a method. Returns {"fit": fitted vs configured cheek mode, "removal": per held-out
 // take each method's jiggle_mean_mm, "training", "seconds"}. Errors: no platform take among
-// `captured`, and those of the fit, the simulation and the reconstruction.
+// `captured`, no model or steps < 1 or batch < 1 in `captured_removal`, and those of the fit, the
+// training, the simulation and the reconstruction.
 StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOptions& true_tissue,
                                 const std::vector<Take>& captured,
+                                const CapturedRemoval& captured_removal,
                                 const eval::SimulatedCameraRig& cameras,
                                 const TwinDemoOptions& options, const std::string& out_dir);
 

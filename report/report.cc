@@ -611,6 +611,19 @@ std::string TwinSection(const Json& twin) {
       Number(fit, "true_damping_ratio"), Number(fit, "hz_error_percent"),
       Number(fit, "damping_error_percent"), Number(fit, "prior_hz"),
       Number(fit, "prior_damping_ratio"), EscapeHtml(Text(fit, "note")));
+  const Json& body = Field(twin, "body");
+  if (body.contains("fitted_hz")) {
+    html += fmt::format(
+        "<p>The body between platform and skull (from the skull's motion against the rig's "
+        "platform amplitude, {} frequencies): resonance {:.3f} &plusmn; {:.3f} Hz, damping ratio "
+        "{:.4f} &plusmn; {:.4f}; configured {:.3f} Hz, {:.4f}.</p>",
+        EscapeHtml(Text(body, "frequencies")), Number(body, "fitted_hz"),
+        Number(body, "fitted_hz_sd"), Number(body, "fitted_damping_ratio"),
+        Number(body, "fitted_damping_ratio_sd"), Number(body, "true_hz"),
+        Number(body, "true_damping_ratio"));
+  } else if (body.contains("note")) {
+    html += "<p>The body between platform and skull: " + EscapeHtml(Text(body, "note")) + ".</p>";
+  }
   const Json& training = Field(twin, "training");
   html += fmt::format(
       "<p>Removal under head motions no training take has: F trained on B's {} reconstructed "

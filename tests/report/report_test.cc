@@ -174,6 +174,10 @@ TEST(WriteDemoReport, TwinSection) {
                             {"true_hz", 8.5},      {"true_damping_ratio", 0.17},
                             {"hz_error_percent", 1.29}, {"damping_error_percent", 6.06},
                             {"prior_hz", 11.0},    {"prior_damping_ratio", 0.22}};
+  metrics["twin"]["body"] = {{"fitted_hz", 5.02},           {"fitted_hz_sd", 0.01},
+                             {"fitted_damping_ratio", 0.351}, {"fitted_damping_ratio_sd", 0.002},
+                             {"true_hz", 5.0},               {"true_damping_ratio", 0.35},
+                             {"frequencies", 5}};
   metrics["twin"]["training"] = {{"captured_takes", 7}, {"twin_takes", 4}, {"optimizer_steps", 90}};
   metrics["twin"]["removal"] = Json::array(
       {{{"take", "neutral <nod>"},
@@ -185,6 +189,7 @@ TEST(WriteDemoReport, TwinSection) {
   const std::string html = testing::ReadBytes(dir.Join("report.html"));
   EXPECT_THAT(html, HasSubstr("fitted 8.610 &plusmn; 0.020 Hz"));
   EXPECT_THAT(html, HasSubstr("8.500 Hz, 0.1700 (+1.29%, +6.06%)"));
+  EXPECT_THAT(html, HasSubstr("resonance 5.020 &plusmn; 0.010 Hz, damping ratio 0.3510"));
   EXPECT_THAT(html, HasSubstr("<td>neutral &lt;nod&gt;</td><td>0.610</td><td>1.940</td>"
                               "<td>0.276</td>"));
   metrics["twin"] = Json::object();

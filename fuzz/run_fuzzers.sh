@@ -11,9 +11,11 @@ seconds="$2"
 shift 2
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-  targets=(pc2 mdd mesh_obj mesh_ply take_json transform_csv blendshape_weights face_rig drive_profile rig_config
-           sweep_script rig_log sweep_resume modbus_reply capture_config session_json session_events frame_file calibration
-           drive_request)
+  # Every fuzz target the build has (fuzz/CMakeLists.txt), so a new one is never left out.
+  for bin in "$build"/fuzz/fuzz_*; do
+    [ -x "$bin" ] && [ -f "$bin" ] && targets+=("${bin##*/fuzz_}")
+  done
+  if [ ${#targets[@]} -eq 0 ]; then echo "fuzz: no fuzz_* binaries in $build/fuzz" >&2; exit 1; fi
 fi
 work="${FUZZ_WORK:-$build/fuzz-work}"  # FUZZ_WORK: run two lists side by side
 mkdir -p "$work"

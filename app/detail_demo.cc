@@ -16,6 +16,7 @@
 #include "core/take.h"
 #include "detail/marker_input.h"
 #include "detail/masquerade.h"
+#include "eval/metrics.h"
 #include "reconstruct/pipeline.h"
 #include "reconstruct/session_input.h"
 #include "report/face_render.h"
@@ -24,42 +25,6 @@
 
 namespace facedyn::app {
 namespace {
-
-struct Errors {
-  double face_mean = 0, face_p95 = 0, lips_mean = 0, lips_p95 = 0;
-};
-
-double Mean(const std::vector<double>& v) {
-  double s = 0;
-  for (double x : v) s += x;
-  return v.empty() ? 0.0 : s / v.size();
-}
-
-double Percentile95(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const size_t k = static_cast<size_t>(std::ceil(0.95 * v.size())) - 1;
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
-
-// |result - truth| per vertex and frame: mean and 95th percentile over the face and the lips.
-Errors Score(const std::vector<Eigen::Matrix3Xd>& result,
-             const std::vector<Eigen::Matrix3Xd>& truth, const std::vector<int>& lips) {
-  std::vector<double> face, lip;
-  for (size_t f = 0; f < truth.size(); ++f) {
-    const Eigen::VectorXd e = (result[f] - truth[f]).colwise().norm().transpose();
-    face.insert(face.end(), e.data(), e.data() + e.size());
-    for (int v : lips) lip.push_back(e[v]);
-  }
-  return {Mean(face), Percentile95(face), Mean(lip), Percentile95(lip)};
-}
-
-Json ErrorsJson(const Errors& e) {
-  return {{"face_mean_mm", e.face_mean},
-          {"face_p95_mm", e.face_p95},
-          {"lips_mean_mm", e.lips_mean},
-          {"lips_p95_mm", e.lips_p95}};
-}
 
 Status WritePng(const std::string& path, const std::vector<unsigned char>& bytes) {
   std::ofstream out(path, std::ios::binary);
@@ -194,8 +159,8 @@ StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCame
   }
   std::vector<double> sorted = marker_errors;
   std::sort(sorted.begin(), sorted.end());
-  const Errors masquerade = Score(upsampled, truth, lips->second);
-  const Errors large_only = Score(large, truth, lips->second);
+  const eval::DetailErrors masquerade = eval::ScoreDetail(upsampled, truth, lips->second);
+  const eval::DetailErrors large_only = eval::ScoreDetail(large, truth, lips->second);
   std::printf(
       "  HMC take: %d frames, %.0f%% of marker-frames observed, markers %.3f mm median "
       "off their true positions\n",
@@ -203,10 +168,11 @@ StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCame
       sorted.empty() ? 0.0 : sorted[sorted.size() / 2]);
   std::printf("  %-22s %10s %10s %10s %10s\n", "method", "face mean", "face p95", "lips mean",
               "lips p95");
-  for (const auto& [name, e] : {std::pair<const char*, Errors>{"large-scale only", large_only},
-                                {"Masquerade", masquerade}}) {
-    std::printf("  %-22s %10.3f %10.3f %10.3f %10.3f\n", name, e.face_mean, e.face_p95, e.lips_mean,
-                e.lips_p95);
+  for (const auto& [name, e] :
+       {std::pair<const char*, eval::DetailErrors>{"large-scale only", large_only},
+        {"Masquerade", masquerade}}) {
+    std::printf("  %-22s %10.3f %10.3f %10.3f %10.3f\n", name, e.face_mean_mm, e.face_p95_mm,
+                e.lips_mean_mm, e.lips_p95_mm);
   }
 
   // Takes for the viewer and other tools: the upsampled and large-scale skins (skull frame =
@@ -286,13 +252,13 @@ StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCame
       {"observed_fraction", double(observed) / std::max<size_t>(1, frames * layout.size())},
       {"marker_frames_filled", markers.filled},
       {"marker_error_median_mm", sorted.empty() ? 0.0 : sorted[sorted.size() / 2]},
-      {"marker_error_p95_mm", Percentile95(sorted)},
+      {"marker_error_p95_mm", eval::Percentile95(sorted)},
       {"detect_s", input.detect_s},
       {"upsample_frames_per_s", frames / std::max(1e-9, upsample_s)}};
-  json["methods"] = {{"large_scale_only", ErrorsJson(large_only)},
-                     {"masquerade", ErrorsJson(masquerade)}};
+  json["methods"] = {{"large_scale_only", eval::DetailErrorsJson(large_only)},
+                     {"masquerade", eval::DetailErrorsJson(masquerade)}};
   json["masquerade_over_large_scale_face_mean"] =
-      masquerade.face_mean / std::max(1e-12, large_only.face_mean);
+      masquerade.face_mean_mm / std::max(1e-12, large_only.face_mean_mm);
   json["images"] = images;
   json["range_mm"] = render_options.range_mm;
   return json;

@@ -61,6 +61,7 @@
 #include "core/marker_tracks.h"
 #include "detail/marker_input.h"
 #include "detail/masquerade.h"
+#include "eval/metrics.h"
 #include "reconstruct/marker_detection.h"
 #include "reconstruct/pipeline.h"
 #include "sim/expression_curve.h"
@@ -107,40 +108,6 @@ std::vector<Eigen::Matrix3Xd> Frames(const facedyn::FaceRig& rig,
   std::vector<Eigen::Matrix3Xd> frames;
   for (int f = 0; f < count; ++f) frames.push_back(rig.Evaluate(curve.Weights(f / fps)));
   return frames;
-}
-
-struct Errors {
-  double face_mean = 0, face_p95 = 0, lips_mean = 0, lips_p95 = 0;
-};
-
-double Percentile95(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const size_t k = static_cast<size_t>(std::ceil(0.95 * v.size())) - 1;
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
-
-Errors Score(const std::vector<Eigen::Matrix3Xd>& result,
-             const std::vector<Eigen::Matrix3Xd>& truth, const std::vector<int>& lips) {
-  std::vector<double> face, lip;
-  for (size_t f = 0; f < truth.size(); ++f) {
-    const Eigen::VectorXd e = (result[f] - truth[f]).colwise().norm().transpose();
-    face.insert(face.end(), e.data(), e.data() + e.size());
-    for (int v : lips) lip.push_back(e[v]);
-  }
-  auto mean = [](const std::vector<double>& v) {
-    double s = 0;
-    for (double x : v) s += x;
-    return v.empty() ? 0.0 : s / v.size();
-  };
-  return {mean(face), Percentile95(face), mean(lip), Percentile95(lip)};
-}
-
-Json ErrorsJson(const Errors& e) {
-  return {{"face_mean_mm", e.face_mean},
-          {"face_p95_mm", e.face_p95},
-          {"lips_mean_mm", e.lips_mean},
-          {"lips_p95_mm", e.lips_p95}};
 }
 
 // Runs `apply` over the test markers three times; frames/s of the fastest pass.
@@ -233,7 +200,7 @@ facedyn::StatusOr<facedyn::detail::MarkerFrames> FilmHmcMarkers(
             {"markers_never_tracked", frames.never_seen.size()},
             {"marker_error_median_mm", sorted.empty() ? 0.0 : sorted[sorted.size() / 2]},
             {"marker_error_rms_mm", sorted.empty() ? 0.0 : std::sqrt(sq / sorted.size())},
-            {"marker_error_p95_mm", Percentile95(sorted)},
+            {"marker_error_p95_mm", facedyn::eval::Percentile95(sorted)},
             {"render_and_detect_s", film_s}};
   return frames;
 }
@@ -291,9 +258,9 @@ facedyn::StatusOr<Json> RunHmc(const Settings& s, const facedyn::FaceRig& rig,
       FACEDYN_RETURN_IF_ERROR(bickel.Apply((*markers)[f], &bickel_result[f]));
     }
     methods[input] = {
-        {"large_scale_only", ErrorsJson(Score(large, truth, lips))},
-        {"bickel2008_80", ErrorsJson(Score(bickel_result, truth, lips))},
-        {"masquerade_global_80", ErrorsJson(Score(result, truth, lips))}};
+        {"large_scale_only", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(large, truth, lips))},
+        {"bickel2008_80", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(bickel_result, truth, lips))},
+        {"masquerade_global_80", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(result, truth, lips))}};
   }
   return Json{{"config", "config/capture/hmc.yaml"},
               {"markers", layout.size()},
@@ -371,13 +338,13 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
     for (size_t f = 0; f < truth.size(); ++f)
       FACEDYN_RETURN_IF_ERROR(model.Apply(test_markers[f], &result[f], &large[f]));
     if (!large_done) {
-      methods["large_scale_only"] = {{"errors", ErrorsJson(Score(large, truth, lips_it->second))}};
+      methods["large_scale_only"] = {{"errors", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(large, truth, lips_it->second))}};
       large_done = true;
     }
     Eigen::Matrix3Xd skin;
     const double fps = FramesPerSecond(
         test_markers, [&](const Eigen::Matrix3Xd& m) { (void)model.Apply(m, &skin); });
-    methods[variant.name] = {{"errors", ErrorsJson(Score(result, truth, lips_it->second))},
+    methods[variant.name] = {{"errors", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(result, truth, lips_it->second))},
                              {"memory_bytes", model.MemoryBytes()},
                              {"mean_frames_per_region", summary.mean_frames_per_region},
                              {"regions_with_linear_part", summary.linear_regions},
@@ -400,7 +367,7 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
     Eigen::Matrix3Xd skin;
     const double fps = FramesPerSecond(
         test_markers, [&](const Eigen::Matrix3Xd& m) { (void)model.Apply(m, &skin); });
-    methods["bickel2008_80"] = {{"errors", ErrorsJson(Score(result, truth, lips_it->second))},
+    methods["bickel2008_80"] = {{"errors", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(result, truth, lips_it->second))},
                                 {"memory_bytes", model.MemoryBytes()},
                                 {"marker_graph_edges", model.edge_count()},
                                 {"train_s", train_s},

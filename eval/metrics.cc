@@ -328,4 +328,44 @@ StatusOr<double> JiggleMeanErrorMm(const PointCache& predicted, const Take& simu
   return MeanDistanceOverVertices(predicted, simulated.channels.at("quasistatic"), jiggle, scored);
 }
 
+double Percentile95(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const size_t k = static_cast<size_t>(std::ceil(0.95 * values.size())) - 1;
+  std::nth_element(values.begin(), values.begin() + k, values.end());
+  return values[k];
+}
+
+DetailErrors ScoreDetail(const std::vector<Eigen::Matrix3Xd>& result,
+                         const std::vector<Eigen::Matrix3Xd>& truth, const std::vector<int>& lips) {
+  FACEDYN_CHECK(result.size() == truth.size(), "ScoreDetail: frame counts differ");
+  std::vector<double> face, lip;
+  for (size_t f = 0; f < truth.size(); ++f) {
+    FACEDYN_CHECK(result[f].cols() == truth[f].cols(), "ScoreDetail: vertex counts differ");
+    const Eigen::VectorXd e = (result[f] - truth[f]).colwise().norm().transpose();
+    face.insert(face.end(), e.data(), e.data() + e.size());
+    for (int v : lips) {
+      FACEDYN_CHECK(v >= 0 && v < e.size(), "ScoreDetail: a lip vertex is out of range");
+      lip.push_back(e[v]);
+    }
+  }
+  auto mean = [](const std::vector<double>& values) {
+    double sum = 0;
+    for (double x : values) sum += x;
+    return values.empty() ? 0.0 : sum / values.size();
+  };
+  DetailErrors errors;
+  errors.face_mean_mm = mean(face);
+  errors.lips_mean_mm = mean(lip);
+  errors.face_p95_mm = Percentile95(std::move(face));
+  errors.lips_p95_mm = Percentile95(std::move(lip));
+  return errors;
+}
+
+Json DetailErrorsJson(const DetailErrors& errors) {
+  return {{"face_mean_mm", errors.face_mean_mm},
+          {"face_p95_mm", errors.face_p95_mm},
+          {"lips_mean_mm", errors.lips_mean_mm},
+          {"lips_p95_mm", errors.lips_p95_mm}};
+}
+
 }  // namespace facedyn::eval

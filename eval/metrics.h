@@ -12,6 +12,7 @@
 // protocol leaves out of training. An explicit skip_edge_frames keeps the old symmetric skip.
 #pragma once
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -96,6 +97,20 @@ double MeanDistanceOverVertices(const PointCache& a, const PointCache& b,
 // channel, or `predicted` has other vertex or frame counts.
 StatusOr<double> JiggleMeanErrorMm(const PointCache& predicted, const Take& simulated,
                                    int window_frames);
+
+// The 95th percentile of `values` (the ceil(0.95 n)-th smallest; 0 when empty).
+double Percentile95(std::vector<double> values);
+
+// Fine detail's score (detail/, Masquerade): |result - truth| per vertex and frame, the mean and
+// 95th percentile over the whole face and over the `lips` vertices. Frames are 3 x V, one frame;
+// CHECKed: equal frame counts and sizes, lips in range.
+struct DetailErrors {
+  double face_mean_mm = 0, face_p95_mm = 0, lips_mean_mm = 0, lips_p95_mm = 0;
+};
+DetailErrors ScoreDetail(const std::vector<Eigen::Matrix3Xd>& result,
+                         const std::vector<Eigen::Matrix3Xd>& truth, const std::vector<int>& lips);
+// {"face_mean_mm", "face_p95_mm", "lips_mean_mm", "lips_p95_mm"}.
+Json DetailErrorsJson(const DetailErrors& errors);
 
 // A figure rounded to 1e-4 (0.1 um for mm) for reports: more digits than that are noise.
 inline double Round4(double x) { return std::round(x * 1e4) / 1e4; }

@@ -219,5 +219,26 @@ TEST(JiggleMeanErrorMm, ScoresTheJigglingVerticesOverTheScoredFrames) {
               HasSubstr("19 frames"));
 }
 
+// Fine detail's score: two frames of four vertices with known errors; vertex 3 is the lips.
+TEST(ScoreDetail, MeansAndPercentilesOverTheFaceAndTheLips) {
+  std::vector<Eigen::Matrix3Xd> truth(2, Eigen::Matrix3Xd::Zero(3, 4)), result = truth;
+  // Errors (mm): frame 0: 1, 0, 0, 2; frame 1: 0, 3, 0, 4 (along x, y and z).
+  result[0](0, 0) = 1;
+  result[0](2, 3) = -2;
+  result[1](1, 1) = 3;
+  result[1](0, 3) = 4;
+  const DetailErrors errors = ScoreDetail(result, truth, {3});
+  EXPECT_DOUBLE_EQ(errors.face_mean_mm, 10.0 / 8);
+  EXPECT_DOUBLE_EQ(errors.face_p95_mm, 4.0);  // ceil(0.95 * 8) = 8th smallest
+  EXPECT_DOUBLE_EQ(errors.lips_mean_mm, 3.0);
+  EXPECT_DOUBLE_EQ(errors.lips_p95_mm, 4.0);
+  const Json json = DetailErrorsJson(errors);
+  EXPECT_DOUBLE_EQ(json["lips_mean_mm"].get<double>(), 3.0);
+  EXPECT_DOUBLE_EQ(Percentile95({}), 0.0);
+  std::vector<double> hundred;
+  for (int i = 1; i <= 100; ++i) hundred.push_back(101 - i);
+  EXPECT_DOUBLE_EQ(Percentile95(hundred), 95.0);
+}
+
 }  // namespace
 }  // namespace facedyn::eval

@@ -3,6 +3,12 @@
 // the machine's own dense GEMM rate measured in the same run (machines are shared and noisy:
 // compare ratios, not absolute seconds). Prints JSON on stdout.
 //
+// "twin_perform" (issue 23's speed figure: a 3 s twin take at 128 fps within the simulator's
+// own 10 s budget): the procedural face nodding (2 Hz, 15 degrees) for --seconds at 128 fps,
+// as `sim perform` builds it (material calibrated by an eigensolve) and as `twin perform` does
+// (an explicit material: here the calibrated one, so both simulate the same face), alternated
+// max(3, --repeats) times; medians and the ratio of the whole SimulatePerformance call.
+//
 //   sim_bench [--ict DIR] [--seconds S] [--repeats N]
 
 #include <algorithm>
@@ -17,6 +23,7 @@
 #include "core/json_io.h"
 #include "core/log.h"
 #include "core/progress.h"
+#include "physics/soft_tissue.h"
 #include "sim/ict_import.h"
 #include "sim/performance.h"
 #include "sim/procedural_face.h"
@@ -76,6 +83,39 @@ Json BenchFace(const std::string& label, const facedyn::FaceRig& rig, double gen
           {"peak_offset_mm_by_region_11hz", peaks}};
 }
 
+// sim perform's path against twin perform's on the same material (see the header).
+Json BenchTwinPerform(const facedyn::FaceRig& rig, double seconds, int repeats) {
+  facedyn::sim::PerformanceOptions options;
+  options.expression = "neutral";
+  options.motion.kind = facedyn::sim::MotionKind::kNod;
+  options.seconds = seconds;
+  options.fps = 128;
+  auto model = facedyn::physics::SoftTissueModel::Create(rig, options.tissue);
+  if (!model.ok()) return {{"error", model.status().message()}};
+  const facedyn::physics::TissueMaterial material = (*model)->material();
+  model->reset();
+  std::vector<double> calibrated_s, explicit_s;
+  for (int r = 0; r < repeats; ++r) {
+    for (bool twin : {false, true}) {
+      facedyn::sim::PerformanceOptions run = options;
+      if (twin) run.material = material;
+      const auto start = Clock::now();
+      auto take = facedyn::sim::SimulatePerformance(rig, run);
+      (twin ? explicit_s : calibrated_s).push_back(Seconds(start));
+      if (!take.ok()) return {{"error", take.status().message()}};
+    }
+  }
+  return {{"motion", "nod 2 Hz 15 deg"},
+          {"take_seconds", seconds},
+          {"fps", 128},
+          {"sim_perform_s_median", Median(calibrated_s)},
+          {"twin_perform_s_median", Median(explicit_s)},
+          {"twin_over_sim", Median(explicit_s) / Median(calibrated_s)},
+          {"sim_perform_s_all", calibrated_s},
+          {"twin_perform_s_all", explicit_s},
+          {"budget_s", 10.0}};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -105,6 +145,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   faces.push_back(BenchFace("procedural", *procedural, Seconds(start), seconds, repeats));
+  out["twin_perform"] = BenchTwinPerform(*procedural, seconds, std::max(3, repeats));
   if (!ict_dir.empty()) {
     facedyn::sim::IctImportOptions options;
     options.dir = ict_dir;

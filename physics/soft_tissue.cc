@@ -377,6 +377,17 @@ SoftTissueModel::~SoftTissueModel() = default;
 
 StatusOr<std::unique_ptr<SoftTissueModel>> SoftTissueModel::Create(const FaceRig& rig,
                                                                    const TissueOptions& options) {
+  return CreateWith(rig, options, nullptr);
+}
+
+StatusOr<std::unique_ptr<SoftTissueModel>> SoftTissueModel::Create(const FaceRig& rig,
+                                                                   const TissueOptions& options,
+                                                                   const TissueMaterial& material) {
+  return CreateWith(rig, options, &material);
+}
+
+StatusOr<std::unique_ptr<SoftTissueModel>> SoftTissueModel::CreateWith(
+    const FaceRig& rig, const TissueOptions& options, const TissueMaterial* material) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (rig.skull.vertex_count() != rig.vertex_count()) {
     return FailedPreconditionError(fmt::format(
@@ -438,10 +449,15 @@ StatusOr<std::unique_ptr<SoftTissueModel>> SoftTissueModel::Create(const FaceRig
   m.static_solver->analyzePattern(m.kff);
   m.dynamic_solver = std::make_unique<Solver>();
   m.dynamic_solver->analyzePattern(m.kff);
-  m.static_solver->factorize(m.kff);
-  if (m.static_solver->info() != Eigen::Success) return InternalError("tissue stiffness is not positive definite");
   const auto cheeks = rig.regions.find("cheeks");
   if (cheeks != rig.regions.end()) m.cheek_vertices = cheeks->second;
+  if (material != nullptr) {
+    // The material replaces the calibration: no eigensolve (SetMaterial assembles, factorises).
+    FACEDYN_RETURN_IF_ERROR(model->SetMaterial(*material));
+    return model;
+  }
+  m.static_solver->factorize(m.kff);
+  if (m.static_solver->info() != Eigen::Success) return InternalError("tissue stiffness is not positive definite");
   Eigen::VectorXd eigenvalues;
   Eigen::MatrixXd modes;
   const int calibrated_mode = m.CheekModeIndex(&eigenvalues, &modes);

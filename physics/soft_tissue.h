@@ -157,6 +157,13 @@ class SoftTissueModel {
   // Requires rig.skull to share the skin's topology.
   static StatusOr<std::unique_ptr<SoftTissueModel>> Create(const FaceRig& rig,
                                                            const TissueOptions& options);
+  // The same with an explicit material from the start (a fitted twin's, SetMaterial's checks):
+  // skips the calibration's eigensolve (about 2 of the 3 s Create takes on the procedural face),
+  // which the material would replace anyway. Same model as Create then SetMaterial, except
+  // that calibrated_mode() is empty.
+  static StatusOr<std::unique_ptr<SoftTissueModel>> Create(const FaceRig& rig,
+                                                           const TissueOptions& options,
+                                                           const TissueMaterial& material);
   ~SoftTissueModel();
 
   const TetShell& shell() const { return shell_; }
@@ -212,11 +219,14 @@ class SoftTissueModel {
   // For tests: sets a velocity field (per free DOF) on the current state.
   void SetVelocity(const Eigen::VectorXd& velocity);
   // The neutral face's calibrated mode shape on the free DOFs (M-normalised), e.g. to excite
-  // the face along it with SetVelocity.
+  // the face along it with SetVelocity. Empty for a model created with an explicit material.
   const Eigen::VectorXd& calibrated_mode() const { return calibrated_mode_; }
 
  private:
   SoftTissueModel() = default;
+  static StatusOr<std::unique_ptr<SoftTissueModel>> CreateWith(const FaceRig& rig,
+                                                               const TissueOptions& options,
+                                                               const TissueMaterial* material);
   struct Impl;
   std::unique_ptr<Impl> impl_;
   TetShell shell_;

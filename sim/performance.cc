@@ -133,8 +133,10 @@ StatusOr<Take> SimulatePerformance(const FaceRig& rig, const PerformanceOptions&
     curve = MakeHeldExpression(reference_weights, kExpressionRamp_s, 0.02, options.seed);
   }
   FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<SkullMotion> motion, MakeSkullMotion(options.motion));
-  FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<physics::SoftTissueModel> model, physics::SoftTissueModel::Create(rig, options.tissue));
-  if (options.material) FACEDYN_RETURN_IF_ERROR(model->SetMaterial(*options.material));
+  // An explicit material (a twin's) is built in directly, without the calibration's eigensolve.
+  FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<physics::SoftTissueModel> model,
+                           options.material ? physics::SoftTissueModel::Create(rig, options.tissue, *options.material)
+                                            : physics::SoftTissueModel::Create(rig, options.tissue));
 
   const int frames = static_cast<int>(std::lround(options.seconds * options.fps));
   const double frame_dt = 1.0 / options.fps;

@@ -440,5 +440,45 @@ TEST(SoftTissueModel, SustainedAccelerationSettlesOnEquivalentGravity) {
   EXPECT_GT((expected - model.QuasistaticSkin(Rest(1))).cwiseAbs().maxCoeff(), 0.05);
 }
 
+// A model created with an explicit material (a twin's) is the model Create then SetMaterial
+// makes, without the calibration's eigensolve: the same quasistatic and dynamic skin under the
+// same forcing, and the material's checks.
+TEST(SoftTissueModel, CreateWithMaterialMatchesCreateThenSetMaterial) {
+  auto calibrated = SoftTissueModel::Create(MakeShellRig(), TissueOptions());
+  ASSERT_TRUE(calibrated.ok());
+  TissueMaterial material = (*calibrated)->material();
+  material.youngs_modulus_kpa *= 1.3;
+  material.rayleigh_mass *= 0.7;
+  material.tet_stiffness_scale = Eigen::VectorXd::LinSpaced((*calibrated)->shell().tets.cols(), 0.8, 1.2);
+  ASSERT_TRUE((*calibrated)->SetMaterial(material).ok());
+  auto direct = SoftTissueModel::Create(MakeShellRig(), TissueOptions(), material);
+  ASSERT_TRUE(direct.ok()) << direct.status().message();
+  EXPECT_EQ((*direct)->calibrated_mode().size(), 0);
+  EXPECT_EQ((*direct)->youngs_modulus_kpa(), material.youngs_modulus_kpa);
+  for (SoftTissueModel* model : {calibrated->get(), direct->get()}) {
+    ASSERT_TRUE(model->SetReference(Eigen::VectorXd::Constant(1, 0.5), 0.0, 1.0 / 256).ok());
+  }
+  TissueForcing forcing = Rest(1, 0.5);
+  forcing.kinematics.origin_acceleration_in_skull = Eigen::Vector3d(0, 3000, 0);
+  (*calibrated)->Reset(forcing);
+  (*direct)->Reset(forcing);
+  for (int step = 0; step < 20; ++step) {
+    (*calibrated)->Step(forcing);
+    (*direct)->Step(forcing);
+  }
+  EXPECT_LT(((*calibrated)->DynamicSkin() - (*direct)->DynamicSkin()).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_LT(((*calibrated)->QuasistaticSkin(forcing) - (*direct)->QuasistaticSkin(forcing)).cwiseAbs().maxCoeff(),
+            1e-9);
+  const auto mode_a = (*calibrated)->CheekMode(), mode_b = (*direct)->CheekMode();
+  ASSERT_TRUE(mode_a.ok() && mode_b.ok());
+  EXPECT_NEAR(mode_a->omega_rad_s, mode_b->omega_rad_s, 1e-9 * mode_a->omega_rad_s);
+  // SetMaterial's checks apply.
+  TissueMaterial bad = material;
+  bad.youngs_modulus_kpa = -1;
+  auto refused = SoftTissueModel::Create(MakeShellRig(), TissueOptions(), bad);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("youngs_modulus_kpa"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace facedyn::physics

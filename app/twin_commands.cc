@@ -23,6 +23,7 @@
 #include "core/json_io.h"
 #include "core/take.h"
 #include "physics/twin.h"
+#include "rig/rig_config.h"
 #include "sim/performance.h"
 #include "sim/skull_motion.h"
 
@@ -88,6 +89,7 @@ void AddTwinCommands(CLI::App& app, CommandRunner* selected) {
     double prior_damping = physics::TissueOptions{}.damping_ratio;
     int max_iterations = physics::MaterialFitOptions{}.max_iterations;
     double platform_amplitude_mm = 0.0;
+    std::string rig;
     bool json = false;
   };
   auto options = std::make_shared<FitOptions>();
@@ -117,6 +119,8 @@ void AddTwinCommands(CLI::App& app, CommandRunner* selected) {
   fit->add_option("--platform-amplitude-mm", options->platform_amplitude_mm,
                   "The platform's peak displacement (mm, the rig config's amplitude_mm): fits the "
                   "body's transmissibility from platform to skull too (needs 3 frequencies)");
+  fit->add_option("--rig", options->rig,
+                  "The platform's RIG.yaml: its amplitude_mm, as --platform-amplitude-mm");
   fit->add_flag("--json", options->json, "Print the twin's JSON on stdout");
   fit->callback([options, selected] {
     *selected = [options]() -> Status {
@@ -129,6 +133,14 @@ void AddTwinCommands(CLI::App& app, CommandRunner* selected) {
       fit_options.prior.damping_ratio = o.prior_damping;
       fit_options.fit.max_iterations = o.max_iterations;
       fit_options.platform_amplitude_mm = o.platform_amplitude_mm;
+      if (!o.rig.empty()) {
+        if (o.platform_amplitude_mm != 0) {
+          return InvalidArgumentError(
+              "twin fit: give the platform amplitude once (--rig or --platform-amplitude-mm)");
+        }
+        FACEDYN_ASSIGN_OR_RETURN(const rig::RigConfig rig_config, rig::LoadRigConfig(o.rig));
+        fit_options.platform_amplitude_mm = rig_config.amplitude_mm;
+      }
       FACEDYN_ASSIGN_OR_RETURN(fit_options.groups, ParseGroups(o.groups));
       if (Status status = fit_options.Check(); !status.ok()) {
         return InvalidArgumentError("twin fit: " + status.message() +

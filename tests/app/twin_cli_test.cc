@@ -121,6 +121,19 @@ TEST(TwinCli, FitsThePlatformTakesWithoutTheirTruth) {
   // Without the platform's amplitude the body is not fitted, and the file says why.
   EXPECT_FALSE(stripped["body"]["fitted"].get<bool>());
   EXPECT_THAT(stripped["body"]["note"].get<std::string>(), HasSubstr("amplitude"));
+  // The amplitude from the rig's config (the simulated drive's rig: 2 mm) fits the same body.
+  ASSERT_EQ(
+      RunCommand(Facedyn("--quiet twin fit --processed " + dir.Join("processed") +
+                         " --groups all --rig " + std::string(FACEDYN_SOURCE_DIR) +
+                         "/config/rigs/sim-tcp.yaml --out " + dir.Join("twin3.json") + " --json"),
+                 &out),
+      0)
+      << out;
+  const auto from_rig = nlohmann::json::parse(out);
+  ASSERT_TRUE(from_rig["body"]["fitted"].get<bool>()) << from_rig["body"];
+  EXPECT_DOUBLE_EQ(from_rig["body"]["platform_amplitude_mm"].get<double>(), 2.0);
+  EXPECT_DOUBLE_EQ(from_rig["body"]["resonance_hz"].get<double>(),
+                   twin["body"]["resonance_hz"].get<double>());
 
   // The twin simulated under a motion nobody captured: a short nod with its material.
   ASSERT_EQ(RunCommand(Facedyn("--quiet twin perform --twin " + dir.Join("twin.json") +
@@ -225,6 +238,17 @@ TEST(TwinCli, BadInputIsNamed) {
                        &out),
             0);
   EXPECT_THAT(out, HasSubstr("platform amplitude"));
+  EXPECT_NE(RunCommand(Facedyn("twin fit --takes " + takes.Join("p8") + " --rig " +
+                               dir.Join("no_rig.yaml") + " --out " + dir.Join("t.json")),
+                       &out),
+            0);
+  EXPECT_THAT(out, HasSubstr("no_rig.yaml"));
+  EXPECT_NE(RunCommand(Facedyn("twin fit --takes " + takes.Join("p8") + " --rig " +
+                               dir.Join("no_rig.yaml") + " --platform-amplitude-mm 2 --out " +
+                               dir.Join("t.json")),
+                       &out),
+            0);
+  EXPECT_THAT(out, HasSubstr("once"));
   EXPECT_FALSE(std::filesystem::exists(dir.Join("t.json")));
   // Nothing in the command reads a simulator's truth.
   ASSERT_EQ(RunCommand(Facedyn("twin fit --help"), &out), 0);

@@ -19,6 +19,8 @@
 #include "core/face_rig.h"
 #include "core/json_io.h"
 #include "core/marker_tracks.h"
+#include "core/parallel_for.h"
+#include "core/progress.h"
 #include "core/take.h"
 #include "detail/marker_input.h"
 #include "detail/masquerade.h"
@@ -133,6 +135,7 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
     std::string model;
     std::string out;
     std::string markers_from = "auto";
+    int threads = 0;
     bool json = false;
   };
   auto apply_options = std::make_shared<ApplyOptions>();
@@ -149,6 +152,11 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
                    "tracks: the take's labelled marker tracks (a reconstructed HMC take); skin: "
                    "the markers' points on the take's skin; auto: tracks when the take has them")
       ->check(CLI::IsMember({"auto", "tracks", "skin"}))
+      ->capture_default_str();
+  apply
+      ->add_option("--threads", apply_options->threads,
+                   "Threads upsampling frames side by side (0: one per core)")
+      ->check(CLI::Range(0, 256))
       ->capture_default_str();
   apply->add_flag("--json", apply_options->json, "Print a JSON summary on stdout");
   apply->callback([apply_options, selected] {
@@ -190,14 +198,19 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
         }
       }
       const auto start = std::chrono::steady_clock::now();
-      Eigen::Matrix3Xd skin;
-      for (int f = 0; f < take.frame_count(); ++f) {
-        const Status status = model.Apply(marker_frames[f], &skin);
-        if (!status.ok()) return status.WithContext(o.take + " frame " + std::to_string(f));
-        take.positions.Frame(f) = take.world_from_skull[f].Apply(skin).cast<float>();
+      std::vector<Eigen::Matrix3Xd> skins;
+      {
+        Progress progress("upsample", take.frame_count());
+        FACEDYN_RETURN_IF_ERROR(
+            model.ApplyFrames(marker_frames, &skins, nullptr, o.threads, &progress)
+                .WithContext(o.take));
+        progress.Finish();
       }
       const double seconds =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      for (int f = 0; f < take.frame_count(); ++f) {
+        take.positions.Frame(f) = take.world_from_skull[f].Apply(skins[f]).cast<float>();
+      }
       take.channels.clear();  // the input's channels describe the input, not the result
       take.info.source = "detail apply";
       take.info.metadata["detail_model"] = o.model;
@@ -210,6 +223,7 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
                            {"markers_from", source},
                            {"marker_frames_filled", tracked.filled},
                            {"markers_never_tracked", tracked.never_seen},
+                           {"threads", ParallelThreadCount(o.threads, take.frame_count())},
                            {"frames_per_s", seconds > 0 ? take.frame_count() / seconds : 0.0}};
         std::printf("%s\n", json.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       } else {

@@ -135,9 +135,7 @@ StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCame
   const int frames = reconstruction.take.frame_count();
   std::vector<Eigen::Matrix3Xd> upsampled(frames), large(frames), truth(frames);
   start = std::chrono::steady_clock::now();
-  for (int f = 0; f < frames; ++f) {
-    FACEDYN_RETURN_IF_ERROR(model.Apply(markers.markers_mm[f], &upsampled[f], &large[f]));
-  }
+  FACEDYN_RETURN_IF_ERROR(model.ApplyFrames(markers.markers_mm, &upsampled, &large));
   const double upsample_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 

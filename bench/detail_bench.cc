@@ -19,7 +19,8 @@
 // RBFs on deformation gradients) with every frame, 80 global greedy frames, 40 and 20 per
 // region. Errors: |x - x_true| per vertex and frame (mm), mean and 95th percentile over the face
 // (every vertex of the rig) and over the lips (rig region "lips").
-// Speed: upsampling frames/s (Apply on the test markers, best of 3 passes) on this machine.
+// Speed: upsampling frames/s over the test markers (ApplyFrames), on one thread and on every
+// core (frames side by side), five passes of each alternated, medians; on this machine.
 //
 // Head-mounted camera ("hmc" in each run; skipped with --no-hmc): the layout the simulated HMC
 // paints (config/capture/hmc.yaml: the markers both helmet cameras see within its
@@ -56,6 +57,7 @@
 #include "bench/bench_flags.h"
 #include "core/json_io.h"
 #include "core/log.h"
+#include "core/parallel_for.h"
 #include "detail/bickel.h"
 #include "capture/capture_config.h"
 #include "core/marker_tracks.h"
@@ -110,18 +112,40 @@ std::vector<Eigen::Matrix3Xd> Frames(const facedyn::FaceRig& rig,
   return frames;
 }
 
-// Runs `apply` over the test markers three times; frames/s of the fastest pass.
-template <typename F>
-double FramesPerSecond(const std::vector<Eigen::Matrix3Xd>& markers, F&& apply) {
-  double best = 0;
-  for (int pass = 0; pass < 3; ++pass) {
-    const auto start = Clock::now();
-    for (const Eigen::Matrix3Xd& m : markers) apply(m);
-    best = std::max(best, markers.size() / Seconds(start));
+// Upsampling speed over the test markers: `apply_frames(threads)` upsamples every frame (the
+// models' ApplyFrames), run five times on one thread and five times on every core, alternated so
+// both see the same machine; the medians in frames/s.
+struct UpsampleSpeed {
+  double one_thread = 0.0;
+  double all_cores = 0.0;
+  int threads = 1;
+  Json ToJson() const {
+    return {{"upsample_frames_per_s_1_thread", one_thread},
+            {"upsample_frames_per_s", all_cores},
+            {"upsample_threads", threads}};
   }
-  return best;
-}
+};
 
+template <typename F>
+facedyn::StatusOr<UpsampleSpeed> MeasureUpsampleSpeed(int frames, F&& apply_frames) {
+  std::vector<double> one, all;
+  for (int pass = 0; pass < 5; ++pass) {
+    for (int threads : {1, 0}) {
+      const auto start = Clock::now();
+      FACEDYN_RETURN_IF_ERROR(apply_frames(threads));
+      (threads == 1 ? one : all).push_back(frames / Seconds(start));
+    }
+  }
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  UpsampleSpeed speed;
+  speed.one_thread = median(one);
+  speed.all_cores = median(all);
+  speed.threads = facedyn::ParallelThreadCount(0, frames);
+  return speed;
+}
 
 // The markers of `layout` on every `truth` frame (skull frame) as the simulated HMC films them:
 // rendered by each camera, detected, triangulated and labelled with the head-mounted options,
@@ -334,22 +358,24 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
     detail::MasqueradeTrainingSummary summary;
     FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
                              detail::MasqueradeModel::Train(set, options, &summary));
-    std::vector<Eigen::Matrix3Xd> result(truth.size()), large(truth.size());
-    for (size_t f = 0; f < truth.size(); ++f)
-      FACEDYN_RETURN_IF_ERROR(model.Apply(test_markers[f], &result[f], &large[f]));
+    std::vector<Eigen::Matrix3Xd> result, large;
+    FACEDYN_RETURN_IF_ERROR(model.ApplyFrames(test_markers, &result, &large));
     if (!large_done) {
       methods["large_scale_only"] = {{"errors", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(large, truth, lips_it->second))}};
       large_done = true;
     }
-    Eigen::Matrix3Xd skin;
-    const double fps = FramesPerSecond(
-        test_markers, [&](const Eigen::Matrix3Xd& m) { (void)model.Apply(m, &skin); });
+    std::vector<Eigen::Matrix3Xd> skins;
+    FACEDYN_ASSIGN_OR_RETURN(
+        const UpsampleSpeed speed,
+        MeasureUpsampleSpeed(static_cast<int>(test_markers.size()), [&](int threads) {
+          return model.ApplyFrames(test_markers, &skins, nullptr, threads);
+        }));
     methods[variant.name] = {{"errors", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(result, truth, lips_it->second))},
                              {"memory_bytes", model.MemoryBytes()},
                              {"mean_frames_per_region", summary.mean_frames_per_region},
                              {"regions_with_linear_part", summary.linear_regions},
-                             {"train_s", summary.train_s},
-                             {"upsample_frames_per_s", fps}};
+                             {"train_s", summary.train_s}};
+    methods[variant.name].update(speed.ToJson());
     std::fprintf(stderr, "detail_bench: seed %llu %s done\n", static_cast<unsigned long long>(seed),
                  variant.name);
   }
@@ -361,17 +387,19 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
     FACEDYN_ASSIGN_OR_RETURN(const detail::BickelModel model,
                              detail::BickelModel::Train(set, options));
     const double train_s = Seconds(start);
-    std::vector<Eigen::Matrix3Xd> result(truth.size());
-    for (size_t f = 0; f < truth.size(); ++f)
-      FACEDYN_RETURN_IF_ERROR(model.Apply(test_markers[f], &result[f]));
-    Eigen::Matrix3Xd skin;
-    const double fps = FramesPerSecond(
-        test_markers, [&](const Eigen::Matrix3Xd& m) { (void)model.Apply(m, &skin); });
+    std::vector<Eigen::Matrix3Xd> result;
+    FACEDYN_RETURN_IF_ERROR(model.ApplyFrames(test_markers, &result));
+    std::vector<Eigen::Matrix3Xd> skins;
+    FACEDYN_ASSIGN_OR_RETURN(
+        const UpsampleSpeed speed,
+        MeasureUpsampleSpeed(static_cast<int>(test_markers.size()), [&](int threads) {
+          return model.ApplyFrames(test_markers, &skins, threads);
+        }));
     methods["bickel2008_80"] = {{"errors", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(result, truth, lips_it->second))},
                                 {"memory_bytes", model.MemoryBytes()},
                                 {"marker_graph_edges", model.edge_count()},
-                                {"train_s", train_s},
-                                {"upsample_frames_per_s", fps}};
+                                {"train_s", train_s}};
+    methods["bickel2008_80"].update(speed.ToJson());
   }
   run["methods"] = methods;
   if (s.hmc) {

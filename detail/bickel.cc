@@ -7,6 +7,7 @@
 #include <limits>
 #include <set>
 
+#include "core/parallel_for.h"
 #include "detail/rbf.h"
 #include "detail/regions.h"
 
@@ -198,6 +199,19 @@ Status BickelModel::Apply(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3Xd* 
   tangent_.Compute(large, &frames);
   TangentFrames::FromLocal(frames, large, local, skin_mm);
   return Status::Ok();
+}
+
+Status BickelModel::ApplyFrames(const std::vector<Eigen::Matrix3Xd>& markers_mm,
+                                std::vector<Eigen::Matrix3Xd>* skins_mm, int threads,
+                                Progress* progress) const {
+  const int frames = static_cast<int>(markers_mm.size());
+  skins_mm->resize(frames);
+  return ParallelFor(frames, threads, [&](int f) -> Status {
+    Status status = Apply(markers_mm[f], &(*skins_mm)[f]);
+    if (!status.ok()) return status.WithContext(fmt::format("frame {}", f));
+    if (progress != nullptr) progress->Advance();
+    return Status::Ok();
+  });
 }
 
 size_t BickelModel::MemoryBytes() const {

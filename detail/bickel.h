@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/progress.h"
 #include "core/status.h"
 #include "detail/large_scale.h"
 #include "detail/training_set.h"
@@ -36,6 +37,10 @@ class BickelModel {
                                      std::vector<int>* selected_frames = nullptr);
 
   Status Apply(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3Xd* skin_mm) const;
+  // Every frame of a sequence on `threads` threads (0: the cores), as MasqueradeModel's.
+  Status ApplyFrames(const std::vector<Eigen::Matrix3Xd>& markers_mm,
+                     std::vector<Eigen::Matrix3Xd>* skins_mm, int threads = 0,
+                     Progress* progress = nullptr) const;
 
   // Bytes of what was learned: per vertex its RBF coefficients ((N + 1) x 3) and its edge
   // weights (index + alpha), plus the training poses (E x N) and edge rest lengths.

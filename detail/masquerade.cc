@@ -11,6 +11,7 @@
 
 #include "core/binary_io.h"
 #include "core/file_util.h"
+#include "core/parallel_for.h"
 
 namespace facedyn::detail {
 namespace {
@@ -228,6 +229,22 @@ Status MasqueradeModel::Apply(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3
   TangentFrames::FromLocal(frames, large, local, skin_mm);
   if (large_scale_mm != nullptr) *large_scale_mm = std::move(large);
   return Status::Ok();
+}
+
+Status MasqueradeModel::ApplyFrames(const std::vector<Eigen::Matrix3Xd>& markers_mm,
+                                    std::vector<Eigen::Matrix3Xd>* skins_mm,
+                                    std::vector<Eigen::Matrix3Xd>* large_scale_mm, int threads,
+                                    Progress* progress) const {
+  const int frames = static_cast<int>(markers_mm.size());
+  skins_mm->resize(frames);
+  if (large_scale_mm != nullptr) large_scale_mm->resize(frames);
+  return ParallelFor(frames, threads, [&](int f) -> Status {
+    Status status = Apply(markers_mm[f], &(*skins_mm)[f],
+                          large_scale_mm != nullptr ? &(*large_scale_mm)[f] : nullptr);
+    if (!status.ok()) return status.WithContext(fmt::format("frame {}", f));
+    if (progress != nullptr) progress->Advance();
+    return Status::Ok();
+  });
 }
 
 Status MasqueradeModel::CheckCompatible(const std::vector<std::string>& marker_names,

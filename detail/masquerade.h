@@ -29,6 +29,7 @@
 
 #include "core/face_rig.h"
 #include "core/mesh.h"
+#include "core/progress.h"
 #include "core/status.h"
 #include "detail/deformation_gradient.h"
 #include "detail/large_scale.h"
@@ -70,6 +71,14 @@ class MasqueradeModel {
   // or non-finite input.
   Status Apply(const Eigen::Matrix3Xd& markers_mm, Eigen::Matrix3Xd* skin_mm,
                Eigen::Matrix3Xd* large_scale_mm = nullptr) const;
+  // Apply to every frame of a sequence, frames spread over `threads` threads (0: the machine's
+  // cores; frames are independent and Apply reads only the immutable model). Output vectors are
+  // resized to the frame count; an error names the first failing frame. `progress` (optional)
+  // advances once per frame.
+  Status ApplyFrames(const std::vector<Eigen::Matrix3Xd>& markers_mm,
+                     std::vector<Eigen::Matrix3Xd>* skins_mm,
+                     std::vector<Eigen::Matrix3Xd>* large_scale_mm = nullptr, int threads = 0,
+                     Progress* progress = nullptr) const;
 
   // OK when `marker_names` are the model's markers in its order and `vertex_count` its rig's;
   // otherwise an error naming the first marker that differs (`what` names the input).

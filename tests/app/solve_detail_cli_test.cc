@@ -148,6 +148,33 @@ TEST(DetailCli, TrainApplyAndBadModel) {
   ASSERT_EQ(RunCommand(Facedyn("take info --json " + dir.Join("up") + " 2>/dev/null"), &out), 0)
       << out;
   EXPECT_EQ(nlohmann::json::parse(out)["frames"], 24);
+  // Frames upsampled side by side give the same files as one thread, byte for byte.
+  ASSERT_EQ(
+      RunCommand(Facedyn("--quiet detail apply --take " + speech + " --model " + dir.Join("d.bin") +
+                         " --out " + dir.Join("up1") + " --threads 1 --json"),
+                 &out),
+      0)
+      << out;
+  EXPECT_EQ(nlohmann::json::parse(out)["threads"], 1);
+  int compared = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir.Join("up"))) {
+    if (!entry.is_regular_file()) continue;
+    auto read = [](const std::string& path) {
+      std::ifstream in(path, std::ios::binary);
+      std::stringstream buffer;
+      buffer << in.rdbuf();
+      return buffer.str();
+    };
+    const std::string name = entry.path().filename().string();
+    EXPECT_EQ(read(entry.path().string()), read(dir.Join("up1/" + name))) << name;
+    ++compared;
+  }
+  EXPECT_GE(compared, 2);
+  EXPECT_NE(RunCommand(Facedyn("detail apply --take " + speech + " --model " + dir.Join("d.bin") +
+                               " --out " + dir.Join("up3") + " --threads -1"),
+                       &out),
+            0);
+  EXPECT_THAT(out, HasSubstr("--threads"));
 
   std::ofstream(dir.Join("bad.bin")) << "garbage";
   EXPECT_EQ(RunCommand(Facedyn("detail apply --take " + speech + " --model " + dir.Join("bad.bin") +

@@ -3,6 +3,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <limits>
+#include <vector>
+
 #include "core/file_util.h"
 #include "detail/bickel.h"
 #include "detail_test_util.h"
@@ -50,6 +53,31 @@ TEST(MasqueradeModel, HeldOutPoseBeatsLargeScaleOnly) {
   Eigen::Matrix3Xd skin, large;
   ASSERT_TRUE(model->Apply(set.MarkersOn(truth), &skin, &large).ok());
   EXPECT_LT(MeanError(skin, truth), 0.5 * MeanError(large, truth));
+}
+
+TEST(MasqueradeModel, ApplyFramesOnSeveralThreadsMatchesApplyPerFrame) {
+  const DetailTrainingSet set = testing::TestTrainingSet();
+  StatusOr<MasqueradeModel> model = MasqueradeModel::Train(set, AllFrames());
+  ASSERT_TRUE(model.ok());
+  std::vector<Eigen::Matrix3Xd> markers;
+  for (int f = 0; f < 12; ++f)
+    markers.push_back(set.MarkersOn(testing::TestFrame(set.neutral, 0.1 * f - 0.5, 0.6 - 0.1 * f)));
+  std::vector<Eigen::Matrix3Xd> skins, large;
+  Progress progress("test", static_cast<long>(markers.size()), ProgressMode::kSilent);
+  ASSERT_TRUE(model->ApplyFrames(markers, &skins, &large, 3, &progress).ok());
+  ASSERT_EQ(skins.size(), markers.size());
+  ASSERT_EQ(large.size(), markers.size());
+  for (size_t f = 0; f < markers.size(); ++f) {
+    Eigen::Matrix3Xd skin, large_one;
+    ASSERT_TRUE(model->Apply(markers[f], &skin, &large_one).ok());
+    EXPECT_EQ(MaxError(skins[f], skin), 0.0) << "frame " << f;  // the same arithmetic
+    EXPECT_EQ(MaxError(large[f], large_one), 0.0) << "frame " << f;
+  }
+  // A bad frame is named.
+  markers[7](1, 2) = std::numeric_limits<double>::quiet_NaN();
+  const Status status = model->ApplyFrames(markers, &skins, nullptr, 2);
+  ASSERT_FALSE(status.ok());
+  EXPECT_THAT(status.message(), ::testing::HasSubstr("frame 7"));
 }
 
 TEST(MasqueradeModel, GreedyFramesPerRegion) {
@@ -174,6 +202,27 @@ TEST(BickelModel, ReproducesTrainingFramesAndIsPerVertex) {
   }
   // Per-vertex coefficients: memory grows with the vertex count, at least 3 (N + 1) doubles each.
   EXPECT_GE(model->MemoryBytes(), sizeof(double) * 3 * 26 * set.neutral.vertex_count());
+}
+
+TEST(BickelModel, ApplyFramesOnSeveralThreadsMatchesApplyPerFrame) {
+  const DetailTrainingSet set = testing::TestTrainingSet();
+  StatusOr<BickelModel> model = BickelModel::Train(set, BickelOptions());
+  ASSERT_TRUE(model.ok()) << model.status().ToString();
+  std::vector<Eigen::Matrix3Xd> markers;
+  for (int f = 0; f < 9; ++f)
+    markers.push_back(set.MarkersOn(testing::TestFrame(set.neutral, 0.5 - 0.1 * f, 0.1 * f)));
+  std::vector<Eigen::Matrix3Xd> skins;
+  ASSERT_TRUE(model->ApplyFrames(markers, &skins, 2).ok());
+  ASSERT_EQ(skins.size(), markers.size());
+  for (size_t f = 0; f < markers.size(); ++f) {
+    Eigen::Matrix3Xd skin;
+    ASSERT_TRUE(model->Apply(markers[f], &skin).ok());
+    EXPECT_EQ(MaxError(skins[f], skin), 0.0) << "frame " << f;
+  }
+  markers[4].resize(3, 2);
+  const Status status = model->ApplyFrames(markers, &skins, 2);
+  ASSERT_FALSE(status.ok());
+  EXPECT_THAT(status.message(), ::testing::HasSubstr("frame 4"));
 }
 
 }  // namespace

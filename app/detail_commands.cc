@@ -49,6 +49,7 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
     int per_region = 0;
     double region_sigma_mm = detail::MasqueradeOptions{}.region_sigma_mm;
     double feature_sigma_mm = detail::MasqueradeOptions{}.feature_sigma_mm;
+    double output_energy = detail::MasqueradeOptions{}.output_energy;
     bool json = false;
   };
   auto train_options = std::make_shared<TrainOptions>();
@@ -80,6 +81,12 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
       ->add_option("--feature-sigma-mm", train_options->feature_sigma_mm,
                    "Falloff of a region's pose triangles")
       ->capture_default_str();
+  train
+      ->add_option("--output-energy", train_options->output_energy,
+                   "Fraction of each region's offset energy its RBF keeps (principal directions; "
+                   "1: all, exact at the training frames; less: a smaller model)")
+      ->check(CLI::Range(1e-6, 1.0))
+      ->capture_default_str();
   train->add_flag("--json", train_options->json, "Print a JSON summary on stdout");
   train->callback([train_options, selected] {
     *selected = [train_options]() -> Status {
@@ -108,6 +115,7 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
       options.per_region_frames = o.per_region;
       options.region_sigma_mm = o.region_sigma_mm;
       options.feature_sigma_mm = o.feature_sigma_mm;
+      options.output_energy = o.output_energy;
       detail::MasqueradeTrainingSummary summary;
       FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
                                detail::MasqueradeModel::Train(set, options, &summary));

@@ -19,6 +19,12 @@
 // RBFs on deformation gradients) with every frame, 80 global greedy frames, 40 and 20 per
 // region. Errors: |x - x_true| per vertex and frame (mm), mean and 95th percentile over the face
 // (every vertex of the rig) and over the lips (rig region "lips").
+// Output compression ("masquerade_global_80_compressed"): the 80-global model with each region
+// RBF keeping the leading principal directions of its offsets (MasqueradeOptions::
+// output_energy), the energy chosen among 0.9999, 0.999, 0.99, 0.9 on a validation speech draw
+// (seed + 2000, never the test) as the smallest whose validation face mean error is within 5% of
+// the uncompressed model's; "output_compression_candidates" lists each candidate's validation
+// error and size.
 // Speed: upsampling frames/s over the test markers (ApplyFrames), on one thread and on every
 // core (frames side by side), five passes of each alternated, medians; on this machine.
 //
@@ -326,6 +332,12 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
   const std::vector<Eigen::Matrix3Xd> truth = Frames(rig, *speech_curve, s.test_frames, 60.0);
   std::vector<Eigen::Matrix3Xd> test_markers;
   for (const auto& x : truth) test_markers.push_back(set.MarkersOn(x));
+  // Validation (choosing the output compression, never the test): another speech draw.
+  const auto validation_curve = sim::MakeSpeechSequence(visemes, 4.5, seed + 2000);
+  const std::vector<Eigen::Matrix3Xd> validation_truth =
+      Frames(rig, *validation_curve, s.test_frames, 60.0);
+  std::vector<Eigen::Matrix3Xd> validation_markers;
+  for (const auto& x : validation_truth) validation_markers.push_back(set.MarkersOn(x));
 
   Json run;
   run["seed"] = seed;
@@ -378,6 +390,55 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
     methods[variant.name].update(speed.ToJson());
     std::fprintf(stderr, "detail_bench: seed %llu %s done\n", static_cast<unsigned long long>(seed),
                  variant.name);
+  }
+  {
+    // Output compression of the 80-global model's region RBFs (MasqueradeOptions::
+    // output_energy), chosen on the validation speech: the smallest energy whose face mean
+    // error there is within 5% of the uncompressed model's; then scored on the test.
+    Json candidates = Json::array();
+    double uncompressed_validation = 0.0, chosen_energy = 1.0;
+    for (double energy : {1.0, 0.9999, 0.999, 0.99, 0.9}) {
+      detail::MasqueradeOptions options;
+      options.region_sigma_mm = s.sigma_mm;
+      options.feature_sigma_mm = s.feature_sigma_mm;
+      options.global_frames = s.global_frames;
+      options.output_energy = energy;
+      FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
+                               detail::MasqueradeModel::Train(set, options));
+      std::vector<Eigen::Matrix3Xd> result;
+      FACEDYN_RETURN_IF_ERROR(model.ApplyFrames(validation_markers, &result));
+      const double error =
+          facedyn::eval::ScoreDetail(result, validation_truth, lips_it->second).face_mean_mm;
+      if (energy == 1.0) uncompressed_validation = error;
+      if (error <= 1.05 * uncompressed_validation) chosen_energy = energy;
+      candidates.push_back({{"output_energy", energy},
+                            {"validation_face_mean_mm", error},
+                            {"memory_bytes", model.MemoryBytes()}});
+    }
+    detail::MasqueradeOptions options;
+    options.region_sigma_mm = s.sigma_mm;
+    options.feature_sigma_mm = s.feature_sigma_mm;
+    options.global_frames = s.global_frames;
+    options.output_energy = chosen_energy;
+    FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
+                             detail::MasqueradeModel::Train(set, options));
+    std::vector<Eigen::Matrix3Xd> result;
+    FACEDYN_RETURN_IF_ERROR(model.ApplyFrames(test_markers, &result));
+    std::vector<Eigen::Matrix3Xd> skins;
+    FACEDYN_ASSIGN_OR_RETURN(
+        const UpsampleSpeed speed,
+        MeasureUpsampleSpeed(static_cast<int>(test_markers.size()), [&](int threads) {
+          return model.ApplyFrames(test_markers, &skins, nullptr, threads);
+        }));
+    methods["masquerade_global_80_compressed"] = {
+        {"errors", facedyn::eval::DetailErrorsJson(
+                       facedyn::eval::ScoreDetail(result, truth, lips_it->second))},
+        {"memory_bytes", model.MemoryBytes()},
+        {"output_energy", chosen_energy}};
+    methods["masquerade_global_80_compressed"].update(speed.ToJson());
+    run["output_compression_candidates"] = candidates;
+    std::fprintf(stderr, "detail_bench: seed %llu compression chosen on validation: energy %g\n",
+                 static_cast<unsigned long long>(seed), chosen_energy);
   }
   {
     detail::BickelOptions options;

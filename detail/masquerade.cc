@@ -55,6 +55,10 @@ Status MasqueradeOptions::Check() const {
     return InvalidArgumentError(
         fmt::format("MasqueradeOptions.per_region_frames must be >= 0, got {}", per_region_frames));
   }
+  if (!(output_energy > 0 && output_energy <= 1)) {
+    return InvalidArgumentError(
+        fmt::format("MasqueradeOptions.output_energy must be in (0, 1], got {}", output_energy));
+  }
   return Status::Ok();
 }
 
@@ -191,6 +195,9 @@ StatusOr<MasqueradeModel> MasqueradeModel::Train(const DetailTrainingSet& set,
     if (!rbf.ok())
       return rbf.status().WithContext(
           fmt::format("detail: region of marker '{}'", set.markers[r].name));
+    if (options.output_energy < 1.0) {
+      FACEDYN_RETURN_IF_ERROR(rbf->CompressOutputs(y, options.output_energy));
+    }
     frames_total += rbf->centre_count();
     linear_regions += rbf->linear() ? 1 : 0;
     model.rbfs_.push_back(std::move(rbf).value());
@@ -319,8 +326,10 @@ Status MasqueradeModel::Save(const std::string& path) const {
     w.Pod<int32_t>(rbf.centre_count());
     w.Pod<uint8_t>(rbf.linear() ? 1 : 0);
     w.Pod<int32_t>(rbf.outputs());
+    w.Pod<int32_t>(static_cast<int32_t>(rbf.output_basis().rows()));  // 0: none
     w.Doubles(rbf.centres().data(), rbf.centres().size());
     w.Doubles(rbf.coefficients().data(), rbf.coefficients().size());
+    w.Doubles(rbf.output_basis().data(), rbf.output_basis().size());
   }
   w.Raw(kTrailer, sizeof(kTrailer));
   return WriteFileAtomic(path, w.bytes());
@@ -336,9 +345,9 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
   }
   uint32_t version = 0;
   FACEDYN_RETURN_IF_ERROR(r.Pod(&version, "the format version"));
-  if (version != kDetailModelFormatVersion) {
+  if (version < 1 || version > static_cast<uint32_t>(kDetailModelFormatVersion)) {
     return FailedPreconditionError(
-        fmt::format("{}: detail model format version {}, this build reads {}", path, version,
+        fmt::format("{}: detail model format version {}, this build reads 1 to {}", path, version,
                     kDetailModelFormatVersion));
   }
   MasqueradeModel model;
@@ -447,10 +456,25 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
           fmt::format("{}: {}: RBF of dimension {}, {} centres, {} outputs do not fit the region",
                       path, what, dim, centres, outputs));
     }
-    std::vector<double> c, coef;
+    int32_t basis_rows = 0;
+    if (version >= 2) {
+      FACEDYN_RETURN_IF_ERROR(r.Pod(&basis_rows, what.c_str()));
+      if (basis_rows < 0 || basis_rows > outputs) {
+        return DataLossError(fmt::format("{}: {}: an output basis of {} rows for {} outputs", path,
+                                         what, basis_rows, outputs));
+      }
+    }
+    std::vector<double> c, coef, basis;
     FACEDYN_RETURN_IF_ERROR(r.Array(&c, int64_t{dim} * centres, what.c_str()));
     const int rows = centres + (linear ? 1 + dim : 1);
-    FACEDYN_RETURN_IF_ERROR(r.Array(&coef, int64_t{rows} * outputs, what.c_str()));
+    const int coefficient_columns = basis_rows > 0 ? basis_rows : outputs;
+    FACEDYN_RETURN_IF_ERROR(r.Array(&coef, int64_t{rows} * coefficient_columns, what.c_str()));
+    if (version >= 2)
+      FACEDYN_RETURN_IF_ERROR(r.Array(&basis, int64_t{basis_rows} * outputs, what.c_str()));
+    for (double value : basis) {
+      if (!std::isfinite(value))
+        return DataLossError(fmt::format("{}: {}: non-finite RBF output basis", path, what));
+    }
     for (double value : c) {
       if (!std::isfinite(value))
         return DataLossError(fmt::format("{}: {}: non-finite RBF centre", path, what));
@@ -461,7 +485,10 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
     }
     StatusOr<BiharmonicRbf> rbf = BiharmonicRbf::FromParts(
         Eigen::Map<const Eigen::MatrixXd>(c.data(), dim, centres),
-        Eigen::Map<const Eigen::MatrixXd>(coef.data(), rows, outputs), linear == 1);
+        Eigen::Map<const Eigen::MatrixXd>(coef.data(), rows, coefficient_columns), linear == 1,
+        basis_rows > 0
+            ? Eigen::MatrixXd(Eigen::Map<const Eigen::MatrixXd>(basis.data(), basis_rows, outputs))
+            : Eigen::MatrixXd());
     if (!rbf.ok()) return rbf.status().WithContext(path);
     model.rbfs_.push_back(std::move(rbf).value());
   }

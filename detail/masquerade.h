@@ -18,8 +18,8 @@
 // Model file (binary, little-endian as written by this machine): "FDDETAIL" magic, uint32
 // format version, subject, options, neutral mesh (positions, faces), marker layout (names,
 // surface points), regions (vertices and weights, feature triangles and weights), one RBF per
-// region, "END." trailer. Load checks every count against the ones before it and names what is
-// truncated or inconsistent.
+// region (version 2: with its output basis), "END." trailer. Load checks every count against the
+// ones before it and names what is truncated or inconsistent.
 #pragma once
 
 #include <Eigen/Core>
@@ -39,7 +39,9 @@
 
 namespace facedyn::detail {
 
-inline constexpr int kDetailModelFormatVersion = 1;
+// Version 2 added each region RBF's output basis (MasqueradeOptions::output_energy); version 1
+// files (no basis) still load.
+inline constexpr int kDetailModelFormatVersion = 2;
 
 struct MasqueradeOptions {
   LaplacianDeformerOptions large_scale;
@@ -50,6 +52,11 @@ struct MasqueradeOptions {
   double feature_sigma_mm = 20.0;  // falloff of the triangles that make a region's pose
   int global_frames = 80;          // greedy global selection; 0 or >= #frames: every frame
   int per_region_frames = 0;       // greedy per region among the global pool; 0: the pool
+  // Each region's RBF keeps the leading principal directions of its training offsets holding
+  // this fraction of their energy (detail/rbf.h CompressOutputs): 1 keeps them all (exact at
+  // the training frames); less shrinks the model, whose size then follows the frames and the
+  // directions kept rather than the region's vertices times the frames.
+  double output_energy = 1.0;
   Status Check() const;
 };
 

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
@@ -98,18 +99,61 @@ StatusOr<BiharmonicRbf> BiharmonicRbf::Fit(const Eigen::MatrixXd& centres,
 }
 
 StatusOr<BiharmonicRbf> BiharmonicRbf::FromParts(Eigen::MatrixXd centres,
-                                                 Eigen::MatrixXd coefficients, bool linear) {
+                                                 Eigen::MatrixXd coefficients, bool linear,
+                                                 Eigen::MatrixXd output_basis) {
   const Eigen::Index expected = centres.cols() + (linear ? 1 + centres.rows() : 1);
   if (centres.cols() == 0 || coefficients.rows() != expected) {
     return DataLossError(
         fmt::format("RBF: {} coefficient rows for {} centres of dimension {} ({} expected)",
                     coefficients.rows(), centres.cols(), centres.rows(), expected));
   }
+  if (output_basis.size() != 0 && output_basis.rows() != coefficients.cols()) {
+    return DataLossError(fmt::format("RBF: an output basis of {} rows for {} coefficient columns",
+                                     output_basis.rows(), coefficients.cols()));
+  }
   BiharmonicRbf rbf;
   rbf.centres_ = std::move(centres);
   rbf.coefficients_ = std::move(coefficients);
+  rbf.output_basis_ = std::move(output_basis);
   rbf.linear_ = linear;
   return rbf;
+}
+
+Status BiharmonicRbf::CompressOutputs(const Eigen::MatrixXd& values, double energy) {
+  if (!(energy > 0.0 && energy <= 1.0))
+    return InvalidArgumentError(fmt::format("RBF output energy must be in (0, 1], got {}", energy));
+  if (output_basis_.size() != 0) return FailedPreconditionError("RBF outputs already compressed");
+  if (values.cols() != coefficients_.cols()) {
+    return InvalidArgumentError(fmt::format("RBF compression: {} value columns for {} outputs",
+                                            values.cols(), coefficients_.cols()));
+  }
+  // Right singular vectors from the N x N Gram matrix (N centres << K outputs):
+  // Y Y^T = U S^2 U^T, V = Y^T U S^-1.
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(values * values.transpose());
+  const Eigen::VectorXd lambda = eigen.eigenvalues().reverse().cwiseMax(0.0);
+  const double total = lambda.sum();
+  if (!(total > 0.0)) {
+    // Every training value is zero: one zero direction keeps the shapes consistent.
+    output_basis_ = Eigen::MatrixXd::Zero(1, values.cols());
+    output_basis_(0, 0) = 1.0;
+    coefficients_ = Eigen::MatrixXd::Zero(coefficients_.rows(), 1);
+    return Status::Ok();
+  }
+  const double floor = 1e-12 * lambda[0];
+  int k = 0;
+  double kept = 0.0;
+  while (k < lambda.size() && lambda[k] > floor && (k == 0 || kept < energy * total)) {
+    kept += lambda[k];
+    ++k;
+  }
+  const Eigen::MatrixXd u = eigen.eigenvectors().rowwise().reverse().leftCols(k);
+  Eigen::MatrixXd v = values.transpose() * u;  // K x k
+  for (int i = 0; i < k; ++i) v.col(i) /= std::sqrt(lambda[i]);
+  // Only a smaller basis saves anything.
+  if (k >= values.cols()) return Status::Ok();
+  coefficients_ = coefficients_ * v;  // the fit is linear in the values: A^-1 [Y V; 0]
+  output_basis_ = v.transpose();
+  return Status::Ok();
 }
 
 void BiharmonicRbf::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& f,
@@ -121,7 +165,12 @@ void BiharmonicRbf::Evaluate(const Eigen::Ref<const Eigen::VectorXd>& f,
   for (int j = 0; j < n; ++j) h[j] = (centres_.col(j) - f).norm();
   h[n] = 1.0;
   if (linear_) h.tail(dimension()) = f;
-  out.noalias() = coefficients_.transpose() * h;
+  if (output_basis_.size() == 0) {
+    out.noalias() = coefficients_.transpose() * h;
+  } else {
+    const Eigen::VectorXd reduced = coefficients_.transpose() * h;
+    out.noalias() = output_basis_.transpose() * reduced;
+  }
 }
 
 std::vector<int> GreedySelectFrames(const Eigen::MatrixXd& features, const Eigen::MatrixXd& gram,

@@ -27,25 +27,41 @@ class BiharmonicRbf {
   // centres: D x N; values: N x K (row j is the value at centre j).
   static StatusOr<BiharmonicRbf> Fit(const Eigen::MatrixXd& centres, const Eigen::MatrixXd& values,
                                      RbfPolynomial polynomial = RbfPolynomial::kAuto);
-  // From stored parts (a loaded model); coefficients (N + P) x K, P = 1 or 1 + D.
+  // From stored parts (a loaded model); coefficients (N + P) x K, P = 1 or 1 + D; with an
+  // output basis (k x K, orthonormal rows) the coefficients are (N + P) x k.
   static StatusOr<BiharmonicRbf> FromParts(Eigen::MatrixXd centres, Eigen::MatrixXd coefficients,
-                                           bool linear);
+                                           bool linear, Eigen::MatrixXd output_basis = {});
+
+  // Keeps the outputs' leading principal directions: the fewest k whose singular values of the
+  // training values hold at least `energy` (0..1] of their squared sum. The interpolant becomes
+  // s(f) B^T B with B the k x K basis (the values' top right singular vectors), so the RBF
+  // stores (N + P) x k coefficients and k x K basis numbers instead of (N + P) x K: the
+  // output's size is paid once, not once per centre. energy 1 keeps every direction with a
+  // non-zero singular value (exact at the centres). `values` are the fit's (N x K).
+  Status CompressOutputs(const Eigen::MatrixXd& values, double energy);
 
   // s(f) into out (K). Precondition (CHECK): f.size() == dimension(), out->size() == outputs().
   void Evaluate(const Eigen::Ref<const Eigen::VectorXd>& f, Eigen::Ref<Eigen::VectorXd> out) const;
 
   int dimension() const { return static_cast<int>(centres_.rows()); }
   int centre_count() const { return static_cast<int>(centres_.cols()); }
-  int outputs() const { return static_cast<int>(coefficients_.cols()); }
+  int outputs() const {
+    return static_cast<int>(output_basis_.size() ? output_basis_.cols() : coefficients_.cols());
+  }
   bool linear() const { return linear_; }
   const Eigen::MatrixXd& centres() const { return centres_; }
   const Eigen::MatrixXd& coefficients() const { return coefficients_; }
-  // Bytes of the stored numbers (centres and coefficients, doubles).
-  size_t MemoryBytes() const { return sizeof(double) * (centres_.size() + coefficients_.size()); }
+  // k x K with orthonormal rows after CompressOutputs; empty (0 x 0) when uncompressed.
+  const Eigen::MatrixXd& output_basis() const { return output_basis_; }
+  // Bytes of the stored numbers (centres, coefficients and output basis, doubles).
+  size_t MemoryBytes() const {
+    return sizeof(double) * (centres_.size() + coefficients_.size() + output_basis_.size());
+  }
 
  private:
   Eigen::MatrixXd centres_;
   Eigen::MatrixXd coefficients_;
+  Eigen::MatrixXd output_basis_;
   bool linear_ = false;
 };
 

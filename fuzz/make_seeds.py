@@ -168,6 +168,8 @@ put("detail_model", "magic_only.bin", b"FDDETAIL")
 put("detail_model", "version_1_truncated.bin", b"FDDETAIL" + struct.pack("<I", 1))
 put("detail_model", "version_1_huge_length.bin",
     b"FDDETAIL" + struct.pack("<I", 1) + struct.pack("<Q", 1 << 62) + b"subject")
+put("detail_model", "version_2_truncated.bin",
+    b"FDDETAIL" + struct.pack("<I", 2) + struct.pack("<I", 5) + b"patch")
 put("detail_model", "future_version.bin", b"FDDETAIL" + struct.pack("<I", 99) + b"\0" * 64)
 put("detail_model", "bad_magic.bin", b"FDDETAIX" + struct.pack("<I", 1))
 

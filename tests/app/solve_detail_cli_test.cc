@@ -139,6 +139,23 @@ TEST(DetailCli, TrainApplyAndBadModel) {
   const auto trained = nlohmann::json::parse(out);
   EXPECT_EQ(trained["selected_frames"], 10);
   EXPECT_EQ(trained["training_frames"], 36);
+  // Compressed region outputs: a smaller model from the same takes; an energy outside (0, 1]
+  // is refused by name.
+  ASSERT_EQ(RunCommand(
+                Facedyn("--quiet detail train --takes " + smile + " " + speech +
+                        " --frames 10 --output-energy 0.99 --out " + dir.Join("c.bin") + " --json"),
+                &out),
+            0)
+      << out;
+  EXPECT_LT(nlohmann::json::parse(out)["memory_bytes"].get<double>(),
+            trained["memory_bytes"].get<double>());
+  EXPECT_NE(RunCommand(Facedyn("detail train --takes " + smile +
+                               " --frames 10 --output-energy 0 "
+                               "--out " +
+                               dir.Join("z.bin")),
+                       &out),
+            0);
+  EXPECT_THAT(out, HasSubstr("--output-energy"));
   ASSERT_EQ(RunCommand(Facedyn("--quiet detail apply --take " + speech + " --model " +
                                dir.Join("d.bin") + " --out " + dir.Join("up") + " --json"),
                        &out),

@@ -58,6 +58,79 @@ TEST(BiharmonicRbf, LinearPartReproducesAffineFunctionsEverywhere) {
   EXPECT_GT((out - (a * Eigen::Vector3d(3.0, 3.0, 3.0) + b)).norm(), 1e-3);
 }
 
+TEST(BiharmonicRbf, CompressedOutputsAreExactOnLowRankValues) {
+  // Values of rank 2 spread over 60 outputs: two directions hold all their energy, so the
+  // compressed interpolant stores 2 coefficient columns plus a 2 x 60 basis and still
+  // interpolates the centres, and agrees with the uncompressed one away from them.
+  const Eigen::MatrixXd centres = RandomMatrix(9, 40, 11);
+  const Eigen::MatrixXd values = RandomMatrix(40, 2, 12) * RandomMatrix(2, 60, 13);
+  StatusOr<BiharmonicRbf> full = BiharmonicRbf::Fit(centres, values);
+  ASSERT_TRUE(full.ok()) << full.status().ToString();
+  BiharmonicRbf compressed = *full;
+  ASSERT_TRUE(compressed.CompressOutputs(values, 0.999).ok());
+  EXPECT_EQ(compressed.output_basis().rows(), 2);
+  EXPECT_EQ(compressed.outputs(), 60);
+  EXPECT_EQ(compressed.coefficients().cols(), 2);
+  const Eigen::MatrixXd gram = compressed.output_basis() * compressed.output_basis().transpose();
+  EXPECT_LT((gram - Eigen::MatrixXd::Identity(2, 2)).norm(), 1e-10);  // orthonormal rows
+  EXPECT_LT(compressed.MemoryBytes(), full->MemoryBytes());
+  EXPECT_LT(compressed.coefficients().size() + compressed.output_basis().size(),
+            full->coefficients().size() / 10);
+  Eigen::VectorXd out(60), reference(60);
+  for (int j = 0; j < 40; ++j) {
+    compressed.Evaluate(centres.col(j), out);
+    EXPECT_LT((out - values.row(j).transpose()).norm(), 1e-9) << "centre " << j;
+  }
+  const Eigen::MatrixXd probes = RandomMatrix(9, 5, 14);
+  for (int j = 0; j < 5; ++j) {
+    compressed.Evaluate(probes.col(j), out);
+    full->Evaluate(probes.col(j), reference);
+    EXPECT_LT((out - reference).norm(), 1e-9 * (1.0 + reference.norm())) << "probe " << j;
+  }
+  // A stored compressed RBF comes back the same.
+  StatusOr<BiharmonicRbf> loaded =
+      BiharmonicRbf::FromParts(compressed.centres(), compressed.coefficients(), compressed.linear(),
+                               compressed.output_basis());
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  loaded->Evaluate(probes.col(0), reference);
+  compressed.Evaluate(probes.col(0), out);
+  EXPECT_EQ((out - reference).norm(), 0.0);
+}
+
+TEST(BiharmonicRbf, CompressionKeepsTheAskedEnergy) {
+  // Full-rank values: the kept directions hold at least the asked fraction of the squared
+  // singular values, so the error at the centres is at most sqrt(1 - energy) of the values'
+  // norm, and fewer are kept for less energy.
+  const Eigen::MatrixXd centres = RandomMatrix(9, 30, 21);
+  Eigen::MatrixXd values = RandomMatrix(30, 45, 22);
+  for (int c = 0; c < 45; ++c) values.col(c) *= std::pow(0.8, c);  // a decaying spectrum
+  StatusOr<BiharmonicRbf> full = BiharmonicRbf::Fit(centres, values);
+  ASSERT_TRUE(full.ok());
+  int previous_k = 1000;
+  for (double energy : {0.9999, 0.99, 0.9}) {
+    BiharmonicRbf rbf = *full;
+    ASSERT_TRUE(rbf.CompressOutputs(values, energy).ok());
+    const int k = static_cast<int>(rbf.output_basis().rows());
+    EXPECT_LT(k, previous_k) << energy;
+    previous_k = k;
+    Eigen::MatrixXd at_centres(30, 45);
+    Eigen::VectorXd out(45);
+    for (int j = 0; j < 30; ++j) {
+      rbf.Evaluate(centres.col(j), out);
+      at_centres.row(j) = out.transpose();
+    }
+    EXPECT_LE((at_centres - values).norm(), std::sqrt(1.0 - energy) * values.norm() * (1 + 1e-9))
+        << energy;
+  }
+  BiharmonicRbf rbf = *full;
+  EXPECT_FALSE(rbf.CompressOutputs(values, 0.0).ok());
+  EXPECT_FALSE(rbf.CompressOutputs(values, 1.5).ok());
+  EXPECT_FALSE(rbf.CompressOutputs(values.leftCols(3), 0.9).ok());
+  EXPECT_FALSE(BiharmonicRbf::FromParts(full->centres(), full->coefficients(), full->linear(),
+                                        Eigen::MatrixXd::Zero(3, 45))
+                   .ok());
+}
+
 TEST(BiharmonicRbf, RepeatedCentreIsDroppedNotSingular) {
   Eigen::MatrixXd centres = RandomMatrix(2, 6, 6);
   centres.col(5) = centres.col(1);

@@ -293,7 +293,12 @@ size_t MasqueradeModel::MemoryBytes() const {
 Status MasqueradeModel::Save(const std::string& path) const {
   BinaryWriter w;
   w.Raw(kMagic, sizeof(kMagic));
-  w.Pod<uint32_t>(kDetailModelFormatVersion);
+  // The oldest version that holds the model: an uncompressed one stays readable by builds that
+  // know only version 1.
+  bool compressed = false;
+  for (const BiharmonicRbf& rbf : rbfs_) compressed = compressed || rbf.output_basis().size() != 0;
+  const uint32_t version = compressed ? 2 : 1;
+  w.Pod<uint32_t>(version);
   w.Str(subject_);
   w.Pod(options_.large_scale.marker_weight);
   w.Pod(options_.region_sigma_mm);
@@ -326,10 +331,10 @@ Status MasqueradeModel::Save(const std::string& path) const {
     w.Pod<int32_t>(rbf.centre_count());
     w.Pod<uint8_t>(rbf.linear() ? 1 : 0);
     w.Pod<int32_t>(rbf.outputs());
-    w.Pod<int32_t>(static_cast<int32_t>(rbf.output_basis().rows()));  // 0: none
+    if (version >= 2) w.Pod<int32_t>(static_cast<int32_t>(rbf.output_basis().rows()));  // 0: none
     w.Doubles(rbf.centres().data(), rbf.centres().size());
     w.Doubles(rbf.coefficients().data(), rbf.coefficients().size());
-    w.Doubles(rbf.output_basis().data(), rbf.output_basis().size());
+    if (version >= 2) w.Doubles(rbf.output_basis().data(), rbf.output_basis().size());
   }
   w.Raw(kTrailer, sizeof(kTrailer));
   return WriteFileAtomic(path, w.bytes());

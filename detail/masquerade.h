@@ -39,8 +39,9 @@
 
 namespace facedyn::detail {
 
-// Version 2 added each region RBF's output basis (MasqueradeOptions::output_energy); version 1
-// files (no basis) still load.
+// Version 2 added each region RBF's output basis (MasqueradeOptions::output_energy). Save writes
+// version 1 when no region is compressed, so both versions load (and are round-tripped by
+// tests/detail/masquerade_test).
 inline constexpr int kDetailModelFormatVersion = 2;
 
 struct MasqueradeOptions {

@@ -133,6 +133,14 @@ TEST(MasqueradeModel, CompressedOutputsShrinkTheModelAndSurviveARoundTrip) {
   EXPECT_LT(MeanError(a, b), 0.1 * MeanError(large, a));
   facedyn::testing::TempDir dir;
   ASSERT_TRUE(compressed->Save(dir.Join("c.bin")).ok());
+  ASSERT_TRUE(full->Save(dir.Join("f.bin")).ok());
+  // Format version (after the 8-byte magic): 2 with an output basis, 1 without.
+  auto version_of = [](const std::string& path) {
+    StatusOr<std::string> bytes = ReadFileToString(path);
+    return bytes.ok() && bytes->size() >= 12 ? static_cast<unsigned char>((*bytes)[8]) : -1;
+  };
+  EXPECT_EQ(version_of(dir.Join("c.bin")), 2);
+  EXPECT_EQ(version_of(dir.Join("f.bin")), 1);
   StatusOr<MasqueradeModel> loaded = MasqueradeModel::Load(dir.Join("c.bin"));
   ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
   EXPECT_EQ(loaded->MemoryBytes(), compressed->MemoryBytes());

@@ -49,7 +49,7 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
     int per_region = 0;
     double region_sigma_mm = detail::MasqueradeOptions{}.region_sigma_mm;
     double feature_sigma_mm = detail::MasqueradeOptions{}.feature_sigma_mm;
-    double output_energy = detail::MasqueradeOptions{}.output_energy;
+    std::string output_energy = "1";
     bool json = false;
   };
   auto train_options = std::make_shared<TrainOptions>();
@@ -83,9 +83,19 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
       ->capture_default_str();
   train
       ->add_option("--output-energy", train_options->output_energy,
-                   "Fraction of each region's offset energy its RBF keeps (principal directions; "
-                   "1: all, exact at the training frames; less: a smaller model)")
-      ->check(CLI::Range(1e-6, 1.0))
+                   "Fraction in (0, 1] of each region's offset energy its RBF keeps (principal "
+                   "directions; 1: all, exact at the training frames; less: a smaller model), or "
+                   "'auto': chosen on the training frames --frames left out")
+      ->check([](const std::string& text) -> std::string {
+        if (text == "auto") return "";
+        try {
+          size_t used = 0;
+          const double value = std::stod(text, &used);
+          if (used == text.size() && value > 0 && value <= 1) return "";
+        } catch (const std::exception&) {
+        }
+        return "must be a number in (0, 1] or 'auto', got '" + text + "'";
+      })
       ->capture_default_str();
   train->add_flag("--json", train_options->json, "Print a JSON summary on stdout");
   train->callback([train_options, selected] {
@@ -115,20 +125,24 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
       options.per_region_frames = o.per_region;
       options.region_sigma_mm = o.region_sigma_mm;
       options.feature_sigma_mm = o.feature_sigma_mm;
-      options.output_energy = o.output_energy;
+      options.output_energy =
+          o.output_energy == "auto" ? detail::kChooseOutputEnergy : std::stod(o.output_energy);
       detail::MasqueradeTrainingSummary summary;
       FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
                                detail::MasqueradeModel::Train(set, options, &summary));
       FACEDYN_RETURN_IF_ERROR(model.Save(o.out));
       if (o.json) {
-        const Json json = {{"model", o.out},
-                           {"subject", rig.name},
-                           {"markers", set.markers.size()},
-                           {"training_frames", set.frames_mm.size()},
-                           {"selected_frames", summary.global_frames.size()},
-                           {"mean_frames_per_region", summary.mean_frames_per_region},
-                           {"memory_bytes", model.MemoryBytes()},
-                           {"train_s", summary.train_s}};
+        const Json json = {
+            {"model", o.out},
+            {"subject", rig.name},
+            {"markers", set.markers.size()},
+            {"training_frames", set.frames_mm.size()},
+            {"selected_frames", summary.global_frames.size()},
+            {"mean_frames_per_region", summary.mean_frames_per_region},
+            {"memory_bytes", model.MemoryBytes()},
+            {"output_energy", summary.output_energy},
+            {"output_energy_validation_frames", summary.output_energy_validation_frames},
+            {"train_s", summary.train_s}};
         std::printf("%s\n", json.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       } else {
         spdlog::info("trained on {} frames ({} selected) with {} markers; wrote {}",

@@ -24,7 +24,9 @@
 // output_energy), the energy chosen among 0.9999, 0.999, 0.99, 0.9 on a validation speech draw
 // (seed + 2000, never the test) as the smallest whose validation face mean error is within 5% of
 // the uncompressed model's; "output_compression_candidates" lists each candidate's validation
-// error and size.
+// error and size. "masquerade_global_80_auto": the energy `detail train --output-energy auto`
+// chooses by the same rule on the training frames the global selection left out (no
+// validation take: what a studio's training data alone allows).
 // Speed: upsampling frames/s over the test markers (ApplyFrames), on one thread and on every
 // core (frames side by side), five passes of each alternated, medians; on this machine.
 //
@@ -151,6 +153,27 @@ facedyn::StatusOr<UpsampleSpeed> MeasureUpsampleSpeed(int frames, F&& apply_fram
   speed.all_cores = median(all);
   speed.threads = facedyn::ParallelThreadCount(0, frames);
   return speed;
+}
+
+facedyn::Status ApplyAll(const facedyn::detail::MasqueradeModel& model,
+                         const std::vector<Eigen::Matrix3Xd>& markers,
+                         std::vector<Eigen::Matrix3Xd>* skins, int threads) {
+  return model.ApplyFrames(markers, skins, nullptr, threads);
+}
+facedyn::Status ApplyAll(const facedyn::detail::BickelModel& model,
+                         const std::vector<Eigen::Matrix3Xd>& markers,
+                         std::vector<Eigen::Matrix3Xd>* skins, int threads) {
+  return model.ApplyFrames(markers, skins, threads);
+}
+
+// MeasureUpsampleSpeed of a trained model over `markers`.
+template <typename Model>
+facedyn::StatusOr<UpsampleSpeed> SpeedOf(const Model& model,
+                                         const std::vector<Eigen::Matrix3Xd>& markers) {
+  std::vector<Eigen::Matrix3Xd> skins;
+  return MeasureUpsampleSpeed(static_cast<int>(markers.size()), [&](int threads) {
+    return ApplyAll(model, markers, &skins, threads);
+  });
 }
 
 // The markers of `layout` on every `truth` frame (skull frame) as the simulated HMC films them:
@@ -376,12 +399,7 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
       methods["large_scale_only"] = {{"errors", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(large, truth, lips_it->second))}};
       large_done = true;
     }
-    std::vector<Eigen::Matrix3Xd> skins;
-    FACEDYN_ASSIGN_OR_RETURN(
-        const UpsampleSpeed speed,
-        MeasureUpsampleSpeed(static_cast<int>(test_markers.size()), [&](int threads) {
-          return model.ApplyFrames(test_markers, &skins, nullptr, threads);
-        }));
+    FACEDYN_ASSIGN_OR_RETURN(const UpsampleSpeed speed, SpeedOf(model, test_markers));
     methods[variant.name] = {{"errors", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(result, truth, lips_it->second))},
                              {"memory_bytes", model.MemoryBytes()},
                              {"mean_frames_per_region", summary.mean_frames_per_region},
@@ -395,16 +413,18 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
     // Output compression of the 80-global model's region RBFs (MasqueradeOptions::
     // output_energy), chosen on the validation speech: the smallest energy whose face mean
     // error there is within 5% of the uncompressed model's; then scored on the test.
-    Json candidates = Json::array();
-    double uncompressed_validation = 0.0, chosen_energy = 1.0;
-    for (double energy : {1.0, 0.9999, 0.999, 0.99, 0.9}) {
+    auto train_global = [&](double energy) {
       detail::MasqueradeOptions options;
       options.region_sigma_mm = s.sigma_mm;
       options.feature_sigma_mm = s.feature_sigma_mm;
       options.global_frames = s.global_frames;
       options.output_energy = energy;
-      FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
-                               detail::MasqueradeModel::Train(set, options));
+      return detail::MasqueradeModel::Train(set, options);
+    };
+    Json candidates = Json::array();
+    double uncompressed_validation = 0.0, chosen_energy = 1.0;
+    for (double energy : {1.0, 0.9999, 0.999, 0.99, 0.9}) {
+      FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model, train_global(energy));
       std::vector<Eigen::Matrix3Xd> result;
       FACEDYN_RETURN_IF_ERROR(model.ApplyFrames(validation_markers, &result));
       const double error =
@@ -415,27 +435,36 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
                             {"validation_face_mean_mm", error},
                             {"memory_bytes", model.MemoryBytes()}});
     }
-    detail::MasqueradeOptions options;
-    options.region_sigma_mm = s.sigma_mm;
-    options.feature_sigma_mm = s.feature_sigma_mm;
-    options.global_frames = s.global_frames;
-    options.output_energy = chosen_energy;
-    FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model,
-                             detail::MasqueradeModel::Train(set, options));
+    FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model, train_global(chosen_energy));
     std::vector<Eigen::Matrix3Xd> result;
     FACEDYN_RETURN_IF_ERROR(model.ApplyFrames(test_markers, &result));
-    std::vector<Eigen::Matrix3Xd> skins;
-    FACEDYN_ASSIGN_OR_RETURN(
-        const UpsampleSpeed speed,
-        MeasureUpsampleSpeed(static_cast<int>(test_markers.size()), [&](int threads) {
-          return model.ApplyFrames(test_markers, &skins, nullptr, threads);
-        }));
+    FACEDYN_ASSIGN_OR_RETURN(const UpsampleSpeed speed, SpeedOf(model, test_markers));
     methods["masquerade_global_80_compressed"] = {
         {"errors", facedyn::eval::DetailErrorsJson(
                        facedyn::eval::ScoreDetail(result, truth, lips_it->second))},
         {"memory_bytes", model.MemoryBytes()},
         {"output_energy", chosen_energy}};
     methods["masquerade_global_80_compressed"].update(speed.ToJson());
+    // What `detail train --output-energy auto` chooses from the training takes alone (the
+    // range-of-motion frames the global selection left out), scored on the test.
+    {
+      detail::MasqueradeOptions options;
+      options.region_sigma_mm = s.sigma_mm;
+      options.feature_sigma_mm = s.feature_sigma_mm;
+      options.global_frames = s.global_frames;
+      options.output_energy = detail::kChooseOutputEnergy;
+      detail::MasqueradeTrainingSummary summary;
+      FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel automatic,
+                               detail::MasqueradeModel::Train(set, options, &summary));
+      std::vector<Eigen::Matrix3Xd> automatic_result;
+      FACEDYN_RETURN_IF_ERROR(automatic.ApplyFrames(test_markers, &automatic_result));
+      methods["masquerade_global_80_auto"] = {
+          {"errors", facedyn::eval::DetailErrorsJson(
+                         facedyn::eval::ScoreDetail(automatic_result, truth, lips_it->second))},
+          {"memory_bytes", automatic.MemoryBytes()},
+          {"output_energy", summary.output_energy},
+          {"train_s", summary.train_s}};
+    }
     run["output_compression_candidates"] = candidates;
     std::fprintf(stderr, "detail_bench: seed %llu compression chosen on validation: energy %g\n",
                  static_cast<unsigned long long>(seed), chosen_energy);
@@ -450,12 +479,7 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
     const double train_s = Seconds(start);
     std::vector<Eigen::Matrix3Xd> result;
     FACEDYN_RETURN_IF_ERROR(model.ApplyFrames(test_markers, &result));
-    std::vector<Eigen::Matrix3Xd> skins;
-    FACEDYN_ASSIGN_OR_RETURN(
-        const UpsampleSpeed speed,
-        MeasureUpsampleSpeed(static_cast<int>(test_markers.size()), [&](int threads) {
-          return model.ApplyFrames(test_markers, &skins, threads);
-        }));
+    FACEDYN_ASSIGN_OR_RETURN(const UpsampleSpeed speed, SpeedOf(model, test_markers));
     methods["bickel2008_80"] = {{"errors", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(result, truth, lips_it->second))},
                                 {"memory_bytes", model.MemoryBytes()},
                                 {"marker_graph_edges", model.edge_count()},

@@ -44,6 +44,9 @@ namespace facedyn::detail {
 // tests/detail/masquerade_test).
 inline constexpr int kDetailModelFormatVersion = 2;
 
+inline constexpr double kChooseOutputEnergy = 0.0;
+inline constexpr double kOutputEnergyCandidates[] = {1.0, 0.9999, 0.999, 0.99, 0.9};
+
 struct MasqueradeOptions {
   LaplacianDeformerOptions large_scale;
   // Falloffs (mm) chosen with bench/detail_bench on the procedural face with 80 markers (about
@@ -57,6 +60,9 @@ struct MasqueradeOptions {
   // this fraction of their energy (detail/rbf.h CompressOutputs): 1 keeps them all (exact at
   // the training frames); less shrinks the model, whose size then follows the frames and the
   // directions kept rather than the region's vertices times the frames.
+  // kChooseOutputEnergy: the smallest of kOutputEnergyCandidates whose mean vertex error on the
+  // training frames the global selection left out is within 5% of the uncompressed model's (1
+  // when every frame is selected).
   double output_energy = 1.0;
   Status Check() const;
 };
@@ -64,7 +70,9 @@ struct MasqueradeOptions {
 struct MasqueradeTrainingSummary {
   std::vector<int> global_frames;  // selected frames, pick order
   double mean_frames_per_region = 0.0;
-  int linear_regions = 0;  // regions whose RBF has the linear polynomial part
+  int linear_regions = 0;                   // regions whose RBF has the linear polynomial part
+  double output_energy = 1.0;               // as asked, or as chosen (kChooseOutputEnergy)
+  int output_energy_validation_frames = 0;  // frames the choice was made on (0: not chosen)
   double train_s = 0.0;
 };
 

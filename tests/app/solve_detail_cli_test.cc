@@ -156,6 +156,13 @@ TEST(DetailCli, TrainApplyAndBadModel) {
                        &out),
             0);
   EXPECT_THAT(out, HasSubstr("--output-energy"));
+  ASSERT_EQ(RunCommand(
+                Facedyn("--quiet detail train --takes " + smile + " " + speech +
+                        " --frames 10 --output-energy auto --out " + dir.Join("a.bin") + " --json"),
+                &out),
+            0)
+      << out;
+  EXPECT_EQ(nlohmann::json::parse(out)["output_energy_validation_frames"], 26);
   ASSERT_EQ(RunCommand(Facedyn("--quiet detail apply --take " + speech + " --model " +
                                dir.Join("d.bin") + " --out " + dir.Join("up") + " --json"),
                        &out),

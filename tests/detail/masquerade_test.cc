@@ -3,6 +3,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <iterator>
 #include <limits>
 #include <vector>
 
@@ -147,9 +149,63 @@ TEST(MasqueradeModel, CompressedOutputsShrinkTheModelAndSurviveARoundTrip) {
   Eigen::Matrix3Xd c;
   ASSERT_TRUE(loaded->Apply(set.MarkersOn(truth), &c).ok());
   EXPECT_EQ(MaxError(b, c), 0.0);
-  options.output_energy = 0.0;
+  options.output_energy = 1.5;
   EXPECT_THAT(MasqueradeModel::Train(set, options).status().message(),
               ::testing::HasSubstr("output_energy"));
+  options.output_energy = -0.1;
+  EXPECT_FALSE(MasqueradeModel::Train(set, options).ok());
+}
+
+TEST(MasqueradeModel, ChoosesTheOutputEnergyOnTheFramesSelectionLeftOut) {
+  const DetailTrainingSet set = testing::TestTrainingSet(6);  // 36 frames
+  MasqueradeOptions options;
+  options.global_frames = 20;
+  options.output_energy = kChooseOutputEnergy;
+  MasqueradeTrainingSummary summary;
+  StatusOr<MasqueradeModel> chosen = MasqueradeModel::Train(set, options, &summary);
+  ASSERT_TRUE(chosen.ok()) << chosen.status().ToString();
+  EXPECT_EQ(summary.output_energy_validation_frames, static_cast<int>(set.frames_mm.size()) - 20);
+  // The choice is one of the candidates, and the model is what training with it gives.
+  EXPECT_NE(std::find(std::begin(kOutputEnergyCandidates), std::end(kOutputEnergyCandidates),
+                      summary.output_energy),
+            std::end(kOutputEnergyCandidates));
+  options.output_energy = summary.output_energy;
+  StatusOr<MasqueradeModel> direct = MasqueradeModel::Train(set, options);
+  ASSERT_TRUE(direct.ok());
+  EXPECT_EQ(chosen->MemoryBytes(), direct->MemoryBytes());
+  // The rule: within 5% of the uncompressed error on the left-out frames, and no smaller
+  // candidate is.
+  auto held_out_error = [&](const MasqueradeModel& model) {
+    std::vector<char> in_pool(set.frames_mm.size(), 0);
+    MasqueradeOptions pool_options;
+    pool_options.global_frames = 20;
+    MasqueradeTrainingSummary pool_summary;
+    EXPECT_TRUE(MasqueradeModel::Train(set, pool_options, &pool_summary).ok());
+    for (int f : pool_summary.global_frames) in_pool[f] = 1;
+    double error = 0;
+    for (size_t f = 0; f < set.frames_mm.size(); ++f) {
+      if (in_pool[f]) continue;
+      Eigen::Matrix3Xd skin;
+      EXPECT_TRUE(model.Apply(set.MarkersOn(set.frames_mm[f]), &skin).ok());
+      error += MeanError(skin, set.frames_mm[f]);
+    }
+    return error;
+  };
+  options.output_energy = 1.0;
+  const double uncompressed = held_out_error(*MasqueradeModel::Train(set, options));
+  EXPECT_LE(held_out_error(*chosen), 1.05 * uncompressed + 1e-12);
+  for (double candidate : kOutputEnergyCandidates) {
+    if (candidate >= summary.output_energy) continue;
+    options.output_energy = candidate;
+    EXPECT_GT(held_out_error(*MasqueradeModel::Train(set, options)), 1.05 * uncompressed)
+        << candidate;
+  }
+  // With every frame selected there is nothing to choose on: uncompressed.
+  options.global_frames = 0;
+  options.output_energy = kChooseOutputEnergy;
+  ASSERT_TRUE(MasqueradeModel::Train(set, options, &summary).ok());
+  EXPECT_EQ(summary.output_energy, 1.0);
+  EXPECT_EQ(summary.output_energy_validation_frames, 0);
 }
 
 TEST(MasqueradeModel, TruncatedAndCorruptedFilesAreNamedErrors) {

@@ -29,6 +29,7 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
     std::string markers;
     double marker_diameter_px = 8.0;
     bool bright = false;
+    bool occlusion_refit = false;
     bool json = false;
   };
   auto options = std::make_shared<ReconstructOptions>();
@@ -54,6 +55,9 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
                    "Typical marker diameter in the images (tunes the detector)")
       ->capture_default_str();
   command->add_flag("--bright-markers", options->bright, "Markers brighter than the skin");
+  command->add_flag("--occlusion-refit", options->occlusion_refit,
+                    "Refit dots smaller than their neighbours as partly hidden (off by default: "
+                    "it moves obliquely seen dots off their centres; never on head-mounted takes)");
   command->add_flag("--json", options->json, "Print the summary as JSON on stdout");
   command->callback([options, selected] {
     *selected = [options]() -> Status {
@@ -79,6 +83,7 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
       detection.expected_diameter_px = options->marker_diameter_px;
       detection.min_diameter_px = std::max(1.5, 0.4 * options->marker_diameter_px);
       detection.max_diameter_px = 2.5 * options->marker_diameter_px;
+      detection.occlusion_refit = options->occlusion_refit;
       FACEDYN_ASSIGN_OR_RETURN(
           const reconstruct::SessionDetections input,
           reconstruct::DetectSessionTake(options->session, options->take, input_options));

@@ -39,11 +39,12 @@ struct SessionDetections {
   std::optional<double> hold_start_s;
   // The cameras were head-mounted (capture.json "camera_mount": "head"): their calibration is in
   // the skull (helmet) frame (reconstruct/pipeline.h ReconstructionOptions::head_mounted).
-  // Such takes are detected without occlusion refits (MarkerDetectionOptions::occlusion_refit):
-  // close to the face, neighbouring dots are foreshortened differently, which breaks the refit's
-  // premise that neighbours share a shape. On the simulated HMC's 2 s dialogue
-  // (config/capture/hmc.yaml) refits moved the reprojection RMS from 0.042 to 0.128 px and the
-  // markers' skull-frame RMS against the truth from 0.088 to 0.273 mm.
+  // Such takes are always detected without occlusion refits
+  // (MarkerDetectionOptions::occlusion_refit, which is off by default anyway): close to the
+  // face, neighbouring dots are foreshortened differently, which breaks the refit's premise
+  // that neighbours share a shape. On the simulated HMC's 2 s dialogue (config/capture/hmc.yaml)
+  // refits moved the reprojection RMS from 0.042 to 0.128 px and the markers' skull-frame RMS
+  // against the truth from 0.088 to 0.273 mm.
   bool head_mounted = false;
   // detections[f][c]: frame f (trigger index f), camera c of `cameras`.
   std::vector<std::vector<std::vector<ImageObservation>>> detections;

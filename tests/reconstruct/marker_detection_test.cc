@@ -121,8 +121,17 @@ TEST(DetectMarkers, PartialOcclusionBiasesLittleAndLowersQuality) {
                   cv::Point2d(c.x() + 9, c.y() + 8), cv::Scalar(185), cv::FILLED);
   }
   MarkerDetectionSummary summary;
-  const auto detections = DetectMarkers(dots.image, MarkerDetectionOptions(), &summary);
+  MarkerDetectionOptions options;
+  options.occlusion_refit = true;
+  const auto detections = DetectMarkers(dots.image, options, &summary);
   ASSERT_TRUE(detections.ok());
+  // Without the refit the same dots are found, the hidden ones keep the bias of their visible
+  // part, and their quality says so.
+  MarkerDetectionSummary plain_summary;
+  const auto plain = DetectMarkers(dots.image, MarkerDetectionOptions(), &plain_summary);
+  ASSERT_TRUE(plain.ok());
+  EXPECT_EQ(plain_summary.refitted_for_occlusion, 0);
+  EXPECT_GT(summary.refitted_for_occlusion, 0);
   std::printf("candidates %d, rejected fit %d size %d contrast %d quality %d, duplicates %d\n",
               summary.candidates, summary.rejected_fit, summary.rejected_size,
               summary.rejected_contrast, summary.rejected_quality, summary.duplicates);
@@ -156,6 +165,25 @@ TEST(DetectMarkers, PartialOcclusionBiasesLittleAndLowersQuality) {
   EXPECT_GE(within, occluded / 2);
   EXPECT_LT(worst_occluded, 1.6);
   EXPECT_LT(occluded_quality / occluded, clear_quality / clear - 0.1);
+  // The default (no refit): every clear dot found as precisely, the hidden ones found with
+  // the bias of their visible part and a clearly lower quality.
+  const auto plain_matched = Match(dots, *plain);
+  double plain_occluded_quality = 0.0, plain_clear_quality = 0.0;
+  int plain_occluded = 0, plain_clear = 0;
+  for (size_t i = 0; i < plain_matched.size(); ++i) {
+    if (!plain_matched[i]) continue;
+    if (i % 2 == 0) {
+      plain_occluded_quality += plain_matched[i]->quality;
+      ++plain_occluded;
+    } else {
+      EXPECT_LT((plain_matched[i]->center_px - dots.centers[i]).norm(), 0.1);
+      plain_clear_quality += plain_matched[i]->quality;
+      ++plain_clear;
+    }
+  }
+  EXPECT_EQ(plain_clear, 24);
+  EXPECT_GE(plain_occluded, 20);
+  EXPECT_LT(plain_occluded_quality / plain_occluded, plain_clear_quality / plain_clear - 0.1);
 }
 
 TEST(DetectMarkersInImages, SameAsOneByOneInImageOrder) {

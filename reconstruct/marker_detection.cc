@@ -135,7 +135,9 @@ inline double DiskModel(const DiskParameters& p, double x, double y, double* gra
 //
 // `bounds`: a fit whose accepted step takes its centre further than max_travel from origin, or
 // its equivalent radius (from the third iteration, after the plain least-squares rounds) above
-// max_equivalent_radius, is abandoned there as not converged. The caller rejects such a fit
+// max_equivalent_radius, or (abandon_at_width_limit, from the fourth) its edge width to the
+// model's limit of one radius (a blob, not a blurred disk), is abandoned there as not
+// converged. The caller rejects such a fit
 // anyway, and a candidate that is no dot (skin texture, an edge) otherwise wanders for the
 // whole iteration budget over a window grown to its cap: on the simulated rig's captured faces
 // that was a third of the fits and most of detection's time.
@@ -143,6 +145,7 @@ struct FitBounds {
   Eigen::Vector2d origin = Eigen::Vector2d::Zero();
   double max_travel = std::numeric_limits<double>::infinity();
   double max_equivalent_radius = std::numeric_limits<double>::infinity();
+  bool abandon_at_width_limit = false;
 };
 
 FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius, int max_iterations,
@@ -342,7 +345,8 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius, int
       break;
     }
     if ((Eigen::Vector2d(p[0], p[1]) - bounds.origin).norm() > bounds.max_travel ||
-        (iteration >= 2 && EquivalentRadius(p) > bounds.max_equivalent_radius)) {
+        (iteration >= 2 && EquivalentRadius(p) > bounds.max_equivalent_radius) ||
+        (iteration >= 3 && bounds.abandon_at_width_limit && p[5] >= 1.0)) {
       result.abandoned = true;
       break;
     }
@@ -590,6 +594,7 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
     bounds.origin = Eigen::Vector2d(c.x, c.y);
     bounds.max_travel = 2.0 * r0 + 2.0;                             // as the rejection below
     bounds.max_equivalent_radius = 0.75 * options.max_diameter_px;  // 1.5x the size rejection's
+    bounds.abandon_at_width_limit = true;
     const FitResult fit = FitDisk(gray, MomentStart(gray, candidate.center_px, r0, a0, b0),
                                   max_radius, options.max_iterations, false, false, bounds);
     summary.fit_iterations += fit.iterations;

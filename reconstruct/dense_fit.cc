@@ -2,7 +2,9 @@
 
 #include <ceres/ceres.h>
 
+#include <Eigen/Cholesky>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -219,6 +221,16 @@ DenseFitter::DenseFitter(const FaceRig& rig, const DenseFitOptions& options)
       }
     }
   }
+  node_regulariser_ = options.lambda_magnitude * Eigen::MatrixXd::Identity(n, n);
+  for (size_t p = 0; p < node_pairs_.size(); ++p) {
+    const auto [k, l] = node_pairs_[p];
+    const double stiffness =
+        options.lambda_smooth / (node_pair_distance_mm_[p] * node_pair_distance_mm_[p]);
+    node_regulariser_(k, k) += stiffness;
+    node_regulariser_(l, l) += stiffness;
+    node_regulariser_(k, l) -= stiffness;
+    node_regulariser_(l, k) -= stiffness;
+  }
   const int k_count = static_cast<int>(rig.blendshape_deltas_mm.size());
   for (const Marker& marker : rig.markers) {
     marker_neutral_.push_back(marker.point.Evaluate(rest));
@@ -263,39 +275,173 @@ StatusOr<Eigen::Matrix3Xd> DenseFitter::Fit(const TrackedFrame& frame,
   summary = DenseFitSummary();
   const int m_count = static_cast<int>(rig_.markers.size());
   if (frame.positions_in_world.cols() != m_count ||
-      static_cast<int>(frame.states.size()) != m_count) {
+      static_cast<int>(frame.states.size()) != m_count ||
+      static_cast<int>(frame.confidence.size()) != m_count) {
     return InvalidArgumentError("tracked frame has " +
                                 std::to_string(frame.positions_in_world.cols()) +
                                 " markers, the rig " + std::to_string(m_count));
   }
   const Rigid3 skull_from_world = world_from_skull.Inverse();
   const Eigen::VectorXd previous_weights = weights_;
+  std::vector<UsedMarker> used;
+  for (int m = 0; m < m_count; ++m) {
+    if (frame.states[m] == MarkerState::kMissing || !(frame.confidence[m] > 0)) continue;
+    const Eigen::Vector3d target =
+        skull_from_world * Eigen::Vector3d(frame.positions_in_world.col(m));
+    used.push_back({m, frame.confidence[m] / (options_.marker_noise_mm * options_.marker_noise_mm),
+                    marker_neutral_[m] - target});
+  }
+  if (used.size() < 3) {
+    return FailedPreconditionError("only " + std::to_string(used.size()) +
+                                   " markers to fit the mesh to");
+  }
+  summary.markers_used = static_cast<int>(used.size());
+  const Eigen::Matrix3Xd previous_nodes = nodes_;
+  bool solved = false;
+  if (options_.solver == DenseFitSolver::kNormalEquations) {
+    summary.initial_cost = Energy(used, previous_weights);
+    solved = SolveNormalEquations(used, previous_weights, &summary.iterations);
+    if (solved) {
+      summary.converged = true;
+      summary.final_cost = Energy(used, previous_weights);
+      summary.message = "normal equations, bound active set settled";
+    } else {
+      weights_ = previous_weights;  // the warm start for Ceres
+      nodes_ = previous_nodes;
+    }
+  }
+  if (!solved && !SolveCeres(used, previous_weights, &summary)) {
+    weights_ = previous_weights;
+    nodes_ = previous_nodes;
+    return InternalError("dense fit failed: " + summary.message);
+  }
+  const Eigen::Matrix3Xd in_skull = Evaluate(weights_, nodes_);
+  double sq = 0.0;
+  for (const UsedMarker& u : used) {
+    sq += (rig_.markers[u.marker].point.Evaluate(in_skull) - marker_neutral_[u.marker] + u.offset)
+              .squaredNorm();
+  }
+  summary.marker_rms_mm = std::sqrt(sq / used.size());
+  return world_from_skull.Apply(in_skull);
+}
+
+namespace {
+// The [0, 1] bound on w as a stiff one-sided penalty, residual kBoundPenalty * (distance
+// outside): see SolveCeres.
+constexpr double kBoundPenalty = 100.0;
+}  // namespace
+
+double DenseFitter::Energy(const std::vector<UsedMarker>& used,
+                           const Eigen::VectorXd& previous_weights) const {
+  double energy = 0.0;
+  for (const UsedMarker& u : used) {
+    Eigen::Vector3d r = u.offset + marker_blendshapes_[u.marker] * weights_;
+    for (const auto& [node, c] : marker_nodes_[u.marker]) r += c * nodes_.col(node);
+    energy += u.weight * r.squaredNorm();
+  }
+  for (size_t p = 0; p < node_pairs_.size(); ++p) {
+    energy += options_.lambda_smooth *
+              (nodes_.col(node_pairs_[p].first) - nodes_.col(node_pairs_[p].second)).squaredNorm() /
+              (node_pair_distance_mm_[p] * node_pair_distance_mm_[p]);
+  }
+  energy += options_.lambda_magnitude * nodes_.squaredNorm();
+  energy += options_.lambda_temporal * (weights_ - previous_weights).squaredNorm();
+  for (int k = 0; k < weights_.size(); ++k) {
+    const double outside = std::min(weights_[k], 0.0) + std::max(weights_[k] - 1.0, 0.0);
+    energy += kBoundPenalty * kBoundPenalty * outside * outside;
+  }
+  return 0.5 * energy;
+}
+
+bool DenseFitter::SolveNormalEquations(const std::vector<UsedMarker>& used,
+                                       const Eigen::VectorXd& previous_weights, int* iterations) {
+  // Unknowns: w (K) and u (N per coordinate). E = sum of squared residuals; its normal
+  // equations split as [S (x) I3, U; U^T, A_ww] with S = node_regulariser_ + the markers'
+  // c c^T (the same for x, y and z, since a node moves a marker by c_l u_l in every coordinate).
+  const int n = static_cast<int>(node_vertices_.size());
+  const int k_count = static_cast<int>(weights_.size());
+  Eigen::MatrixXd s = node_regulariser_;
+  std::array<Eigen::MatrixXd, 3> u_w;  // U per coordinate: N x K
+  for (Eigen::MatrixXd& block : u_w) block = Eigen::MatrixXd::Zero(n, k_count);
+  Eigen::MatrixXd a_ww = options_.lambda_temporal * Eigen::MatrixXd::Identity(k_count, k_count);
+  Eigen::Matrix3Xd b_u = Eigen::Matrix3Xd::Zero(3, n);
+  Eigen::VectorXd b_w = options_.lambda_temporal * previous_weights;
+  for (const UsedMarker& u : used) {
+    const Eigen::Matrix3Xd& blendshapes = marker_blendshapes_[u.marker];
+    const auto& coefficients = marker_nodes_[u.marker];
+    for (const auto& [node_i, c_i] : coefficients) {
+      for (const auto& [node_j, c_j] : coefficients) s(node_i, node_j) += u.weight * c_i * c_j;
+      for (int d = 0; d < 3; ++d) u_w[d].row(node_i) += (u.weight * c_i) * blendshapes.row(d);
+      b_u.col(node_i) -= (u.weight * c_i) * u.offset;
+    }
+    if (k_count > 0) {
+      a_ww.noalias() += u.weight * blendshapes.transpose() * blendshapes;
+      b_w.noalias() -= u.weight * blendshapes.transpose() * u.offset;
+    }
+  }
+  const Eigen::LLT<Eigen::MatrixXd> factor(s);
+  if (factor.info() != Eigen::Success) return false;
+  const Eigen::MatrixXd z = factor.solve(Eigen::MatrixXd(b_u.transpose()));  // N x 3
+  std::array<Eigen::MatrixXd, 3> solved_u_w;
+  Eigen::MatrixXd schur = a_ww;
+  Eigen::VectorXd rhs = b_w;
+  for (int d = 0; d < 3; ++d) {
+    solved_u_w[d] = factor.solve(u_w[d]);
+    schur.noalias() -= u_w[d].transpose() * solved_u_w[d];
+    rhs.noalias() -= u_w[d].transpose() * z.col(d);
+  }
+  // The bound penalty is active on a weight exactly when that weight lies outside [0, 1]:
+  // iterate the active set to its fixed point (semi-smooth Newton on a convex piecewise
+  // quadratic; a few iterations from the unconstrained solution).
+  std::vector<int> active(k_count, 0), next(k_count, 0);  // -1 below 0, +1 above 1
+  constexpr double kPenalty = kBoundPenalty * kBoundPenalty;
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(k_count);
+  bool settled = k_count == 0;
+  for (*iterations = 1; !settled && *iterations <= 30; ++*iterations) {
+    Eigen::MatrixXd h = schur;
+    Eigen::VectorXd g = rhs;
+    for (int k = 0; k < k_count; ++k) {
+      if (active[k] != 0) {
+        h(k, k) += kPenalty;
+        g[k] += active[k] > 0 ? kPenalty : 0.0;
+      }
+    }
+    const Eigen::LDLT<Eigen::MatrixXd> solver(h);
+    if (solver.info() != Eigen::Success) return false;
+    w = solver.solve(g);
+    if (!w.allFinite()) return false;
+    for (int k = 0; k < k_count; ++k) next[k] = w[k] < 0.0 ? -1 : (w[k] > 1.0 ? 1 : 0);
+    settled = next == active;
+    active.swap(next);
+  }
+  if (!settled) return false;
+  weights_ = w;
+  for (int d = 0; d < 3; ++d) {
+    nodes_.row(d) = (z.col(d) - solved_u_w[d] * w).transpose();
+  }
+  return nodes_.allFinite();
+}
+
+bool DenseFitter::SolveCeres(const std::vector<UsedMarker>& used,
+                             const Eigen::VectorXd& previous_weights, DenseFitSummary* summary) {
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
   const int k_count = static_cast<int>(weights_.size());
   std::vector<double*> node_blocks(node_vertices_.size());
   for (size_t n = 0; n < node_vertices_.size(); ++n) node_blocks[n] = nodes_.col(n).data();
-  std::vector<int> used;
-  for (int m = 0; m < m_count; ++m) {
-    if (frame.states[m] == MarkerState::kMissing || frame.confidence[m] <= 0) continue;
-    used.push_back(m);
+  for (const UsedMarker& u : used) {
     std::vector<double*> blocks = {weights_.data()};
     std::vector<double> coefficients;
-    for (const auto& [node, c] : marker_nodes_[m]) {
+    for (const auto& [node, c] : marker_nodes_[u.marker]) {
       blocks.push_back(node_blocks[node]);
       coefficients.push_back(c);
     }
-    const Eigen::Vector3d target =
-        skull_from_world * Eigen::Vector3d(frame.positions_in_world.col(m));
+    // base - target = offset: the cost's target is the neutral position less the offset.
     problem.AddResidualBlock(
-        NewMarkerFitCost(marker_neutral_[m], marker_blendshapes_[m], coefficients, target,
-                         std::sqrt(frame.confidence[m]) / options_.marker_noise_mm),
+        NewMarkerFitCost(marker_neutral_[u.marker], marker_blendshapes_[u.marker], coefficients,
+                         marker_neutral_[u.marker] - u.offset, std::sqrt(u.weight)),
         nullptr, blocks);
-  }
-  if (used.size() < 3) {
-    return FailedPreconditionError("only " + std::to_string(used.size()) +
-                                   " markers to fit the mesh to");
   }
   for (size_t p = 0; p < node_pairs_.size(); ++p) {
     const double scale = std::sqrt(options_.lambda_smooth) / node_pair_distance_mm_[p];
@@ -314,7 +460,8 @@ StatusOr<Eigen::Matrix3Xd> DenseFitter::Fit(const TrackedFrame& frame,
         weights_.data());
     // [0, 1] as a stiff one-sided penalty rather than Ceres bounds: with a bound active the
     // projected step vanishes and the solver stops short of the constrained optimum.
-    problem.AddResidualBlock(new BoundPenaltyCost(k_count, 100.0), nullptr, weights_.data());
+    problem.AddResidualBlock(new BoundPenaltyCost(k_count, kBoundPenalty), nullptr,
+                             weights_.data());
   }
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
@@ -328,25 +475,12 @@ StatusOr<Eigen::Matrix3Xd> DenseFitter::Fit(const TrackedFrame& frame,
   solver_options.max_trust_region_radius = 1e16;
   ceres::Solver::Summary solver_summary;
   ceres::Solve(solver_options, &problem, &solver_summary);
-  summary.converged = solver_summary.termination_type == ceres::CONVERGENCE;
-  summary.iterations = static_cast<int>(solver_summary.iterations.size());
-  summary.initial_cost = solver_summary.initial_cost;
-  summary.final_cost = solver_summary.final_cost;
-  summary.markers_used = static_cast<int>(used.size());
-  summary.message = solver_summary.message;
-  if (!solver_summary.IsSolutionUsable()) {
-    weights_ = previous_weights;
-    return InternalError("dense fit failed: " + solver_summary.message);
-  }
-  const Eigen::Matrix3Xd in_skull = Evaluate(weights_, nodes_);
-  double sq = 0.0;
-  for (int m : used) {
-    sq += (rig_.markers[m].point.Evaluate(in_skull) -
-           skull_from_world * Eigen::Vector3d(frame.positions_in_world.col(m)))
-              .squaredNorm();
-  }
-  summary.marker_rms_mm = std::sqrt(sq / used.size());
-  return world_from_skull.Apply(in_skull);
+  summary->converged = solver_summary.termination_type == ceres::CONVERGENCE;
+  summary->iterations = static_cast<int>(solver_summary.iterations.size());
+  summary->initial_cost = solver_summary.initial_cost;
+  summary->final_cost = solver_summary.final_cost;
+  summary->message = solver_summary.message;
+  return solver_summary.IsSolutionUsable();
 }
 
 }  // namespace facedyn::reconstruct

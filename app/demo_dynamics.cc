@@ -156,8 +156,8 @@ Status SimulateAndReconstruct(const FaceRig& face, const eval::SimulatedCameraRi
         i = next++;
         ++*done;
         std::printf(
-            "  [%d/%d] subject %s, %s: simulating %.1f s, filming with 8 cameras, "
-            "reconstructing\n",
+            "  [%d/%d] subject %s, %s: simulating %.1f s, projecting its markers through 8 "
+            "cameras (0.2 px; not rendered), reconstructing\n",
             *done, total, subject.c_str(), specs[i].name.c_str(), seconds_of(specs[i]));
         std::fflush(stdout);
       }

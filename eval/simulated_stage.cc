@@ -1,11 +1,15 @@
 #include "eval/simulated_stage.h"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
+#include <opencv2/core.hpp>
 #include <random>
 #include <utility>
 
+#include "core/parallel_for.h"
 #include "reconstruct/calibration.h"
+#include "reconstruct/marker_detection.h"
 #include "reconstruct/pipeline.h"
 #include "reconstruct/synthetic_views.h"
 
@@ -105,6 +109,79 @@ StatusOr<Reconstruction> ReconstructSimulatedTake(const FaceRig& face,
   result.take.info.metadata["reconstructed_from"] =
       "projected marker centres: the simulated markers' true centres projected into 8 simulated "
       "cameras with 0.2 px Gaussian noise (no rendered images, no marker detection)";
+  return result;
+}
+
+StatusOr<Reconstruction> FilmSimulatedTake(const FaceRig& face, const SimulatedCameraRig& cameras,
+                                           const Take& simulated, uint64_t seed,
+                                           const FilmOptions& options) {
+  if (simulated.frame_count() == 0) return InvalidArgumentError("the simulated take is empty");
+  if (simulated.vertex_count() != face.vertex_count()) {
+    return FailedPreconditionError("the simulated take has " +
+                                   std::to_string(simulated.vertex_count()) +
+                                   " vertices, the face " + std::to_string(face.vertex_count()));
+  }
+  if (face.markers.empty()) return FailedPreconditionError("the face has no painted markers");
+  FACEDYN_RETURN_IF_ERROR(options.render.Check().WithContext("film render options"));
+  sim::RenderOptions render = options.render;
+  render.seed = seed;
+  const sim::FaceRenderer renderer(face, render);
+  // The detector is tuned to the dots' diameter in the images: the face's markers at their
+  // mean depth in camera 0 on the first frame (what an operator reads off one image).
+  const Eigen::Matrix3Xd first = simulated.FramePositions(0);
+  double depth = 0.0, diameter_mm = 0.0;
+  for (const Marker& marker : face.markers) {
+    depth += (cameras.truth[0].cam_from_world * marker.point.Evaluate(first)).z();
+    diameter_mm += marker.diameter_mm;
+  }
+  depth /= face.markers.size();
+  diameter_mm /= face.markers.size();
+  const double diameter_px = diameter_mm * cameras.truth[0].fx() / depth;
+  MarkerDetectionOptions detection;
+  detection.expected_diameter_px = diameter_px;
+  detection.min_diameter_px = std::max(1.5, 0.4 * diameter_px);
+  detection.max_diameter_px = 2.5 * diameter_px;
+  const int camera_count = static_cast<int>(cameras.truth.size());
+  std::vector<sim::RenderWorkspace> workspaces(camera_count);
+  std::vector<std::vector<std::vector<ImageObservation>>> detections(simulated.frame_count());
+  for (int f = 0; f < simulated.frame_count(); ++f) {
+    const Eigen::Matrix3Xd skin = simulated.FramePositions(f);
+    std::vector<cv::Mat> images(camera_count);
+    FACEDYN_RETURN_IF_ERROR(ParallelFor(camera_count, options.threads, [&](int c) -> Status {
+      const Camera& camera = cameras.truth[c];
+      images[c].create(camera.height_px, camera.width_px, CV_8UC1);
+      renderer.Render(camera, skin, (uint64_t{static_cast<uint64_t>(c)} << 40) ^ uint64_t(f),
+                      &workspaces[c], images[c].data);
+      return Status::Ok();
+    }));
+    const auto found = DetectMarkersInImages(images, detection, options.threads);
+    detections[f].resize(camera_count);
+    for (int c = 0; c < camera_count; ++c) {
+      if (!found[c].ok()) {
+        return found[c].status().WithContext("frame " + std::to_string(f) + ", camera " +
+                                             cameras.truth[c].name);
+      }
+      for (const MarkerDetection& d : *found[c]) {
+        ImageObservation o;  // as reconstruct/session_input.cc builds them
+        o.camera = c;
+        o.detection = static_cast<int>(detections[f][c].size());
+        o.pixel = d.center_px;
+        o.weight = d.quality;
+        detections[f][c].push_back(o);
+      }
+    }
+  }
+  FACEDYN_ASSIGN_OR_RETURN(Reconstruction result,
+                           ReconstructTake(face, cameras.calibration.cameras, detections,
+                                           simulated.info.fps, ReconstructionOptions()));
+  result.take.info.subject = simulated.info.subject;
+  result.take.info.expression = simulated.info.expression;
+  result.take.info.motion = simulated.info.motion;
+  result.take.info.platform_hz = simulated.info.platform_hz;
+  result.take.info.hold_start_s = simulated.info.hold_start_s;  // as ReconstructSimulatedTake
+  result.take.info.metadata["reconstructed_from"] =
+      "filmed: every frame rendered by 8 simulated cameras (shaded skin, painted dots, blur, "
+      "noise, distortion) and the dots detected in the images";
   return result;
 }
 

@@ -1,9 +1,9 @@
 // The simulated stage's camera rig as the demo and the benches use it: the simulated 8-camera
 // face rig calibrated from a simulated ChArUco board, and a simulated take reconstructed through
-// reconstruct/'s pipeline from the markers' projected centres. Here, not in app/, so benches
-// (bench/twin_bench) reconstruct takes by the same path as `facedyn demo`; it uses the
-// simulator's truth (true cameras, true skin) to make the images' stand-in, and it gives the
-// methods only what a capture has (calibrated cameras, 2D marker positions).
+// reconstruct/'s pipeline from the markers' projected centres, or filmed: rendered and detected.
+// Here, not in app/, so benches (bench/twin_bench) reconstruct takes by the same path as `facedyn
+// demo`; it uses the simulator's truth (true cameras, true skin) to make the images' stand-in, and
+// it gives the methods only what a capture has (calibrated cameras, 2D marker positions).
 #pragma once
 
 #include <cstdint>
@@ -15,6 +15,7 @@
 #include "reconstruct/calibration.h"
 #include "reconstruct/camera.h"
 #include "reconstruct/pipeline.h"
+#include "sim/virtual_camera.h"
 
 namespace facedyn::eval {
 
@@ -46,5 +47,23 @@ StatusOr<reconstruct::Reconstruction> ReconstructSimulatedTake(const FaceRig& fa
                                                                const SimulatedCameraRig& cameras,
                                                                const Take& simulated,
                                                                uint64_t seed);
+
+// Films one simulated take for real: every frame's dynamic skin rendered by the true cameras
+// (sim::FaceRenderer: shaded skin, painted dots, lens distortion, blur, read and shot noise,
+// self-occlusion), the dots detected in the images (reconstruct::DetectMarkersInImages, with
+// the detector tuned to the dots' size at the face's distance), then reconstruct::ReconstructTake
+// with the calibrated cameras, as `facedyn capture` + `facedyn reconstruct` would. Rendering and
+// detection cost about 0.3 s per frame of 8 cameras on 2 cores (README), so the demo uses
+// ReconstructSimulatedTake's projected centres for most takes. `render` defaults to
+// config/capture/sim8.yaml's optics; `threads` 0 = every core. Errors: as
+// ReconstructSimulatedTake, and a detection failure (naming the frame and camera).
+struct FilmOptions {
+  sim::RenderOptions render;
+  int threads = 0;
+};
+StatusOr<reconstruct::Reconstruction> FilmSimulatedTake(const FaceRig& face,
+                                                        const SimulatedCameraRig& cameras,
+                                                        const Take& simulated, uint64_t seed,
+                                                        const FilmOptions& options = FilmOptions());
 
 }  // namespace facedyn::eval

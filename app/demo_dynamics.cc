@@ -725,8 +725,9 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   Json train_hz_json = options.train_hz;
   result["setup"] = {
       {"data",
-       "simulated takes reconstructed from projected marker centres (8 simulated cameras, 0.2 px "
-       "noise; no rendered images)"},
+       "training takes, walks and the speech performance reconstructed from projected marker "
+       "centres (8 simulated cameras, 0.2 px noise; no rendered images); the held-out take "
+       "filmed (rendered by the 8 cameras, dots detected; app/reconstruct_demo.cc)"},
       {"targets", dynamics::RemovalTargetsName(options.removal_targets)},
       {"targets_note",
        "reconstructed takes have no exact channel; platform-synchronous: the fit at the take's "

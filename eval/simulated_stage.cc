@@ -4,10 +4,12 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <random>
 #include <utility>
 
 #include "core/parallel_for.h"
+#include "core/progress.h"
 #include "reconstruct/calibration.h"
 #include "reconstruct/marker_detection.h"
 #include "reconstruct/pipeline.h"
@@ -144,7 +146,10 @@ StatusOr<Reconstruction> FilmSimulatedTake(const FaceRig& face, const SimulatedC
   const int camera_count = static_cast<int>(cameras.truth.size());
   std::vector<sim::RenderWorkspace> workspaces(camera_count);
   std::vector<std::vector<std::vector<ImageObservation>>> detections(simulated.frame_count());
+  std::optional<Progress> progress;
+  if (options.progress) progress.emplace("film", simulated.frame_count());
   for (int f = 0; f < simulated.frame_count(); ++f) {
+    if (progress) progress->Advance();
     const Eigen::Matrix3Xd skin = simulated.FramePositions(f);
     std::vector<cv::Mat> images(camera_count);
     FACEDYN_RETURN_IF_ERROR(ParallelFor(camera_count, options.threads, [&](int c) -> Status {
@@ -171,6 +176,7 @@ StatusOr<Reconstruction> FilmSimulatedTake(const FaceRig& face, const SimulatedC
       }
     }
   }
+  if (progress) progress->Finish();
   FACEDYN_ASSIGN_OR_RETURN(Reconstruction result,
                            ReconstructTake(face, cameras.calibration.cameras, detections,
                                            simulated.info.fps, ReconstructionOptions()));

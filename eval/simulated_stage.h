@@ -60,6 +60,7 @@ StatusOr<reconstruct::Reconstruction> ReconstructSimulatedTake(const FaceRig& fa
 struct FilmOptions {
   sim::RenderOptions render;
   int threads = 0;
+  bool progress = false;  // a "film" progress bar on stderr (core/progress.h)
 };
 StatusOr<reconstruct::Reconstruction> FilmSimulatedTake(const FaceRig& face,
                                                         const SimulatedCameraRig& cameras,

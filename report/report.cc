@@ -297,10 +297,12 @@ std::string DynamicsSection(const Json& dynamics) {
   const Json& setup = Field(dynamics, "setup");
   std::string html = "<h2 id=\"dynamics\">Secondary dynamics, trained on reconstructed takes</h2>";
   html += fmt::format(
-      "<p>Subject A held {} on the platform at {} Hz ({} takes of {} s); every take was "
-      "simulated and reconstructed from projected marker centres (the markers' true centres "
-      "projected into the 8 simulated cameras with 0.2 px noise; no images were rendered or "
-      "detected). {} The removal network F was "
+      "<p>Subject A held {} on the platform at {} Hz ({} takes of {} s); the training takes, "
+      "the walks and the speech performance were simulated and reconstructed from projected "
+      "marker centres (the markers' true centres projected into the 8 simulated cameras with "
+      "0.2 px noise; no images rendered or detected), and the held-out take of the "
+      "reconstruction section was filmed: rendered by the 8 cameras and its dots detected. {} "
+      "The removal network F was "
       "trained on the reconstructed takes with {} targets ({} epochs), "
       "the synthesis network H on those takes decomposed by F ({} epochs). Errors are against the "
       "simulator's exact truth, in mm, over the vertices where the face jiggles.</p>",
@@ -684,7 +686,10 @@ Status WriteDemoReport(const Json& metrics, const std::string& path, const std::
     const Json& reconstruct = metrics["reconstruct"];
     html +=
         "<h2>Calibration and reconstruction of the simulated 11 Hz take against ground "
-        "truth</h2>";
+        "truth</h2>"
+        "<p>The take was filmed: every frame rendered by the 8 simulated cameras (shaded skin, "
+        "painted dots, blur, noise, lens distortion) and its dots detected in the images, then "
+        "triangulated, labelled and fitted with the calibrated cameras.</p>";
     const Json& per_camera = Field(reconstruct, "calibration_per_camera");
     if (per_camera.is_array() && !per_camera.empty()) {
       std::vector<std::pair<std::string, double>> bars;

@@ -6,6 +6,7 @@
 #include <opencv2/core.hpp>
 #include <optional>
 #include <random>
+#include <string>
 #include <utility>
 
 #include "core/parallel_for.h"
@@ -80,24 +81,25 @@ StatusOr<SimulatedCameraRig> CalibrateSimulatedCameraRig(int board_views, uint64
   return rig;
 }
 
-StatusOr<Reconstruction> ReconstructSimulatedTake(const FaceRig& face,
-                                                  const SimulatedCameraRig& cameras,
-                                                  const Take& simulated, uint64_t seed) {
+namespace {
+
+Status CheckSimulatedTake(const FaceRig& face, const Take& simulated) {
   if (simulated.frame_count() == 0) return InvalidArgumentError("the simulated take is empty");
   if (simulated.vertex_count() != face.vertex_count()) {
     return FailedPreconditionError("the simulated take has " +
                                    std::to_string(simulated.vertex_count()) +
                                    " vertices, the face " + std::to_string(face.vertex_count()));
   }
-  std::mt19937 rng(static_cast<std::mt19937::result_type>(seed));
-  std::vector<std::vector<std::vector<ImageObservation>>> detections;
-  detections.reserve(simulated.frame_count());
-  for (int f = 0; f < simulated.frame_count(); ++f) {
-    const Eigen::Matrix3Xd skin = simulated.FramePositions(f);
-    detections.push_back(ProjectMarkers(cameras.truth, MarkerPositions(face, skin),
-                                        MarkerNormals(face, skin), 0.2, &rng)
-                             .detections);
-  }
+  return Status::Ok();
+}
+
+// The reconstruction pipeline on a simulated take's detections through the calibrated
+// cameras; the result carries what a capture session records about its take, and `source`
+// (how the detections were made) in its metadata.
+StatusOr<Reconstruction> ReconstructDetections(
+    const FaceRig& face, const SimulatedCameraRig& cameras, const Take& simulated,
+    const std::vector<std::vector<std::vector<ImageObservation>>>& detections,
+    const std::string& source) {
   FACEDYN_ASSIGN_OR_RETURN(Reconstruction result,
                            ReconstructTake(face, cameras.calibration.cameras, detections,
                                            simulated.info.fps, ReconstructionOptions()));
@@ -108,21 +110,35 @@ StatusOr<Reconstruction> ReconstructSimulatedTake(const FaceRig& face,
   // When the expression is held is what a capture session records about its take (the sweep
   // step's prompt and settle), not something reconstruction estimates: carried over.
   result.take.info.hold_start_s = simulated.info.hold_start_s;
-  result.take.info.metadata["reconstructed_from"] =
-      "projected marker centres: the simulated markers' true centres projected into 8 simulated "
-      "cameras with 0.2 px Gaussian noise (no rendered images, no marker detection)";
+  result.take.info.metadata["reconstructed_from"] = source;
   return result;
+}
+
+}  // namespace
+
+StatusOr<Reconstruction> ReconstructSimulatedTake(const FaceRig& face,
+                                                  const SimulatedCameraRig& cameras,
+                                                  const Take& simulated, uint64_t seed) {
+  FACEDYN_RETURN_IF_ERROR(CheckSimulatedTake(face, simulated));
+  std::mt19937 rng(static_cast<std::mt19937::result_type>(seed));
+  std::vector<std::vector<std::vector<ImageObservation>>> detections;
+  detections.reserve(simulated.frame_count());
+  for (int f = 0; f < simulated.frame_count(); ++f) {
+    const Eigen::Matrix3Xd skin = simulated.FramePositions(f);
+    detections.push_back(ProjectMarkers(cameras.truth, MarkerPositions(face, skin),
+                                        MarkerNormals(face, skin), 0.2, &rng)
+                             .detections);
+  }
+  return ReconstructDetections(
+      face, cameras, simulated, detections,
+      "projected marker centres: the simulated markers' true centres projected into 8 simulated "
+      "cameras with 0.2 px Gaussian noise (no rendered images, no marker detection)");
 }
 
 StatusOr<Reconstruction> FilmSimulatedTake(const FaceRig& face, const SimulatedCameraRig& cameras,
                                            const Take& simulated, uint64_t seed,
                                            const FilmOptions& options) {
-  if (simulated.frame_count() == 0) return InvalidArgumentError("the simulated take is empty");
-  if (simulated.vertex_count() != face.vertex_count()) {
-    return FailedPreconditionError("the simulated take has " +
-                                   std::to_string(simulated.vertex_count()) +
-                                   " vertices, the face " + std::to_string(face.vertex_count()));
-  }
+  FACEDYN_RETURN_IF_ERROR(CheckSimulatedTake(face, simulated));
   if (face.markers.empty()) return FailedPreconditionError("the face has no painted markers");
   FACEDYN_RETURN_IF_ERROR(options.render.Check().WithContext("film render options"));
   sim::RenderOptions render = options.render;
@@ -177,18 +193,10 @@ StatusOr<Reconstruction> FilmSimulatedTake(const FaceRig& face, const SimulatedC
     }
   }
   if (progress) progress->Finish();
-  FACEDYN_ASSIGN_OR_RETURN(Reconstruction result,
-                           ReconstructTake(face, cameras.calibration.cameras, detections,
-                                           simulated.info.fps, ReconstructionOptions()));
-  result.take.info.subject = simulated.info.subject;
-  result.take.info.expression = simulated.info.expression;
-  result.take.info.motion = simulated.info.motion;
-  result.take.info.platform_hz = simulated.info.platform_hz;
-  result.take.info.hold_start_s = simulated.info.hold_start_s;  // as ReconstructSimulatedTake
-  result.take.info.metadata["reconstructed_from"] =
+  return ReconstructDetections(
+      face, cameras, simulated, detections,
       "filmed: every frame rendered by 8 simulated cameras (shaded skin, painted dots, blur, "
-      "noise, distortion) and the dots detected in the images";
-  return result;
+      "noise, distortion) and the dots detected in the images");
 }
 
 }  // namespace facedyn::eval

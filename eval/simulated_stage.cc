@@ -162,12 +162,12 @@ StatusOr<Reconstruction> FilmSimulatedTake(const FaceRig& face, const SimulatedC
   const int camera_count = static_cast<int>(cameras.truth.size());
   std::vector<sim::RenderWorkspace> workspaces(camera_count);
   std::vector<std::vector<std::vector<ImageObservation>>> detections(simulated.frame_count());
+  std::vector<cv::Mat> images(camera_count);  // reused: create() keeps the buffers per frame
   std::optional<Progress> progress;
   if (options.progress) progress.emplace("film", simulated.frame_count());
   for (int f = 0; f < simulated.frame_count(); ++f) {
     if (progress) progress->Advance();
     const Eigen::Matrix3Xd skin = simulated.FramePositions(f);
-    std::vector<cv::Mat> images(camera_count);
     FACEDYN_RETURN_IF_ERROR(ParallelFor(camera_count, options.threads, [&](int c) -> Status {
       const Camera& camera = cameras.truth[c];
       images[c].create(camera.height_px, camera.width_px, CV_8UC1);

@@ -5,6 +5,7 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <ctime>
 #include <limits>
 #include <opencv2/imgproc.hpp>
@@ -26,7 +27,6 @@ constexpr double kInvSqrt2Pi = 0.3989422804014327;
 // Levenberg-Marquardt steps and the finite-difference test see one consistent function).
 constexpr double kPhiRange = 8.5;  // beyond, Phi is 0 or 1 in double precision
 constexpr double kPhiStep = 1.0 / 32.0;
-constexpr double kGeometryRange = 5.0;  // see FitDisk's normal equations
 constexpr int kPhiNodes = static_cast<int>(2 * kPhiRange / kPhiStep) + 1;
 
 struct PhiTable {
@@ -62,11 +62,12 @@ inline double NormalCdf(double t, double* slope) {
   return value;
 }
 
-double Median(std::vector<double> values) {
-  if (values.empty()) return 0.0;
-  const size_t mid = values.size() / 2;
-  std::nth_element(values.begin(), values.begin() + mid, values.end());
-  return values[mid];
+// The upper median of *values, which it reorders (the callers' buffers are scratch).
+double MedianInPlace(std::vector<double>* values) {
+  if (values->empty()) return 0.0;
+  const size_t mid = values->size() / 2;
+  std::nth_element(values->begin(), values->begin() + mid, values->end());
+  return (*values)[mid];
 }
 
 // Semi-axes of the ellipse |L d| = 1 are 1 / singular values of L.
@@ -124,6 +125,71 @@ inline double DiskModel(const DiskParameters& p, double x, double y, double* gra
   return p[7] + p[6] * phi;
 }
 
+// Four pixels at a time, with GCC's vector extension (Clang has it too): one AVX2 register in
+// FitDisk's x86-64-v3 variant, two SSE2 halves otherwise. DiskModelLanes is DiskModel lane by
+// lane, with the same arithmetic in the same order (the table lookups are per lane), so a fit
+// sees one function whichever pass evaluates it.
+typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
+constexpr int kLanes = 4;
+
+// (Values are passed through pointers, never returned: a 32-byte vector in a function's
+// signature would depend on whether AVX is enabled, GCC's -Wpsabi.)
+inline void LoadLanes(const double* from, Lanes* to) { std::memcpy(to, from, sizeof(Lanes)); }
+
+// The model's value at four pixels (x, y) into *value; with `gradient` (8 entries) its
+// gradient too.
+inline void DiskModelLanes(const DiskParameters& p, const double* x, const double* y, Lanes* value,
+                           Lanes* gradient) {
+  Lanes dx, dy;
+  LoadLanes(x, &dx);
+  LoadLanes(y, &dy);
+  dx -= p[0];
+  dy -= p[1];
+  const double l11 = p[2], l12 = p[3], l22 = p[4], w = p[5];
+  const Lanes u0 = l11 * dx + l12 * dy, u1 = l22 * dy;
+  Lanes rho = u0 * u0 + u1 * u1;
+  for (int j = 0; j < kLanes; ++j) rho[j] = std::sqrt(rho[j]);
+  const Lanes t = (1.0 - rho) / w;
+  // The table's Hermite data per lane; beyond kPhiRange the constant 0 or 1 with no slope
+  // (s = 0 selects p0 and the density m0 / step = 0), as DiskModel's branch.
+  const PhiTable& table = PhiNodes();
+  Lanes s, p0, p1, m0, m1;
+  for (int j = 0; j < kLanes; ++j) {
+    if (std::abs(t[j]) > kPhiRange) {
+      s[j] = 0.0;
+      p0[j] = p1[j] = t[j] > 0 ? 1.0 : 0.0;
+      m0[j] = m1[j] = 0.0;
+      continue;
+    }
+    const double u = (t[j] + kPhiRange) / kPhiStep;
+    const int k = std::min(kPhiNodes - 2, std::max(0, static_cast<int>(u)));
+    s[j] = u - k;
+    p0[j] = table.phi[k];
+    p1[j] = table.phi[k + 1];
+    m0[j] = kPhiStep * table.density[k];
+    m1[j] = kPhiStep * table.density[k + 1];
+  }
+  const Lanes s2 = s * s, s3 = s2 * s;
+  const Lanes phi = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * p1 +
+                    (s3 - s2) * m1;
+  if (gradient) {
+    const Lanes density =
+        ((6 * s2 - 6 * s) * (p0 - p1) + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1) /
+        kPhiStep;
+    const double a = p[6];
+    const Lanes g = rho > 1e-12 ? -a * density / (w * rho) : Lanes{};
+    gradient[0] = g * (-l11 * u0);
+    gradient[1] = g * (-l12 * u0 - l22 * u1);
+    gradient[2] = g * (dx * u0);
+    gradient[3] = g * (dy * u0);
+    gradient[4] = g * (dy * u1);
+    gradient[5] = a * density * (-t / w);
+    gradient[6] = phi;
+    gradient[7] = Lanes{} + 1.0;
+  }
+  *value = p[7] + p[6] * phi;
+}
+
 // Levenberg-Marquardt with IRLS (Tukey) on the window pixels of `image` (CV_8U: read in place,
 // no per-image conversion).
 //
@@ -146,8 +212,21 @@ struct FitBounds {
   double max_travel = std::numeric_limits<double>::infinity();
   double max_equivalent_radius = std::numeric_limits<double>::infinity();
   bool abandon_at_width_limit = false;
+  // The window's margin beyond the dot's reach (see gather): the 1 px hysteresis plus half a
+  // pixel. A start that may be further off (the occlusion refit's displaced starts) needs more.
+  double window_margin_px = 1.5;
 };
 
+// FitDisk is most of detection's time and its per-pixel arithmetic gains from AVX2 and FMA;
+// GCC's function multiversioning builds it twice and picks the variant at load time from the
+// CPU, so the binary still runs on any x86-64 (measured in the commit that added this).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define FACEDYN_AVX2_CLONE __attribute__((target_clones("arch=x86-64-v3", "default"), flatten))
+#else
+#define FACEDYN_AVX2_CLONE
+#endif
+
+FACEDYN_AVX2_CLONE
 FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius, int max_iterations,
                   bool fix_shape = false, bool robust_from_start = false,
                   const FitBounds& bounds = FitBounds()) {
@@ -156,14 +235,21 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius, int
   constexpr int kN = kDiskParameterCount;
   using Normal = Eigen::Matrix<double, kN, kN>;
   using Vector = Eigen::Matrix<double, kN, 1>;
-  // The window, structure of arrays: pixel coordinates and observed values.
+  // The window, structure of arrays: pixel coordinates and observed values of its n pixels,
+  // padded to whole groups of kLanes with copies of the last pixel, which carry weight 0 and
+  // enter no statistic (everything below reads the first n).
   std::vector<double> xs, ys, observed, current, trial, weights, absolute;
+  size_t n = 0;
   int window_cx = INT32_MIN, window_cy = INT32_MIN, window_half = -1;
-  // The dot plus three blur widths and a margin, at most 1.5 max radii (a diverging shape must
-  // not grow the window without bound). Returns whether the window changed.
+  // A disk around the window centre: the dot's semi-major axis plus three blur widths (`reach`,
+  // at most 1.5 max radii: a diverging shape must not grow the window without bound), plus the
+  // margin (by default the hysteresis below, 1 px, and half a pixel). Round, not square: the
+  // square's corners were a fifth of its pixels and informed only the background. Returns whether
+  // the window changed.
   auto gather = [&](const DiskParameters& q) {
-    const int half = static_cast<int>(
-        std::ceil(std::min(SemiMajorAxis(q) * (1.0 + 3.0 * q[5]), 1.5 * max_radius) + 2.0));
+    const double reach =
+        std::min(SemiMajorAxis(q) * (1.0 + 3.0 * q[5]), 1.5 * max_radius) + bounds.window_margin_px;
+    const int half = static_cast<int>(std::ceil(reach));
     // With hysteresis: the window keeps its place while the centre stays within a pixel of the
     // window's centre, and its size unless the dot needs more or a pixel less on each side
     // (the margin covers both). Each move costs a pass over the new window.
@@ -182,104 +268,107 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius, int
     for (int y = std::max(0, cy - half); y <= std::min(image.rows - 1, cy + half); ++y) {
       const uchar* row = image.ptr<uchar>(y);
       for (int x = std::max(0, cx - half); x <= std::min(image.cols - 1, cx + half); ++x) {
+        if ((x - cx) * (x - cx) + (y - cy) * (y - cy) > reach * reach) continue;
         xs.push_back(x);
         ys.push_back(y);
         observed.push_back(row[x]);
       }
     }
+    n = xs.size();
+    if (n == 0) {  // a centre far outside the image: one pixel-less group
+      xs.push_back(cx);
+      ys.push_back(cy);
+      observed.push_back(0.0);
+    }
+    while (xs.size() % kLanes != 0) {
+      xs.push_back(xs.back());
+      ys.push_back(ys.back());
+      observed.push_back(observed.back());
+    }
+    weights.assign(xs.size(), 0.0);
     return true;
   };
   auto residuals_at = [&](const DiskParameters& q, std::vector<double>* out) {
     ++result.evaluations;
-    result.pixel_evaluations += static_cast<long>(xs.size());
+    result.pixel_evaluations += static_cast<long>(n);
     out->resize(xs.size());
-    for (size_t i = 0; i < xs.size(); ++i) {
-      (*out)[i] = observed[i] - DiskModel(q, xs[i], ys[i], nullptr);
+    for (size_t i = 0; i < xs.size(); i += kLanes) {
+      Lanes model, r;
+      DiskModelLanes(q, &xs[i], &ys[i], &model, nullptr);
+      LoadLanes(&observed[i], &r);
+      r -= model;
+      std::memcpy(&(*out)[i], &r, sizeof(r));
     }
   };
-  // J^T W J and J^T W r at q, over the pixels with a non-zero weight. Pixels
-  // beyond the model's blur range depend on a and b only.
+  // J^T W J and J^T W r at q: per group of kLanes pixels, the model's gradient g in lanes and
+  // the upper triangle of the weighted outer product g w g^T accumulated lane-wise; the lanes
+  // are summed once at the end. Zero-weight pixels (Tukey outliers, the padding) add zeros.
   auto normal_equations = [&](const DiskParameters& q, Normal* jtj, Vector* jtr) {
     ++result.evaluations;
-    result.pixel_evaluations += static_cast<long>(xs.size());
-    jtj->setZero();
-    jtr->setZero();
-    double ab00 = 0.0, ab01 = 0.0, ab11 = 0.0, abr0 = 0.0, abr1 = 0.0;  // the a, b-only pixels
-    alignas(16) double g[kN];
-    for (size_t i = 0; i < xs.size(); ++i) {
-      const double w = weights[i];
-      if (w == 0.0) continue;
-      const double wr = w * current[i];
-      // Beyond kGeometryRange blur widths from the edge the model's density is below 4e-6 of
-      // its peak: such a pixel informs a and b only (its geometric derivatives, below 1e-5 of
-      // an edge pixel's, are dropped from the Jacobian; the residuals stay exact, so the
-      // minimum found is the same). About half of a window's pixels.
-      const double dx = xs[i] - q[0], dy = ys[i] - q[1];
-      const double u0 = q[2] * dx + q[3] * dy, u1 = q[4] * dy;
-      const double t = (1.0 - std::sqrt(u0 * u0 + u1 * u1)) / q[5];
-      if (std::abs(t) > kGeometryRange) {
-        const double phi = std::abs(t) > kPhiRange ? (t > 0 ? 1.0 : 0.0) : NormalCdf(t, nullptr);
-        ab00 += w * phi * phi;
-        ab01 += w * phi;
-        ab11 += w;
-        abr0 += wr * phi;
-        abr1 += wr;
-        continue;
+    result.pixel_evaluations += static_cast<long>(n);
+    constexpr int kUpper = kN * (kN + 1) / 2;
+    Lanes products[kUpper] = {}, gradient_residual[kN] = {};
+    Lanes g[kN];
+    for (size_t i = 0; i < xs.size(); i += kLanes) {
+      Lanes model, w, wr;
+      DiskModelLanes(q, &xs[i], &ys[i], &model, g);
+      LoadLanes(&weights[i], &w);
+      LoadLanes(&current[i], &wr);
+      wr *= w;
+      int k = 0;
+      for (int row = 0; row < kN; ++row) {
+        const Lanes wg = w * g[row];
+        for (int col = row; col < kN; ++col) products[k++] += wg * g[col];
+        gradient_residual[row] += wr * g[row];
       }
-      DiskModel(q, xs[i], ys[i], g);
-      // A fixed-size outer product (unrolled and vectorised; Eigen's rankUpdate is a call per
-      // pixel). The full matrix is accumulated: as fast as a triangle in SIMD lanes.
-      const Eigen::Map<const Vector> gv(g);
-      jtj->noalias() += (w * gv) * gv.transpose();
-      jtr->noalias() += wr * gv;
     }
-    (*jtj)(6, 6) += ab00;
-    (*jtj)(6, 7) += ab01;
-    (*jtj)(7, 6) += ab01;
-    (*jtj)(7, 7) += ab11;
-    (*jtr)(6) += abr0;
-    (*jtr)(7) += abr1;
+    const auto sum = [](const Lanes* v) { return ((*v)[0] + (*v)[1]) + ((*v)[2] + (*v)[3]); };
+    int k = 0;
+    for (int row = 0; row < kN; ++row) {
+      for (int col = row; col < kN; ++col)
+        (*jtj)(row, col) = (*jtj)(col, row) = sum(&products[k++]);
+      (*jtr)(row) = sum(&gradient_residual[row]);
+    }
   };
   // Tukey weights at scale tukey_c (plain least squares when tukey_c <= 0) and the weighted cost.
+  auto tukey = [](double r, double tukey_c) {
+    if (tukey_c <= 0) return 1.0;
+    const double u = r / tukey_c;
+    return std::abs(u) < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
+  };
   auto weigh = [&](const std::vector<double>& residuals, double tukey_c) {
-    weights.resize(residuals.size());
     double cost = 0.0;
-    for (size_t i = 0; i < residuals.size(); ++i) {
-      double weight = 1.0;
-      if (tukey_c > 0) {
-        const double u = residuals[i] / tukey_c;
-        weight = std::abs(u) < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
-      }
-      weights[i] = weight;
-      cost += weight * residuals[i] * residuals[i];
+    for (size_t i = 0; i < n; ++i) {
+      weights[i] = tukey(residuals[i], tukey_c);
+      cost += weights[i] * residuals[i] * residuals[i];
     }
     return cost;
   };
   // The weighted cost alone (the trial steps need no weights kept).
-  auto weighted_cost = [](const std::vector<double>& residuals, double tukey_c) {
+  auto weighted_cost = [&](const std::vector<double>& residuals, double tukey_c) {
     double cost = 0.0;
-    for (const double r : residuals) {
-      double weight = 1.0;
-      if (tukey_c > 0) {
-        const double u = r / tukey_c;
-        weight = std::abs(u) < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
-      }
-      cost += weight * r * r;
-    }
+    for (size_t i = 0; i < n; ++i)
+      cost += tukey(residuals[i], tukey_c) * residuals[i] * residuals[i];
     return cost;
   };
   // max(floor, 1.4826 median |r|). When at least half the residuals are within the floor (the
   // usual case: the floor is a few percent of the contrast) the answer is the floor and no
   // median is needed; the selection was a fifth of the fit's time.
   auto robust_sigma = [&](const std::vector<double>& residuals, double floor) {
-    if (residuals.empty()) return floor;
-    const size_t mid = residuals.size() / 2;  // Median's element
+    if (n == 0) return floor;
+    const size_t mid = n / 2;  // MedianInPlace's element
     size_t within = 0;
-    for (const double r : residuals) within += 1.4826 * std::abs(r) <= floor ? 1 : 0;
+    for (size_t i = 0; i < n; ++i) within += 1.4826 * std::abs(residuals[i]) <= floor ? 1 : 0;
     if (within >= mid + 1) return floor;
-    absolute.resize(residuals.size());
-    for (size_t i = 0; i < residuals.size(); ++i) absolute[i] = std::abs(residuals[i]);
-    return std::max(floor, 1.4826 * Median(absolute));
+    // The `within` residuals below the floor rank below every other, so the median is the
+    // (mid - within)-th smallest of the rest: a selection over fewer values, same answer.
+    absolute.clear();
+    for (size_t i = 0; i < n; ++i) {
+      if (1.4826 * std::abs(residuals[i]) > floor) absolute.push_back(std::abs(residuals[i]));
+    }
+    const size_t rank = mid - within;
+    std::nth_element(absolute.begin(), absolute.begin() + rank, absolute.end());
+    return std::max(floor, 1.4826 * absolute[rank]);
   };
   gather(p);
   residuals_at(p, &current);
@@ -367,8 +456,8 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius, int
   result.sigma = robust_sigma(current, 0.5);
   weigh(current, 4.685 * std::max(result.sigma, 0.5 + 0.04 * std::abs(p[6])));
   double weight_sum = 0.0;
-  for (double w : weights) weight_sum += w;
-  result.inlier_fraction = xs.empty() ? 0.0 : weight_sum / xs.size();
+  for (size_t i = 0; i < n; ++i) weight_sum += weights[i];
+  result.inlier_fraction = n == 0 ? 0.0 : weight_sum / n;
   result.p = p;
   return result;
 }
@@ -562,6 +651,7 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
   stage_start = thread_cpu_ms();
 
   std::vector<MarkerDetection> detections;
+  std::vector<double> border;  // scratch, reused by every candidate
   const double max_radius = 0.5 * options.max_diameter_px;
   for (const Candidate& candidate : candidates) {
     const cv::Point c(static_cast<int>(std::lround(candidate.center_px.x())),
@@ -569,7 +659,7 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
     const double r0 = 0.5 * options.expected_diameter_px;
     // Initial background and amplitude from the window border and the centre.
     const int half = static_cast<int>(std::ceil(2.0 * r0 + 2.0));
-    std::vector<double> border;
+    border.clear();
     for (int k = -half; k <= half; ++k) {
       for (const cv::Point& q : {cv::Point(c.x + k, c.y - half), cv::Point(c.x + k, c.y + half),
                                  cv::Point(c.x - half, c.y + k), cv::Point(c.x + half, c.y + k)}) {
@@ -578,7 +668,7 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
         }
       }
     }
-    const double b0 = Median(border);
+    const double b0 = MedianInPlace(&border);
     const double a0 = candidate.blurred - b0;
     // A band-pass maximum whose centre is not darker (for dark dots) than its window's border
     // is an edge or texture, not a dot: on the simulated rig's captured faces these were about
@@ -592,8 +682,11 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
     }
     FitBounds bounds;
     bounds.origin = Eigen::Vector2d(c.x, c.y);
-    bounds.max_travel = 2.0 * r0 + 2.0;                             // as the rejection below
-    bounds.max_equivalent_radius = 0.75 * options.max_diameter_px;  // 1.5x the size rejection's
+    bounds.max_travel = 2.0 * r0 + 2.0;  // as the rejection below
+    // Each axis is clamped at max_radius, so a fit this large is pinned at the largest dot
+    // allowed: on the simulated rig's captured faces, the dark mouth opening and nostrils (a
+    // sixth of the fits' pixels, most never converging, the rest accepted as false dots).
+    bounds.max_equivalent_radius = 0.98 * max_radius;
     bounds.abandon_at_width_limit = true;
     const FitResult fit = FitDisk(gray, MomentStart(gray, candidate.center_px, r0, a0, b0),
                                   max_radius, options.max_iterations, false, false, bounds);
@@ -663,14 +756,14 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
     }
     // The neighbours' shape (they face about the same way), scaled to the reference radius.
     DiskParameters shape = detections[i].fit;
-    shape[2] = Median(l11);
-    shape[3] = Median(l12);
-    shape[4] = Median(l22);
+    shape[2] = MedianInPlace(&l11);
+    shape[3] = MedianInPlace(&l12);
+    shape[4] = MedianInPlace(&l22);
     const double scale = EquivalentRadius(shape) / reference_radius;
     shape[2] *= scale;
     shape[3] *= scale;
     shape[4] *= scale;
-    shape[5] = Median(widths);
+    shape[5] = MedianInPlace(&widths);
     // The shrunken fit hugs the visible part, so the true centre lies about
     // (reference - fitted radius) away in an unknown direction: start there in 8 directions
     // (and in place) and keep the fit that explains the most pixels.
@@ -683,6 +776,9 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
     // refits than the best one (reconstruct_bench centre RMS 0.178 against 0.150 px; a
     // captured sim8 take's reprojection RMS 0.284 against 0.216 px).
     constexpr int kOcclusionStartsFitted = 1;
+    // Its window must reach the dot's hidden side from a start `offset` away from the centre.
+    FitBounds refit_bounds;
+    refit_bounds.window_margin_px = offset + 2.0;
     std::array<std::pair<double, DiskParameters>, 9> starts;
     for (int direction = -1; direction < 8; ++direction) {
       DiskParameters p = shape;
@@ -695,8 +791,8 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
     std::partial_sort(starts.begin(), starts.begin() + kOcclusionStartsFitted, starts.end(),
                       [](const auto& a, const auto& b) { return a.first > b.first; });
     for (int s = 0; s < kOcclusionStartsFitted; ++s) {
-      const FitResult candidate =
-          FitDisk(gray, starts[s].second, max_radius, options.max_iterations, true, true);
+      const FitResult candidate = FitDisk(gray, starts[s].second, max_radius,
+                                          options.max_iterations, true, true, refit_bounds);
       ++summary.occlusion_fits;
       summary.occlusion_iterations += candidate.iterations;
       if (candidate.converged && candidate.inlier_fraction > fit.inlier_fraction) fit = candidate;

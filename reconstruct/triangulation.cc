@@ -67,23 +67,31 @@ bool ProjectWithJacobian(const Camera& camera, const Eigen::Vector3d& point, Eig
 
 }  // namespace
 
-bool TriangulateLinear(const std::vector<Camera>& cameras,
-                       const std::vector<ImageObservation>& observations,
-                       Eigen::Vector3d* point_in_world) {
-  if (observations.size() < 2) return false;
-  // The homogeneous point is the null vector of the stacked 2N x 4 system A; it is taken as the
-  // eigenvector of the 4x4 A^T A with the smallest eigenvalue, which is what an SVD of A gives
-  // (V's last column) at a fraction of the cost: correspondence triangulates every epipolar
-  // hypothesis, and the dynamic-size SVD was the largest part of its time. The rows are in
-  // normalised coordinates, so A^T A stays well conditioned.
+namespace {
+
+// One view of the linear triangulation: its camera and the observation in normalised
+// (undistorted) coordinates.
+struct NormalizedView {
+  const Camera* camera;
+  Eigen::Vector2d normalized;
+  double weight;
+};
+
+// The homogeneous point is the null vector of the stacked 2N x 4 system A; it is taken as the
+// eigenvector of the 4x4 A^T A with the smallest eigenvalue, which is what an SVD of A gives
+// (V's last column) at a fraction of the cost: correspondence triangulates every epipolar
+// hypothesis, and the dynamic-size SVD was the largest part of its time. The rows are in
+// normalised coordinates, so A^T A stays well conditioned.
+bool TriangulateNormalized(const NormalizedView* views, size_t count,
+                           Eigen::Vector3d* point_in_world) {
   Eigen::Matrix4d ata = Eigen::Matrix4d::Zero();
-  for (size_t i = 0; i < observations.size(); ++i) {
-    const Camera& camera = cameras[observations[i].camera];
-    const Eigen::Vector2d n = camera.Undistort(observations[i].pixel);
+  for (size_t i = 0; i < count; ++i) {
+    const Camera& camera = *views[i].camera;
+    const Eigen::Vector2d& n = views[i].normalized;
     Eigen::Matrix<double, 3, 4> pose;
     pose.leftCols<3>() = camera.cam_from_world.RotationMatrix();
     pose.col(3) = camera.cam_from_world.translation();
-    const double w = std::max(1e-3, observations[i].weight);
+    const double w = std::max(1e-3, views[i].weight);
     Eigen::Matrix<double, 2, 4> rows;
     rows.row(0) = w * (n.x() * pose.row(2) - pose.row(0));
     rows.row(1) = w * (n.y() * pose.row(2) - pose.row(1));
@@ -94,10 +102,25 @@ bool TriangulateLinear(const std::vector<Camera>& cameras,
   const Eigen::Vector4d x = eigen.eigenvectors().col(0);  // eigenvalues in increasing order
   if (std::abs(x[3]) < 1e-12) return false;
   *point_in_world = x.head<3>() / x[3];
-  for (const ImageObservation& o : observations) {
-    if ((cameras[o.camera].cam_from_world * *point_in_world).z() <= 0) return false;
+  for (size_t i = 0; i < count; ++i) {
+    if ((views[i].camera->cam_from_world * *point_in_world).z() <= 0) return false;
   }
   return point_in_world->allFinite();
+}
+
+}  // namespace
+
+bool TriangulateLinear(const std::vector<Camera>& cameras,
+                       const std::vector<ImageObservation>& observations,
+                       Eigen::Vector3d* point_in_world) {
+  if (observations.size() < 2) return false;
+  std::vector<NormalizedView> views;
+  views.reserve(observations.size());
+  for (const ImageObservation& o : observations) {
+    const Camera& camera = cameras[o.camera];
+    views.push_back({&camera, camera.Undistort(o.pixel), o.weight});
+  }
+  return TriangulateNormalized(views.data(), views.size(), point_in_world);
 }
 
 bool RefinePoint(const std::vector<Camera>& cameras, std::vector<ImageObservation> observations,
@@ -250,8 +273,13 @@ std::vector<TriangulatedPoint> TriangulateDetections(
         observations[0].detection = i;
         observations[1].camera = pair.b;
         observations[1].detection = j;
+        // The pair's linear point from the normalised coordinates already at hand (undistorting
+        // again per hypothesis was most of correspondence's time).
         Eigen::Vector3d x;
-        if (!TriangulateLinear(cameras, observations, &x)) continue;
+        const NormalizedView pair_views[2] = {
+            NormalizedView{&ca, normalized[pair.a][i], detections[pair.a][i].weight},
+            NormalizedView{&cb, normalized[pair.b][j], detections[pair.b][j].weight}};
+        if (!TriangulateNormalized(pair_views, 2, &x)) continue;
         const double depth = (ca.cam_from_world * x).z();
         if (depth < options.min_depth_mm || depth > options.max_depth_mm) continue;
         for (int c = 0; c < n; ++c) {

@@ -132,6 +132,27 @@ inline double DiskModel(const DiskParameters& p, double x, double y, double* gra
 typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
 constexpr int kLanes = 4;
 
+// NormalCdf's table per interval: node k holds (Phi, step x density) at nodes k and k + 1, so
+// one lane's data is one 32-byte load; two extra nodes hold the constants beyond kPhiRange.
+struct HermiteNodes {
+  static constexpr int kBelow = kPhiNodes - 1, kAbove = kPhiNodes;
+  std::array<std::array<double, 4>, kPhiNodes + 1> node{};
+  HermiteNodes() {
+    const PhiTable& table = PhiNodes();
+    for (int k = 0; k + 1 < kPhiNodes; ++k) {
+      node[k] = {table.phi[k], kPhiStep * table.density[k], table.phi[k + 1],
+                 kPhiStep * table.density[k + 1]};
+    }
+    node[kBelow] = {0.0, 0.0, 0.0, 0.0};
+    node[kAbove] = {1.0, 0.0, 1.0, 0.0};
+  }
+};
+
+const HermiteNodes& PhiHermiteNodes() {
+  static const HermiteNodes nodes;
+  return nodes;
+}
+
 // (Values are passed through pointers, never returned: a 32-byte vector in a function's
 // signature would depend on whether AVX is enabled, GCC's -Wpsabi.)
 inline void LoadLanes(const double* from, Lanes* to) { std::memcpy(to, from, sizeof(Lanes)); }
@@ -150,25 +171,24 @@ inline void DiskModelLanes(const DiskParameters& p, const double* x, const doubl
   Lanes rho = u0 * u0 + u1 * u1;
   for (int j = 0; j < kLanes; ++j) rho[j] = std::sqrt(rho[j]);
   const Lanes t = (1.0 - rho) / w;
-  // The table's Hermite data per lane; beyond kPhiRange the constant 0 or 1 with no slope
-  // (s = 0 selects p0 and the density m0 / step = 0), as DiskModel's branch.
-  const PhiTable& table = PhiNodes();
-  Lanes s, p0, p1, m0, m1;
+  // Per lane, the interval's Hermite data in one 32-byte load (HermiteNodes); beyond kPhiRange
+  // the constant 0 or 1 with no slope (s = 0 selects p0, and the density m0 / step = 0), as
+  // DiskModel's branch. Selects, not branches: pixels on either side of the edge alternate.
+  const HermiteNodes& nodes = PhiHermiteNodes();
+  Lanes s, row[kLanes];
   for (int j = 0; j < kLanes; ++j) {
-    if (std::abs(t[j]) > kPhiRange) {
-      s[j] = 0.0;
-      p0[j] = p1[j] = t[j] > 0 ? 1.0 : 0.0;
-      m0[j] = m1[j] = 0.0;
-      continue;
-    }
-    const double u = (t[j] + kPhiRange) / kPhiStep;
-    const int k = std::min(kPhiNodes - 2, std::max(0, static_cast<int>(u)));
-    s[j] = u - k;
-    p0[j] = table.phi[k];
-    p1[j] = table.phi[k + 1];
-    m0[j] = kPhiStep * table.density[k];
-    m1[j] = kPhiStep * table.density[k + 1];
+    const double u = (std::clamp(t[j], -kPhiRange, kPhiRange) + kPhiRange) / kPhiStep;
+    int k = std::min(kPhiNodes - 2, static_cast<int>(u));
+    double fraction = u - k;
+    k = t[j] > kPhiRange ? HermiteNodes::kAbove : (t[j] < -kPhiRange ? HermiteNodes::kBelow : k);
+    fraction = std::abs(t[j]) > kPhiRange ? 0.0 : fraction;
+    s[j] = fraction;
+    std::memcpy(&row[j], nodes.node[k].data(), sizeof(Lanes));
   }
+  const Lanes p0 = {row[0][0], row[1][0], row[2][0], row[3][0]};
+  const Lanes m0 = {row[0][1], row[1][1], row[2][1], row[3][1]};
+  const Lanes p1 = {row[0][2], row[1][2], row[2][2], row[3][2]};
+  const Lanes m1 = {row[0][3], row[1][3], row[2][3], row[3][3]};
   const Lanes s2 = s * s, s3 = s2 * s;
   const Lanes phi = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * p1 +
                     (s3 - s2) * m1;
@@ -238,7 +258,19 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius, int
   // The window, structure of arrays: pixel coordinates and observed values of its n pixels,
   // padded to whole groups of kLanes with copies of the last pixel, which carry weight 0 and
   // enter no statistic (everything below reads the first n).
-  std::vector<double> xs, ys, observed, current, trial, weights, absolute;
+  // Per-thread scratch kept across calls: a fit allocates nothing once its thread has fitted a
+  // window as large (seven vectors allocated and grown per fit were a tenth of its time).
+  struct Scratch {
+    std::vector<double> xs, ys, observed, current, trial, weights, absolute;
+  };
+  static thread_local Scratch scratch;
+  std::vector<double>& xs = scratch.xs;
+  std::vector<double>& ys = scratch.ys;
+  std::vector<double>& observed = scratch.observed;
+  std::vector<double>& current = scratch.current;
+  std::vector<double>& trial = scratch.trial;
+  std::vector<double>& weights = scratch.weights;
+  std::vector<double>& absolute = scratch.absolute;
   size_t n = 0;
   int window_cx = INT32_MIN, window_cy = INT32_MIN, window_half = -1;
   // A disk around the window centre: the dot's semi-major axis plus three blur widths (`reach`,
@@ -315,9 +347,13 @@ FitResult FitDisk(const cv::Mat& image, DiskParameters p, double max_radius, int
       LoadLanes(&weights[i], &w);
       LoadLanes(&current[i], &wr);
       wr *= w;
+      // Fully unrolled, so the 44 accumulators live in registers and stack slots at fixed
+      // offsets (a runtime-indexed array costs a load and a store per product).
       int k = 0;
+#pragma GCC unroll 8
       for (int row = 0; row < kN; ++row) {
         const Lanes wg = w * g[row];
+#pragma GCC unroll 8
         for (int col = row; col < kN; ++col) products[k++] += wg * g[col];
         gradient_residual[row] += wr * g[row];
       }

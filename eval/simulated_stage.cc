@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -165,9 +166,14 @@ StatusOr<Reconstruction> FilmSimulatedTake(const FaceRig& face, const SimulatedC
   std::vector<cv::Mat> images(camera_count);  // reused: create() keeps the buffers per frame
   std::optional<Progress> progress;
   if (options.progress) progress.emplace("film", simulated.frame_count());
+  FilmTimings timings;
+  const auto SecondsSince = [](std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
   for (int f = 0; f < simulated.frame_count(); ++f) {
     if (progress) progress->Advance();
     const Eigen::Matrix3Xd skin = simulated.FramePositions(f);
+    auto start = std::chrono::steady_clock::now();
     FACEDYN_RETURN_IF_ERROR(ParallelFor(camera_count, options.threads, [&](int c) -> Status {
       const Camera& camera = cameras.truth[c];
       images[c].create(camera.height_px, camera.width_px, CV_8UC1);
@@ -175,7 +181,10 @@ StatusOr<Reconstruction> FilmSimulatedTake(const FaceRig& face, const SimulatedC
                       &workspaces[c], images[c].data);
       return Status::Ok();
     }));
+    timings.render_s += SecondsSince(start);
+    start = std::chrono::steady_clock::now();
     const auto found = DetectMarkersInImages(images, detection, options.threads);
+    timings.detect_s += SecondsSince(start);
     detections[f].resize(camera_count);
     for (int c = 0; c < camera_count; ++c) {
       if (!found[c].ok()) {
@@ -193,10 +202,14 @@ StatusOr<Reconstruction> FilmSimulatedTake(const FaceRig& face, const SimulatedC
     }
   }
   if (progress) progress->Finish();
-  return ReconstructDetections(
+  const auto start = std::chrono::steady_clock::now();
+  StatusOr<Reconstruction> result = ReconstructDetections(
       face, cameras, simulated, detections,
       "filmed: every frame rendered by 8 simulated cameras (shaded skin, painted dots, blur, "
       "noise, distortion) and the dots detected in the images");
+  timings.reconstruct_s = SecondsSince(start);
+  if (options.timings) *options.timings = timings;
+  return result;
 }
 
 }  // namespace facedyn::eval

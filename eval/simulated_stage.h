@@ -57,10 +57,17 @@ StatusOr<reconstruct::Reconstruction> ReconstructSimulatedTake(const FaceRig& fa
 // ReconstructSimulatedTake's projected centres for most takes. `render` defaults to
 // config/capture/sim8.yaml's optics; `threads` 0 = every core. Errors: as
 // ReconstructSimulatedTake, and a detection failure (naming the frame and camera).
+// Wall time of filming's stages (seconds), for the caller's report.
+struct FilmTimings {
+  double render_s = 0.0;       // the 8 cameras' images, every frame
+  double detect_s = 0.0;       // marker detection in them
+  double reconstruct_s = 0.0;  // reconstruct::ReconstructTake on the detections
+};
 struct FilmOptions {
   sim::RenderOptions render;
   int threads = 0;
-  bool progress = false;  // a "film" progress bar on stderr (core/progress.h)
+  bool progress = false;           // a "film" progress bar on stderr (core/progress.h)
+  FilmTimings* timings = nullptr;  // filled when given
 };
 StatusOr<reconstruct::Reconstruction> FilmSimulatedTake(const FaceRig& face,
                                                         const SimulatedCameraRig& cameras,

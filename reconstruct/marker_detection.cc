@@ -631,25 +631,37 @@ StatusOr<std::vector<MarkerDetection>> DetectMarkers(const cv::Mat& gray,
   // (3 px there, still resolved): a quarter of the pixels for the two blurs, which were most of
   // this stage. Only the candidates' positions come from it; every fit reads the full image.
   const int search_scale = options.expected_diameter_px >= 6.0 ? 2 : 1;
-  cv::Mat search;
+  // Per-thread buffers reused across images (cv::Mat::create keeps a buffer of the same size):
+  // six fresh 0.3-5 MB images per call cost page faults on every image.
+  struct Buffers {
+    cv::Mat half, search, small, large, response, dilated;
+  };
+  static thread_local Buffers buffers;
+  cv::Mat& search = buffers.search;
   if (search_scale == 2) {
-    cv::resize(gray, search, cv::Size(gray.cols / 2, gray.rows / 2), 0, 0, cv::INTER_AREA);
-    search.convertTo(search, CV_32F);
+    cv::resize(gray, buffers.half, cv::Size(gray.cols / 2, gray.rows / 2), 0, 0, cv::INTER_AREA);
+    buffers.half.convertTo(search, CV_32F);
   } else {
     gray.convertTo(search, CV_32F);
   }
   // Band-pass: small blur minus large blur, signed so dots are positive.
   const double sigma =
       std::max(0.8, 0.5 * options.expected_diameter_px / search_scale / std::sqrt(2.0));
-  cv::Mat small, large;
+  cv::Mat& small = buffers.small;
+  cv::Mat& large = buffers.large;
   cv::GaussianBlur(search, small, cv::Size(0, 0), sigma);
   cv::GaussianBlur(search, large, cv::Size(0, 0), 2.0 * sigma);
-  cv::Mat response = options.polarity == MarkerPolarity::kDark ? large - small : small - large;
+  cv::Mat& response = buffers.response;
+  if (options.polarity == MarkerPolarity::kDark) {
+    cv::subtract(large, small, response);
+  } else {
+    cv::subtract(small, large, response);
+  }
   // Local maxima over a neighbourhood of the smallest dot, above a fraction of min_contrast
   // (the band-pass response of a dot of contrast c is about c/4 at the matched scale).
   const int radius =
       std::max(1, static_cast<int>(std::floor(0.5 * options.min_diameter_px / search_scale)));
-  cv::Mat dilated;
+  cv::Mat& dilated = buffers.dilated;
   cv::dilate(response, dilated,
              cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * radius + 1, 2 * radius + 1)));
   const float threshold = static_cast<float>(0.15 * options.min_contrast);

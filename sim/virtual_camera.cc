@@ -281,8 +281,10 @@ void FinishRadiance(const RenderOptions& options, int width, int height, int s, 
     const float dn = data[i] * scale;
     const float sigma = std::sqrt(read_var + shot * std::max(dn, 0.0f));
     const float n = noise[SplitMix64(key + i) & ((1u << kNoiseTableBits) - 1)];
-    const float value = std::round(dn + sigma * n);
-    out[i] = static_cast<uint8_t>(std::clamp(value, 0.0f, 255.0f));
+    // Rounded to nearest by truncating value + 0.5 after the clamp (the value is then
+    // non-negative): std::round was a libm call per pixel, a fifth of rendering's time.
+    const float value = std::clamp(dn + sigma * n, 0.0f, 255.0f);
+    out[i] = static_cast<uint8_t>(static_cast<int>(value + 0.5f));
   }
 }
 

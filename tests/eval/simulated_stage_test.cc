@@ -41,8 +41,17 @@ TEST(FilmSimulatedTake, RenderedAndDetectedTakeMatchesTheTruth) {
   performance.fps = 128.0;
   const auto take = sim::SimulatePerformance(*face, performance);
   ASSERT_TRUE(take.ok()) << take.status().ToString();
-  const auto filmed = FilmSimulatedTake(*face, *cameras, *take, 3);
+  FilmTimings timings;
+  FilmOptions film;
+  film.timings = &timings;
+  const auto filmed = FilmSimulatedTake(*face, *cameras, *take, 3, film);
   ASSERT_TRUE(filmed.ok()) << filmed.status().ToString();
+  EXPECT_GT(timings.render_s, 0.0);
+  EXPECT_GT(timings.detect_s, 0.0);
+  EXPECT_GT(timings.reconstruct_s, 0.0);
+  std::printf("filming %d frames: render %.1f ms, detect %.1f ms per frame; reconstruct %.2f s\n",
+              take->frame_count(), 1e3 * timings.render_s / take->frame_count(),
+              1e3 * timings.detect_s / take->frame_count(), timings.reconstruct_s);
   const auto projected = ReconstructSimulatedTake(*face, *cameras, *take, 3);
   ASSERT_TRUE(projected.ok()) << projected.status().ToString();
   ASSERT_EQ(filmed->take.frame_count(), take->frame_count());

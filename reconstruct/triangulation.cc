@@ -77,11 +77,13 @@ struct NormalizedView {
   double weight;
 };
 
-// The homogeneous point is the null vector of the stacked 2N x 4 system A; it is taken as the
-// eigenvector of the 4x4 A^T A with the smallest eigenvalue, which is what an SVD of A gives
-// (V's last column) at a fraction of the cost: correspondence triangulates every epipolar
-// hypothesis, and the dynamic-size SVD was the largest part of its time. The rows are in
-// normalised coordinates, so A^T A stays well conditioned.
+// The linear (DLT) system A [x; 1] = 0 of the stacked 2N x 4 rows, solved for the
+// inhomogeneous point: with A^T A = [M b; b^T c], x = -M^-1 b (Hartley & Zisserman, section
+// 12.2; the same point as the homogeneous null vector without noise, and a start the
+// refinement takes to the same minimum with it). A 3 x 3 solve: correspondence triangulates
+// every epipolar hypothesis, and the 4 x 4 eigen-decomposition it replaces was the largest
+// part of that. The rows are in normalised coordinates, so M stays well conditioned; rays too
+// close to parallel (M near singular) are refused.
 bool TriangulateNormalized(const NormalizedView* views, size_t count,
                            Eigen::Vector3d* point_in_world) {
   Eigen::Matrix4d ata = Eigen::Matrix4d::Zero();
@@ -97,11 +99,10 @@ bool TriangulateNormalized(const NormalizedView* views, size_t count,
     rows.row(1) = w * (n.y() * pose.row(2) - pose.row(1));
     ata.noalias() += rows.transpose() * rows;
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eigen(ata);
-  if (eigen.info() != Eigen::Success) return false;
-  const Eigen::Vector4d x = eigen.eigenvectors().col(0);  // eigenvalues in increasing order
-  if (std::abs(x[3]) < 1e-12) return false;
-  *point_in_world = x.head<3>() / x[3];
+  const Eigen::Matrix3d m = ata.topLeftCorner<3, 3>();
+  const double scale = m.trace();
+  if (!(std::abs(m.determinant()) > 1e-12 * scale * scale * scale)) return false;
+  *point_in_world = -m.inverse() * ata.topRightCorner<3, 1>();
   for (size_t i = 0; i < count; ++i) {
     if ((views[i].camera->cam_from_world * *point_in_world).z() <= 0) return false;
   }

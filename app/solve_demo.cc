@@ -203,7 +203,7 @@ StatusOr<Json> RunSolveDemoStage(const FaceRig& face, const DemoDynamicsArtifact
   figures["take"] = filmed.info.expression;
   figures["frames"] = filmed.frame_count();
   figures["note"] =
-      "Markers are read off each frame's mesh (reconstructed from projected marker centres, then "
+      "Markers are read off each frame's mesh (the filmed speech take's reconstruction, then "
       "after F's removal); the reference weights are scoring only.";
   return figures;
 }

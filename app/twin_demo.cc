@@ -202,8 +202,8 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
   const int window = f_captured.config().features.window_frames();
   Json removal = Json::array();
   std::printf(
-      "\nRemoval on subject %s's held-out head motions (reconstructed from projected "
-      "marker centres), error vs the exact quasistatic over the jiggling vertices:\n",
+      "\nRemoval on subject %s's held-out head motions (filmed: rendered by 8 cameras, dots "
+      "detected), error vs the exact quasistatic over the jiggling vertices:\n",
       subject.name.c_str());
   for (size_t m = 0; m < options.test_motions.size(); ++m) {
     sim::PerformanceOptions performance;
@@ -217,7 +217,7 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
     FACEDYN_ASSIGN_OR_RETURN(const Take simulated, sim::SimulatePerformance(subject, performance));
     FACEDYN_ASSIGN_OR_RETURN(
         const reconstruct::Reconstruction reconstruction,
-        eval::ReconstructSimulatedTake(subject, cameras, simulated, options.seed * 1000 + 600 + m));
+        eval::FilmSimulatedTake(subject, cameras, simulated, options.seed * 1000 + 600 + m));
     const Take& reconstructed = reconstruction.take;
     FACEDYN_ASSIGN_OR_RETURN(const Take by_captured,
                              dynamics::RemoveDynamics(f_captured, reconstructed, subject));

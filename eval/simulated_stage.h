@@ -48,21 +48,23 @@ StatusOr<reconstruct::Reconstruction> ReconstructSimulatedTake(const FaceRig& fa
                                                                const Take& simulated,
                                                                uint64_t seed);
 
-// Films one simulated take for real: every frame's dynamic skin rendered by the true cameras
-// (sim::FaceRenderer: shaded skin, painted dots, lens distortion, blur, read and shot noise,
-// self-occlusion), the dots detected in the images (reconstruct::DetectMarkersInImages, with
-// the detector tuned to the dots' size at the face's distance), then reconstruct::ReconstructTake
-// with the calibrated cameras, as `facedyn capture` + `facedyn reconstruct` would. Rendering and
-// detection cost about 0.3 s per frame of 8 cameras on 2 cores (README), so the demo uses
-// ReconstructSimulatedTake's projected centres for most takes. `render` defaults to
-// config/capture/sim8.yaml's optics; `threads` 0 = every core. Errors: as
-// ReconstructSimulatedTake, and a detection failure (naming the frame and camera).
 // Wall time of filming's stages (seconds), for the caller's report.
 struct FilmTimings {
   double render_s = 0.0;       // the 8 cameras' images, every frame
   double detect_s = 0.0;       // marker detection in them
   double reconstruct_s = 0.0;  // reconstruct::ReconstructTake on the detections
 };
+
+// Films one simulated take for real: every frame's dynamic skin rendered by the true cameras
+// (sim::FaceRenderer: shaded skin, painted dots, lens distortion, blur, read and shot noise,
+// self-occlusion), the dots detected in the images (reconstruct::DetectMarkersInImages, with
+// the detector tuned to the dots' size at the face's distance), then reconstruct::ReconstructTake
+// with the calibrated cameras, as `facedyn capture` + `facedyn reconstruct` would. Rendering and
+// detection cost about 0.1-0.15 s per frame of 8 cameras on 2 cores (README), so the demo
+// films the takes it scores on and uses ReconstructSimulatedTake's projected centres for its
+// training takes. `render` defaults to
+// config/capture/sim8.yaml's optics; `threads` 0 = every core. Errors: as
+// ReconstructSimulatedTake, and a detection failure (naming the frame and camera).
 struct FilmOptions {
   sim::RenderOptions render;
   int threads = 0;

@@ -45,23 +45,6 @@ const PhiTable& PhiNodes() {
   return table;
 }
 
-// Phi(t) and, through *slope, dPhi/dt, for |t| <= kPhiRange.
-inline double NormalCdf(double t, double* slope) {
-  const PhiTable& table = PhiNodes();
-  const double u = (t + kPhiRange) / kPhiStep;
-  const int k = std::min(kPhiNodes - 2, std::max(0, static_cast<int>(u)));
-  const double s = u - k, s2 = s * s, s3 = s2 * s;
-  const double p0 = table.phi[k], p1 = table.phi[k + 1];
-  const double m0 = kPhiStep * table.density[k], m1 = kPhiStep * table.density[k + 1];
-  const double value = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 +
-                       (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1;
-  if (slope) {
-    *slope = ((6 * s2 - 6 * s) * (p0 - p1) + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1) /
-             kPhiStep;
-  }
-  return value;
-}
-
 // The upper median of *values, which it reorders (the callers' buffers are scratch).
 double MedianInPlace(std::vector<double>* values) {
   if (values->empty()) return 0.0;
@@ -89,51 +72,17 @@ struct FitResult {
   long pixel_evaluations = 0;
 };
 
-// The model at one pixel: its value and, when `gradient` is given, its gradient with respect
-// to p. Inline, for the fit's passes over a window; BlurredDiskIntensity is the same function.
-inline double DiskModel(const DiskParameters& p, double x, double y, double* gradient) {
-  const double dx = x - p[0], dy = y - p[1];
-  const double l11 = p[2], l12 = p[3], l22 = p[4], w = p[5];
-  const double u0 = l11 * dx + l12 * dy, u1 = l22 * dy;
-  const double rho = std::sqrt(u0 * u0 + u1 * u1);
-  const double t = (1.0 - rho) / w;
-  // Beyond 8.5 blur widths Phi is 0 or 1 and its density below 1e-15 of its peak in double
-  // precision.
-  if (std::abs(t) > kPhiRange) {
-    if (gradient) {
-      std::fill(gradient, gradient + kDiskParameterCount, 0.0);
-      gradient[6] = t > 0 ? 1.0 : 0.0;
-      gradient[7] = 1.0;
-    }
-    return p[7] + (t > 0 ? p[6] : 0.0);
-  }
-  double density = 0.0;
-  const double phi = NormalCdf(t, gradient ? &density : nullptr);
-  if (gradient) {
-    const double a = p[6];
-    // dI/drho = -a density / w; drho/du = u / rho (0 at the centre, where the model is flat).
-    const double g = rho > 1e-12 ? -a * density / (w * rho) : 0.0;
-    gradient[0] = g * (-l11 * u0);             // du/dx0 = -(l11, 0)
-    gradient[1] = g * (-l12 * u0 - l22 * u1);  // du/dy0 = -(l12, l22)
-    gradient[2] = g * (dx * u0);               // du/dl11 = (dx, 0)
-    gradient[3] = g * (dy * u0);               // du/dl12 = (dy, 0)
-    gradient[4] = g * (dy * u1);               // du/dl22 = (0, dy)
-    gradient[5] = a * density * (-t / w);
-    gradient[6] = phi;
-    gradient[7] = 1.0;
-  }
-  return p[7] + p[6] * phi;
-}
-
-// Four pixels at a time, with GCC's vector extension (Clang has it too): one AVX2 register in
-// FitDisk's x86-64-v3 variant, two SSE2 halves otherwise. DiskModelLanes is DiskModel lane by
-// lane, with the same arithmetic in the same order (the table lookups are per lane), so a fit
-// sees one function whichever pass evaluates it.
+// The model, four pixels at a time, with GCC's vector extension (Clang has it too): one AVX2
+// register in FitDisk's x86-64-v3 variant, two SSE2 halves otherwise. It is the only
+// implementation: DiskModel (one pixel, for BlurredDiskIntensity and the occlusion refit's
+// start scores) evaluates it on a broadcast pixel, so the finite-difference test of
+// BlurredDiskIntensity's gradient checks what the fit uses.
 typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
 constexpr int kLanes = 4;
 
-// NormalCdf's table per interval: node k holds (Phi, step x density) at nodes k and k + 1, so
-// one lane's data is one 32-byte load; two extra nodes hold the constants beyond kPhiRange.
+// The standard normal CDF's table per interval (a cubic Hermite interpolant, PhiTable): node k
+// holds (Phi, step x density) at nodes k and k + 1, so one lane's data is one 32-byte load; two
+// extra nodes hold the constants beyond kPhiRange.
 struct HermiteNodes {
   static constexpr int kBelow = kPhiNodes - 1, kAbove = kPhiNodes;
   std::array<std::array<double, 4>, kPhiNodes + 1> node{};
@@ -208,6 +157,16 @@ inline void DiskModelLanes(const DiskParameters& p, const double* x, const doubl
     gradient[7] = Lanes{} + 1.0;
   }
   *value = p[7] + p[6] * phi;
+}
+
+// The model at one pixel: its value and, when `gradient` is given, its gradient with respect
+// to p (DiskModelLanes' first lane).
+inline double DiskModel(const DiskParameters& p, double x, double y, double* gradient) {
+  const double xs[kLanes] = {x, x, x, x}, ys[kLanes] = {y, y, y, y};
+  Lanes value, lanes_gradient[kDiskParameterCount];
+  DiskModelLanes(p, xs, ys, &value, gradient ? lanes_gradient : nullptr);
+  for (int k = 0; gradient && k < kDiskParameterCount; ++k) gradient[k] = lanes_gradient[k][0];
+  return value[0];
 }
 
 // Levenberg-Marquardt with IRLS (Tukey) on the window pixels of `image` (CV_8U: read in place,

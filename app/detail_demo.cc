@@ -116,9 +116,7 @@ StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCame
   const double diameter_px =
       layout.front().diameter_mm * config.cameras[0].fx() * layout.size() / std::max(1e-9, depth);
   reconstruct::SessionInputOptions input_options;
-  input_options.detection.expected_diameter_px = diameter_px;
-  input_options.detection.min_diameter_px = std::max(1.5, 0.4 * diameter_px);
-  input_options.detection.max_diameter_px = 2.5 * diameter_px;
+  input_options.detection = reconstruct::MarkerDetectionOptionsForDiameter(diameter_px);
   FACEDYN_ASSIGN_OR_RETURN(const reconstruct::SessionDetections input,
                            reconstruct::DetectSessionTake(session_dir, take_name, input_options));
   FaceRig painted = face;

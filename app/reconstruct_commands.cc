@@ -80,9 +80,9 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
         return InvalidArgumentError("--marker-diameter-px must be in [2, 100], got " +
                                     std::to_string(options->marker_diameter_px));
       }
-      detection.expected_diameter_px = options->marker_diameter_px;
-      detection.min_diameter_px = std::max(1.5, 0.4 * options->marker_diameter_px);
-      detection.max_diameter_px = 2.5 * options->marker_diameter_px;
+      const reconstruct::MarkerPolarity polarity = detection.polarity;
+      detection = reconstruct::MarkerDetectionOptionsForDiameter(options->marker_diameter_px);
+      detection.polarity = polarity;
       detection.occlusion_refit = options->occlusion_refit;
       FACEDYN_ASSIGN_OR_RETURN(
           const reconstruct::SessionDetections input,
@@ -146,10 +146,12 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
             {"rejected_per_image",
              {{"fit", t.rejected_fit / n},
               {"size", t.rejected_size / n},
+              {"of_which_unfitted_size", t.rejected_size_unfitted / n},
               {"contrast", t.rejected_contrast / n},
               {"quality", t.rejected_quality / n},
               {"duplicates", t.duplicates / n}}},
-            {"iterations_per_fit", t.fit_iterations / std::max(1.0, double(t.candidates))},
+            {"fits_per_image", t.fits / n},
+            {"iterations_per_fit", t.fit_iterations / std::max(1.0, double(t.fits))},
             {"window_pixels_per_evaluation",
              t.fit_pixel_evaluations / std::max(1.0, double(t.fit_evaluations))},
             {"occlusion_fits_per_image", t.occlusion_fits / n},

@@ -195,10 +195,8 @@ facedyn::StatusOr<facedyn::detail::MarkerFrames> FilmHmcMarkers(
   }
   depth /= layout.size();
   const double diameter_px = layout.front().diameter_mm * cameras[0].fx() / depth;
-  reconstruct::MarkerDetectionOptions detection;
-  detection.expected_diameter_px = diameter_px;
-  detection.min_diameter_px = std::max(1.5, 0.4 * diameter_px);
-  detection.max_diameter_px = 2.5 * diameter_px;
+  reconstruct::MarkerDetectionOptions detection =
+      reconstruct::MarkerDetectionOptionsForDiameter(diameter_px);
   detection.occlusion_refit = false;  // as reconstruct/session_input.h does for HMC takes
   std::vector<std::vector<std::vector<reconstruct::ImageObservation>>> detections(truth.size());
   std::vector<facedyn::sim::RenderWorkspace> workspaces(cameras.size());

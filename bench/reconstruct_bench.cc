@@ -75,13 +75,11 @@ Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int 
                     int threads) {
   const std::vector<Camera> cameras = MakeFaceCameraRing(8);
   std::mt19937 rng(1);
-  MarkerDetectionOptions detection;
-  detection.expected_diameter_px = 2.0 * 2200.0 / 600.0 * 1.0;  // 2 mm at 600 mm, f = 2200
-  detection.min_diameter_px = 3.0;
-  detection.max_diameter_px = 16.0;
+  // As `facedyn reconstruct --marker-diameter-px` sets them: 2 mm dots at 600 mm, f = 2200.
+  const MarkerDetectionOptions detection = MarkerDetectionOptionsForDiameter(2.0 * 2200.0 / 600.0);
   double detect_s = 0.0, triangulate_s = 0.0, sq2d = 0.0, sq3d = 0.0, sq2d_facing = 0.0;
   double candidates_ms = 0.0, fit_ms = 0.0, occlusion_ms = 0.0, read_s = 0.0;
-  long candidates = 0, iterations = 0, evaluations = 0, occlusion_fits = 0, refitted = 0,
+  long candidates = 0, fits = 0, iterations = 0, evaluations = 0, occlusion_fits = 0, refitted = 0,
        pixel_evaluations = 0, occlusion_iterations = 0;
   int n2d = 0, n3d = 0, detections = 0, points = 0, visible = 0, unmatched = 0, n2d_facing = 0;
   for (int k = 0; k < frames; ++k) {
@@ -117,6 +115,7 @@ Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int 
       fit_ms += summary.fit_ms;
       occlusion_ms += summary.occlusion_ms;
       candidates += summary.candidates;
+      fits += summary.fits;
       iterations += summary.fit_iterations;
       evaluations += summary.fit_evaluations;
       pixel_evaluations += summary.fit_pixel_evaluations;
@@ -196,8 +195,9 @@ Json BenchDetection(const facedyn::FaceRig& rig, const facedyn::Take& take, int 
                          {"fits", fit_ms / (frames * cameras.size())},
                          {"occlusion_and_merge", occlusion_ms / (frames * cameras.size())}};
   out["candidates_per_image"] = static_cast<double>(candidates) / (frames * cameras.size());
-  out["iterations_per_fit"] = static_cast<double>(iterations) / std::max(1L, candidates);
-  out["evaluations_per_fit"] = static_cast<double>(evaluations) / std::max(1L, candidates);
+  out["fits_per_image"] = static_cast<double>(fits) / (frames * cameras.size());
+  out["iterations_per_fit"] = static_cast<double>(iterations) / std::max(1L, fits);
+  out["evaluations_per_fit"] = static_cast<double>(evaluations) / std::max(1L, fits);
   out["window_pixels_per_evaluation"] =
       static_cast<double>(pixel_evaluations) / std::max(1L, evaluations);
   out["fit_ns_per_pixel_evaluation"] = 1e6 * fit_ms / std::max(1L, pixel_evaluations);

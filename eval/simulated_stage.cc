@@ -156,10 +156,7 @@ StatusOr<Reconstruction> FilmSimulatedTake(const FaceRig& face, const SimulatedC
   depth /= face.markers.size();
   diameter_mm /= face.markers.size();
   const double diameter_px = diameter_mm * cameras.truth[0].fx() / depth;
-  MarkerDetectionOptions detection;
-  detection.expected_diameter_px = diameter_px;
-  detection.min_diameter_px = std::max(1.5, 0.4 * diameter_px);
-  detection.max_diameter_px = 2.5 * diameter_px;
+  const MarkerDetectionOptions detection = MarkerDetectionOptionsForDiameter(diameter_px);
   const int camera_count = static_cast<int>(cameras.truth.size());
   std::vector<sim::RenderWorkspace> workspaces(camera_count);
   std::vector<std::vector<std::vector<ImageObservation>>> detections(simulated.frame_count());

@@ -212,6 +212,8 @@ StatusOr<SessionDetections> DetectSessionTake(const std::string& session_dir,
       total.accepted += s.accepted;
       total.rejected_fit += s.rejected_fit;
       total.rejected_size += s.rejected_size;
+      total.rejected_size_unfitted += s.rejected_size_unfitted;
+      total.fits += s.fits;
       total.rejected_contrast += s.rejected_contrast;
       total.rejected_quality += s.rejected_quality;
       total.duplicates += s.duplicates;

@@ -186,6 +186,41 @@ TEST(DetectMarkers, PartialOcclusionBiasesLittleAndLowersQuality) {
   EXPECT_LT(plain_occluded_quality / plain_occluded, plain_clear_quality / plain_clear - 0.1);
 }
 
+// Shading wider than any dot allowed (a nostril's rim, the shadow under the lip) makes
+// band-pass candidates whose dark mass already fills the start's moment window: they are
+// rejected unfitted, and every dot is still found.
+TEST(DetectMarkers, ShadingWiderThanTheLargestDotIsRejectedWithoutAFit) {
+  DotImage dots = MakeDots(4.0, 1.0, 2.0, 7);
+  // Smooth dark blobs 25 grey levels deep (Gaussian, sigma 6 px) between the rows of dots.
+  cv::Mat shading(dots.image.size(), CV_32F, cv::Scalar(0));
+  std::vector<Eigen::Vector2d> blobs;
+  for (int col = 0; col < 7; col += 2) blobs.emplace_back(47.5 + 35.0 * col, 47.5 + 35.0 * 2);
+  for (int y = 0; y < shading.rows; ++y) {
+    for (int x = 0; x < shading.cols; ++x) {
+      for (const Eigen::Vector2d& b : blobs) {
+        const double d2 = (Eigen::Vector2d(x, y) - b).squaredNorm();
+        shading.at<float>(y, x) -= static_cast<float>(25.0 * std::exp(-0.5 * d2 / 36.0));
+      }
+    }
+  }
+  cv::Mat image;
+  dots.image.convertTo(image, CV_32F);
+  image += shading;
+  image.convertTo(dots.image, CV_8U);
+  const MarkerDetectionOptions options = MarkerDetectionOptionsForDiameter(8.0);
+  EXPECT_DOUBLE_EQ(options.min_diameter_px, 3.2);
+  EXPECT_DOUBLE_EQ(options.max_diameter_px, 12.0);
+  MarkerDetectionSummary summary;
+  const auto detections = DetectMarkers(dots.image, options, &summary);
+  ASSERT_TRUE(detections.ok());
+  EXPECT_GE(summary.rejected_size_unfitted, static_cast<int>(blobs.size()));
+  const auto matched = Match(dots, *detections);
+  for (size_t i = 0; i < matched.size(); ++i) EXPECT_NE(matched[i], nullptr) << "dot " << i;
+  for (const MarkerDetection& d : *detections) {
+    for (const Eigen::Vector2d& b : blobs) EXPECT_GT((d.center_px - b).norm(), 6.0);
+  }
+}
+
 TEST(DetectMarkersInImages, SameAsOneByOneInImageOrder) {
   std::vector<cv::Mat> images;
   for (uint32_t seed = 1; seed <= 5; ++seed) images.push_back(MakeDots(4.0, 1.0, 3.0, seed).image);

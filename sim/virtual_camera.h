@@ -64,8 +64,9 @@ struct RenderOptions {
 struct RenderWorkspace {
   int width_px = 0;
   int height_px = 0;
-  std::vector<float> radiance;   // accumulated radiance
+  std::vector<float> radiance;   // accumulated radiance (valid once an instant is accumulated)
   std::vector<float> sample;     // one instant's radiance
+  int instants = 0;              // accumulated since BeginFrame
   std::vector<float> depth_mm;   // z-buffer of the last instant rendered (inf = nothing)
   std::vector<float> projected;  // 3 x V: u, v, Z per vertex
   std::vector<float> shade;      // per-vertex shading

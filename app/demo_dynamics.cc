@@ -96,10 +96,6 @@ struct TakeSpec {
   sim::MotionOptions motion;
   double platform_hz = 0.0;  // 0 for motions other than the platform
   double seconds = 0.0;      // 0: the length SimulateAndReconstruct is given
-  // Filmed (rendered by the 8 cameras, dots detected: eval::FilmSimulatedTake) rather than
-  // reconstructed from projected marker centres. The takes the demo scores on are filmed; the
-  // training takes are projected for time (filming costs about 0.1 s per frame on 2 cores).
-  bool film = false;
 };
 
 // A walk in place (sim/skull_motion.h kWalk with no forward speed): walking at constant speed
@@ -159,11 +155,10 @@ Status SimulateAndReconstruct(const FaceRig& face, const eval::SimulatedCameraRi
         if (failed || next == specs.size()) return;
         i = next++;
         ++*done;
-        std::printf("  [%d/%d] subject %s, %s: simulating %.1f s, %s, reconstructing\n", *done,
-                    total, subject.c_str(), specs[i].name.c_str(), seconds_of(specs[i]),
-                    specs[i].film ? "filming it with 8 cameras (rendered, dots detected)"
-                                  : "projecting its markers through 8 cameras (0.2 px; not "
-                                    "rendered)");
+        std::printf(
+            "  [%d/%d] subject %s, %s: simulating %.1f s, filming it with 8 cameras (rendered, "
+            "dots detected), reconstructing\n",
+            *done, total, subject.c_str(), specs[i].name.c_str(), seconds_of(specs[i]));
         std::fflush(stdout);
       }
       const TakeSpec& spec = specs[i];
@@ -174,10 +169,9 @@ Status SimulateAndReconstruct(const FaceRig& face, const eval::SimulatedCameraRi
       eval::FilmOptions film;
       film.threads = 1;
       StatusOr<reconstruct::Reconstruction> reconstruction =
-          !simulated.ok() ? StatusOr<reconstruct::Reconstruction>(simulated.status())
-          : spec.film
-              ? eval::FilmSimulatedTake(face, cameras, *simulated, 7000 + spec.motion.seed, film)
-              : eval::ReconstructSimulatedTake(face, cameras, *simulated, 7000 + spec.motion.seed);
+          !simulated.ok()
+              ? StatusOr<reconstruct::Reconstruction>(simulated.status())
+              : eval::FilmSimulatedTake(face, cameras, *simulated, 7000 + spec.motion.seed, film);
       if (!reconstruction.ok()) {
         result.status =
             reconstruction.status().WithContext(fmt::format("subject {}, {}", subject, spec.name));
@@ -190,8 +184,7 @@ Status SimulateAndReconstruct(const FaceRig& face, const eval::SimulatedCameraRi
           {"subject", subject},
           {"take", spec.name},
           {"frames", simulated->frame_count()},
-          {"reconstructed_from", spec.film ? "filmed (rendered, dots detected)"
-                                           : "projected marker centres (0.2 px)"},
+          {"reconstructed_from", "filmed (rendered, dots detected)"},
           {"sample_rms_mm", Round4(SampleRmsMm(face, reconstruction->take, *simulated))},
           {"dense_fit_fps", Round4(frames / std::max(1e-9, reconstruction->timings.dense_s))}};
       result.simulated = std::move(*simulated);
@@ -515,14 +508,13 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   std::vector<TakeSpec> extra_specs = {
       {fmt::format("{} walk {:g} steps/s", test_simulated.info.expression,
                    options.test_walk_step_hz),
-       test_simulated.info.expression, walk, 0.0, options.walk_seconds, true}};
+       test_simulated.info.expression, walk, 0.0, options.walk_seconds}};
   std::vector<std::string> extra_sections = {"removal_walk"};  // per extra take, its metrics
   if (options.performance_expression != "") {
     extra_sections.push_back("removal_performance");
     extra_specs.push_back({TakeName(options.performance_expression, test_hz),
                            options.performance_expression,
-                           PlatformMotion(test_hz, options.seed + 70), test_hz, options.seconds,
-                           true});
+                           PlatformMotion(test_hz, options.seed + 70), test_hz, options.seconds});
   }
   SubjectTakes extra;
   int extra_done = 0;
@@ -736,10 +728,9 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   Json train_hz_json = options.train_hz;
   result["setup"] = {
       {"data",
-       "training takes and training walks reconstructed from projected marker centres (8 "
-       "simulated cameras, 0.2 px noise; no rendered images); every take scored on filmed "
-       "(rendered by the 8 cameras, dots detected): the held-out take "
-       "(app/reconstruct_demo.cc), the test walk and the speech performance"},
+       "every take filmed (rendered by the 8 simulated cameras, dots detected, "
+       "eval::FilmSimulatedTake) and reconstructed: the training takes and walks, the held-out "
+       "take (app/reconstruct_demo.cc), the test walk and the speech performance"},
       {"targets", dynamics::RemovalTargetsName(options.removal_targets)},
       {"targets_note",
        "reconstructed takes have no exact channel; platform-synchronous: the fit at the take's "

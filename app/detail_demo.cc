@@ -73,7 +73,8 @@ StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCame
 
   // 1. Training: a range-of-motion performance (no head motion) reconstructed on the multi-view
   // rig, stabilised into the skull frame: Masquerade's high-resolution captures.
-  // The same simulator films it as films the HMC take (sim/performance.h "range_of_motion").
+  // The same simulator films it as films the HMC take (sim/performance.h "range_of_motion"):
+  // rendered by the rig's 8 cameras, dots detected (eval::FilmSimulatedTake).
   auto start = std::chrono::steady_clock::now();
   sim::PerformanceOptions rom_options;
   rom_options.expression = "range_of_motion";
@@ -83,7 +84,7 @@ StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCame
   rom_options.seed = options.seed;
   FACEDYN_ASSIGN_OR_RETURN(const Take rom, sim::SimulatePerformance(face, rom_options));
   FACEDYN_ASSIGN_OR_RETURN(const reconstruct::Reconstruction rom_reconstruction,
-                           eval::ReconstructSimulatedTake(face, cameras, rom, options.seed));
+                           eval::FilmSimulatedTake(face, cameras, rom, options.seed));
   detail::DetailTrainingSet set;
   set.subject = face.name;
   set.neutral = face.neutral;
@@ -231,12 +232,13 @@ StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCame
   }
 
   Json json;
-  json["training"] = {{"rom_frames", set.frames_mm.size()},
-                      {"selected_frames", summary.global_frames.size()},
-                      {"reconstructed_from", "projected marker centres (app/reconstruct_demo.h)"},
-                      {"train_s", train_s},
-                      {"model", model_path},
-                      {"model_bytes", model.MemoryBytes()}};
+  json["training"] = {
+      {"rom_frames", set.frames_mm.size()},
+      {"selected_frames", summary.global_frames.size()},
+      {"reconstructed_from", "filmed (rendered by the rig's 8 cameras, dots detected)"},
+      {"train_s", train_s},
+      {"model", model_path},
+      {"model_bytes", model.MemoryBytes()}};
   json["hmc"] = {
       {"config", config_path},
       {"performance", sim_options.performance.expression + ", head motion " +

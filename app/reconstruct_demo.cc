@@ -26,7 +26,7 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
   const double worst_centre_mm = rig.worst_centre_error_mm;
   FACEDYN_RETURN_IF_ERROR(SaveCalibration(calibration, JoinPath(stage_dir, "calibration.yaml")));
   // Filmed for real: rendered by the 8 cameras and the dots detected (the held-out take every
-  // later stage scores removal on); the training takes use projected centres for time.
+  // later stage scores removal on), as every take the demo reconstructs.
   eval::FilmOptions film;
   film.progress = true;
   std::printf("Filming the %d-frame take with 8 simulated cameras (rendered, dots detected)\n",

@@ -10,7 +10,7 @@
 //      twin's own exact quasistatic ("augmented", dynamics::TrainingTake), for as many optimiser
 //      steps as the dynamics stage's F_B took on B's reconstructed takes alone ("captured");
 //   4. films B nodding and shaking at a frequency and amplitude no training take has
-//      (reconstructed from projected marker centres, like every demo take) and scores both
+//      (filmed: rendered by the 8 cameras, dots detected, like every demo take) and scores both
 //      networks, and no removal, against B's exact quasistatic.
 // bench/twin_bench measures the same over seeds with more takes; this is the demo's one seed.
 #pragma once

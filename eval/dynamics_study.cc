@@ -4,20 +4,23 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <optional>
 #include <utility>
 
+#include "core/parallel_for.h"
 #include "dynamics/baselines.h"
-#include "learn/mlp.h"
 #include "dynamics/propagation.h"
 #include "dynamics/quasistatic.h"
 #include "dynamics/removal_model.h"
 #include "dynamics/synthesis_model.h"
 #include "eval/metrics.h"
 #include "eval/synthesis_scoring.h"
+#include "learn/mlp.h"
 #include "sim/performance.h"
 #include "sim/procedural_face.h"
 #include "sim/skull_motion.h"
@@ -196,64 +199,87 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                           : fmt::format("{}@{:g}Hz", expression, hz);
   };
   const bool several_amplitudes = options.train_amplitudes_mm.size() > 1;
+  // Every take is listed first (name, seed, list) and then simulated on the machine's cores,
+  // each on one thread as the demo's dynamics stage does (one simulation is one core's work):
+  // each take has its own seed, so the takes do not depend on the order they run in.
+  struct Job {
+    std::string name;
+    std::string protocol;
+    std::vector<SimTake>* list;
+    std::function<StatusOr<Take>()> simulate;
+  };
+  std::vector<Job> jobs;
+  std::vector<SimTake> train_speech;
   for (size_t h = 0; h < options.train_hz.size(); ++h) {
     const double hz = options.train_hz[h];
     for (size_t a = 0; a < options.train_amplitudes_mm.size(); ++a) {
       const double amplitude_mm = options.train_amplitudes_mm[a];
       for (size_t e = 0; e < options.expressions.size(); ++e) {
         const std::string& expression = options.expressions[e];
-        spdlog::info("simulating training take {} at {} Hz, {} mm", expression, hz, amplitude_mm);
-        FACEDYN_ASSIGN_OR_RETURN(
-            Take take, Simulate(rig, expression, hz, amplitude_mm, options, train_seed(h, a, e)));
-        train.push_back(
-            {name_of(expression, hz, amplitude_mm, several_amplitudes), std::move(take), "training"});
+        const uint64_t take_seed = train_seed(h, a, e);
+        jobs.push_back({name_of(expression, hz, amplitude_mm, several_amplitudes), "training",
+                        &train, [&, expression, hz, amplitude_mm, take_seed] {
+                          return Simulate(rig, expression, hz, amplitude_mm, options, take_seed);
+                        }});
       }
     }
   }
-  std::vector<SimTake> train_speech;
   if (options.train_speech) {
     for (size_t h = 0; h < options.train_hz.size(); ++h) {
       const double hz = options.train_hz[h];
       for (size_t a = 0; a < options.train_amplitudes_mm.size(); ++a) {
         const double amplitude_mm = options.train_amplitudes_mm[a];
-        spdlog::info("simulating training take speech at {} Hz, {} mm", hz, amplitude_mm);
-        FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, "speech", hz, amplitude_mm, options,
-                                                     train_seed(h, a, options.expressions.size())));
-        train_speech.push_back(
-            {name_of("speech", hz, amplitude_mm, several_amplitudes), std::move(take), "training"});
+        const uint64_t take_seed = train_seed(h, a, options.expressions.size());
+        jobs.push_back({name_of("speech", hz, amplitude_mm, several_amplitudes), "training",
+                        &train_speech, [&, hz, amplitude_mm, take_seed] {
+                          return Simulate(rig, "speech", hz, amplitude_mm, options, take_seed);
+                        }});
       }
     }
   }
   uint64_t seed = options.seed + options.train_hz.size() * seeds_per_frequency;
   for (const std::string& expression : options.expressions) {
-    spdlog::info("simulating test take {} at {} Hz", expression, options.test_hz);
-    FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, expression, options.test_hz,
-                                                 options.test_amplitude_mm, options, ++seed));
-    test.push_back({expression + "@" + fmt::format("{:g}Hz", options.test_hz), std::move(take),
-                    "held-out frequency"});
+    const uint64_t take_seed = ++seed;
+    jobs.push_back({expression + "@" + fmt::format("{:g}Hz", options.test_hz), "held-out frequency",
+                    &test, [&, expression, take_seed] {
+                      return Simulate(rig, expression, options.test_hz, options.test_amplitude_mm,
+                                      options, take_seed);
+                    }});
   }
   if (options.speech_hz > 0) {
-    spdlog::info("simulating test take speech at {} Hz", options.speech_hz);
-    FACEDYN_ASSIGN_OR_RETURN(Take take, Simulate(rig, "speech", options.speech_hz,
-                                                 options.test_amplitude_mm, options, ++seed));
-    test.push_back({"speech@" + fmt::format("{:g}Hz", options.speech_hz), std::move(take),
-                    "held-out performance (speech)"});
+    const uint64_t take_seed = ++seed;
+    jobs.push_back({"speech@" + fmt::format("{:g}Hz", options.speech_hz),
+                    "held-out performance (speech)", &test, [&, take_seed] {
+                      return Simulate(rig, "speech", options.speech_hz, options.test_amplitude_mm,
+                                      options, take_seed);
+                    }});
   }
   // Seeds of the held-out expression and motion takes count on from here, so adding them does
   // not move the seeds (and figures) of the takes above.
   for (const std::string& expression : options.held_out_expressions) {
-    spdlog::info("simulating held-out expression {} at {} Hz", expression,
-                 options.held_out_expression_hz);
-    FACEDYN_ASSIGN_OR_RETURN(Take take,
-                             Simulate(rig, expression, options.held_out_expression_hz,
-                                      options.test_amplitude_mm, options, ++seed));
-    test.push_back({fmt::format("{}@{:g}Hz", expression, options.held_out_expression_hz),
-                    std::move(take), "held-out expression"});
+    const uint64_t take_seed = ++seed;
+    jobs.push_back({fmt::format("{}@{:g}Hz", expression, options.held_out_expression_hz),
+                    "held-out expression", &test, [&, expression, take_seed] {
+                      return Simulate(rig, expression, options.held_out_expression_hz,
+                                      options.test_amplitude_mm, options, take_seed);
+                    }});
   }
   for (const std::string& motion : options.held_out_motions) {
-    spdlog::info("simulating held-out motion {} (neutral, in place)", motion);
-    FACEDYN_ASSIGN_OR_RETURN(Take take, SimulateMotion(rig, motion, options, ++seed));
-    test.push_back({"neutral " + motion + " in place", std::move(take), "held-out motion kind"});
+    const uint64_t take_seed = ++seed;
+    jobs.push_back(
+        {"neutral " + motion + " in place", "held-out motion kind", &test,
+         [&, motion, take_seed] { return SimulateMotion(rig, motion, options, take_seed); }});
+  }
+  std::vector<std::optional<Take>> simulated(jobs.size());
+  std::atomic<int> finished{0};
+  FACEDYN_RETURN_IF_ERROR(ParallelFor(static_cast<int>(jobs.size()), 0, [&](int k) -> Status {
+    FACEDYN_ASSIGN_OR_RETURN(Take take, jobs[k].simulate());
+    simulated[k] = std::move(take);
+    spdlog::info("simulated {} ({}/{})", jobs[k].name, ++finished, jobs.size());
+    return Status::Ok();
+  }));
+  for (size_t k = 0; k < jobs.size(); ++k) {
+    jobs[k].list->push_back({jobs[k].name, std::move(*simulated[k]), jobs[k].protocol});
   }
   const double simulate_s = SecondsSince(simulate_start);
 

@@ -134,8 +134,7 @@ StatusOr<Json> CompareRemovalOnReconstruction(const dynamics::RemovalModel& f_mo
       evaluation.oracle_cutoff_hz);
   if (removed_out != nullptr) *removed_out = std::move(removed);
   return Json{{"take", take_name + " reconstructed"},
-              {"truth", "exact quasistatic of the simulation whose projected marker centres were "
-                        "reconstructed"},
+              {"truth", "exact quasistatic of the simulation that was reconstructed"},
               {"scored_frames", {scored.begin, scored.end}},
               {"jiggle_vertices", jiggle.size()},
               {"mean_dynamic_offset_mm", Round4(offset_mm)},

@@ -59,10 +59,9 @@ struct FilmTimings {
 // (sim::FaceRenderer: shaded skin, painted dots, lens distortion, blur, read and shot noise,
 // self-occlusion), the dots detected in the images (reconstruct::DetectMarkersInImages, with
 // the detector tuned to the dots' size at the face's distance), then reconstruct::ReconstructTake
-// with the calibrated cameras, as `facedyn capture` + `facedyn reconstruct` would. Rendering and
-// detection cost about 0.1-0.15 s per frame of 8 cameras on 2 cores (README), so the demo
-// films the takes it scores on and uses ReconstructSimulatedTake's projected centres for its
-// training takes. `render` defaults to
+// with the calibrated cameras, as `facedyn capture` + `facedyn reconstruct` would. The demo
+// films every take it reconstructs this way (README: what it costs per frame). `render`
+// defaults to
 // config/capture/sim8.yaml's optics; `threads` 0 = every core. Errors: as
 // ReconstructSimulatedTake, and a detection failure (naming the frame and camera).
 struct FilmOptions {

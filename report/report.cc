@@ -297,12 +297,10 @@ std::string DynamicsSection(const Json& dynamics) {
   const Json& setup = Field(dynamics, "setup");
   std::string html = "<h2 id=\"dynamics\">Secondary dynamics, trained on reconstructed takes</h2>";
   html += fmt::format(
-      "<p>Subject A held {} on the platform at {} Hz ({} takes of {} s); the training takes "
-      "and training walks were simulated and reconstructed from projected marker centres (the "
-      "markers' true centres projected into the 8 simulated cameras with 0.2 px noise; no "
-      "images rendered or detected). Every take scored on was filmed: rendered by the 8 "
-      "cameras and its dots detected (the held-out take of the reconstruction section, the "
-      "test walk and the speech performance). {} "
+      "<p>Subject A held {} on the platform at {} Hz ({} takes of {} s). Every take was "
+      "simulated and filmed: rendered by the 8 simulated cameras, its dots detected in the "
+      "images and reconstructed (the training takes and walks, the held-out take of the "
+      "reconstruction section, the test walk and the speech performance). {} "
       "The removal network F was "
       "trained on the reconstructed takes with {} targets ({} epochs), "
       "the synthesis network H on those takes decomposed by F ({} epochs). Errors are against the "

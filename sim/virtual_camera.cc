@@ -51,6 +51,7 @@ void AddNoiseAndQuantise(const float* radiance, size_t pixels, float scale, floa
   typedef float Floats __attribute__((vector_size(8 * sizeof(float))));
   typedef uint64_t Words __attribute__((vector_size(8 * sizeof(uint64_t))));
   typedef int32_t Ints __attribute__((vector_size(8 * sizeof(int32_t))));
+  typedef uint8_t Bytes __attribute__((vector_size(8)));
   constexpr uint64_t kMask = (uint64_t{1} << kNoiseTableBits) - 1;
   const Words lane = {0, 1, 2, 3, 4, 5, 6, 7};
   size_t i = 0;
@@ -72,8 +73,9 @@ void AddNoiseAndQuantise(const float* radiance, size_t pixels, float scale, floa
     Floats value = dn + sigma * n;
     value = value > 0.0f ? value : 0.0f;
     value = value < 255.0f ? value : 255.0f;
-    const Ints rounded = __builtin_convertvector(value + 0.5f, Ints);
-    for (int j = 0; j < 8; ++j) out[i + j] = static_cast<uint8_t>(rounded[j]);
+    const Bytes rounded =
+        __builtin_convertvector(__builtin_convertvector(value + 0.5f, Ints), Bytes);
+    std::memcpy(out + i, &rounded, sizeof(rounded));
   }
   for (; i < pixels; ++i) {
     const float dn = radiance[i] * scale;
@@ -168,10 +170,23 @@ FaceRenderer::FaceRenderer(const FaceRig& rig, const RenderOptions& options) : o
       }
     }
   }
+  // Per (triangle, dot) pair: |p(w) - m|^2 for the rest-pose point p(w) = w0 a + w1 b +
+  // (1 - w0 - w1) c, expanded in w0, w1 around c - m (double here, float per pixel).
   triangle_marker_offsets_.assign(1, 0);
-  for (const auto& list : lists) {
-    triangle_markers_.insert(triangle_markers_.end(), list.begin(), list.end());
-    triangle_marker_offsets_.push_back(static_cast<int>(triangle_markers_.size()));
+  for (int t = 0; t < triangle_count; ++t) {
+    const Eigen::Vector3d a = rest_.col(triangles_(0, t)), b = rest_.col(triangles_(1, t)),
+                          c = rest_.col(triangles_(2, t));
+    const Eigen::Vector3d e0 = a - c, e1 = b - c;
+    for (const int m : lists[t]) {
+      const Eigen::Vector3d p0 = c - marker_rest_.col(m);
+      MarkerTerm term;
+      term.c = {static_cast<float>(p0.squaredNorm()), static_cast<float>(2 * p0.dot(e0)),
+                static_cast<float>(2 * p0.dot(e1)),   static_cast<float>(e0.squaredNorm()),
+                static_cast<float>(2 * e0.dot(e1)),   static_cast<float>(e1.squaredNorm())};
+      term.radius_mm = static_cast<float>(marker_radius_mm_[m]);
+      marker_terms_.push_back(term);
+    }
+    triangle_marker_offsets_.push_back(static_cast<int>(marker_terms_.size()));
   }
 }
 
@@ -279,18 +294,26 @@ void FaceRenderer::AccumulateInstant(const capture::CameraModel& camera,
         const float shade = (l0 * sa + l1 * sb + l2 * sc) * z;
         float albedo = skin;
         if (marker_begin != marker_end) {
-          // Perspective-correct barycentrics, then the paint's rest-pose coordinates.
-          const float w0 = l0 * iza * z, w1 = l1 * izb * z, w2 = 1.0f - w0 - w1;
-          const Eigen::Vector3d point =
-              w0 * rest_.col(ia) + w1 * rest_.col(ib) + w2 * rest_.col(ic);
+          // Perspective-correct barycentrics; each nearby dot's squared rest-pose distance is a
+          // quadratic in them (MarkerTerm). Coverage is 0 beyond r + footprint / 2 and 1 within
+          // r - footprint / 2, so only the dot's rim needs the square root.
+          const float w0 = l0 * iza * z, w1 = l1 * izb * z;
           const float footprint_mm = z * inv_focal;
           float coverage = 0.0f;
           for (int i = marker_begin; i < marker_end; ++i) {
-            const int m = triangle_markers_[i];
-            const float d = static_cast<float>((point - marker_rest_.col(m)).norm());
-            const float c = std::clamp(
-                (static_cast<float>(marker_radius_mm_[m]) - d) / footprint_mm + 0.5f, 0.0f, 1.0f);
-            coverage = std::max(coverage, c);
+            const MarkerTerm& term = marker_terms_[i];
+            const float d2 = term.c[0] + w0 * (term.c[1] + w0 * term.c[3] + w1 * term.c[4]) +
+                             w1 * (term.c[2] + w1 * term.c[5]);
+            const float outer = term.radius_mm + 0.5f * footprint_mm;
+            if (d2 >= outer * outer) continue;
+            const float inner = term.radius_mm - 0.5f * footprint_mm;
+            if (inner > 0.0f && d2 <= inner * inner) {
+              coverage = 1.0f;
+              break;
+            }
+            const float d = std::sqrt(std::max(d2, 0.0f));
+            coverage = std::max(coverage,
+                                std::clamp((term.radius_mm - d) / footprint_mm + 0.5f, 0.0f, 1.0f));
           }
           albedo = skin + (paint - skin) * coverage;
         }

@@ -27,6 +27,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -108,9 +109,15 @@ class FaceRenderer {
   Eigen::Matrix3Xd rest_;  // neutral positions, the paint's coordinates
   Eigen::Matrix3Xd marker_rest_;
   std::vector<double> marker_radius_mm_;
-  // CSR lists of markers that can touch each triangle.
+  // CSR lists of the dots that can touch each triangle: per (triangle, dot), the squared
+  // rest-pose distance to the dot's centre as a quadratic in the first two barycentrics,
+  // c0 + c1 w0 + c2 w1 + c3 w0^2 + c4 w0 w1 + c5 w1^2, and the dot's radius.
+  struct MarkerTerm {
+    std::array<float, 6> c{};
+    float radius_mm = 0.0f;
+  };
   std::vector<int> triangle_marker_offsets_;
-  std::vector<int> triangle_markers_;
+  std::vector<MarkerTerm> marker_terms_;
   bool outward_ccw_ = true;  // winding of the front side
 };
 

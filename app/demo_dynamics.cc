@@ -9,12 +9,14 @@
 #include <cstdio>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <utility>
 
 #include "report/face_render.h"
 #include "report/take_viewer.h"
 #include "core/file_util.h"
+#include "core/parallel_for.h"
 #include "dynamics/baselines.h"
 #include "dynamics/features.h"
 #include "dynamics/modal_synthesis.h"
@@ -222,11 +224,29 @@ Json TrainingJson(const learn::MlpTrainSummary& summary, int epochs) {
           {"rows_per_s", std::round(summary.rows_per_s)}};
 }
 
+// One line for a network trained without a progress bar (beside another that has one).
+void LogTrained(const std::string& label, const learn::MlpTrainSummary& summary) {
+  spdlog::info("trained {}: {} epochs, {} steps in {:.1f} s, loss {:.4g}{}", label, summary.epochs,
+               summary.optimizer_steps, summary.train_s,
+               summary.train_loss.empty() ? 0.0 : summary.train_loss.back(),
+               summary.validation_loss.empty()
+                   ? std::string()
+                   : fmt::format(" val {:.4g}", summary.validation_loss.back()));
+}
+
+// Independent jobs (network trainings, each on one core: LibTorch does not spread these small
+// networks' batches over threads) run two at a time on the machine's cores, in list order as
+// workers free up. The first failure is returned (the lowest failing job's).
+Status RunSideBySide(const std::vector<std::function<Status()>>& jobs) {
+  return ParallelFor(static_cast<int>(jobs.size()), ParallelThreadCount(0, 2),
+                     [&](int index) { return jobs[index](); });
+}
+
 // F on reconstructed takes, with targets a capture has (moving average, platform-synchronous).
 StatusOr<dynamics::RemovalModel> TrainF(const std::vector<Take>& takes, const FaceRig& face,
                                         dynamics::RemovalTargets targets, int epochs, int batch,
                                         uint64_t seed, const std::string& label,
-                                        learn::MlpTrainSummary* summary,
+                                        learn::MlpTrainSummary* summary, bool show_progress,
                                         long optimizer_steps = 0) {
   std::vector<dynamics::TrainingTake> training;
   for (const Take& take : takes) training.push_back({&take, &face});
@@ -238,15 +258,19 @@ StatusOr<dynamics::RemovalModel> TrainF(const std::vector<Take>& takes, const Fa
   options.train.seed = seed;
   options.train.final_learning_rate_fraction = 0.05;
   options.train.progress_label = label;
+  options.train.show_progress = show_progress;
   spdlog::info("training {} on {} reconstructed takes ({} epochs, {} targets)", label, takes.size(),
                epochs, dynamics::RemovalTargetsName(targets));
-  return dynamics::TrainRemoval(training, options, summary);
+  StatusOr<dynamics::RemovalModel> model = dynamics::TrainRemoval(training, options, summary);
+  if (model.ok() && !show_progress && summary != nullptr) LogTrained(label, *summary);
+  return model;
 }
 
 // H on takes decomposed by F (positions = F's quasistatic, channel dynamic_offset = F's dx).
 StatusOr<dynamics::SynthesisModel> TrainH(const std::vector<Take>& decomposed, const FaceRig& face,
                                           int epochs, uint64_t seed, const std::string& label,
-                                          learn::MlpTrainSummary* summary) {
+                                          learn::MlpTrainSummary* summary,
+                                          bool show_progress) {
   std::vector<dynamics::TrainingTake> training;
   for (const Take& take : decomposed) training.push_back({&take, &face});
   dynamics::SynthesisTrainOptions options;
@@ -254,9 +278,12 @@ StatusOr<dynamics::SynthesisModel> TrainH(const std::vector<Take>& decomposed, c
   options.train.seed = seed;
   options.train.final_learning_rate_fraction = 0.05;
   options.train.progress_label = label;
+  options.train.show_progress = show_progress;
   spdlog::info("training {} on {} takes decomposed by F ({} epochs)", label, decomposed.size(),
                epochs);
-  return dynamics::TrainSynthesis(training, options, summary);
+  StatusOr<dynamics::SynthesisModel> model = dynamics::TrainSynthesis(training, options, summary);
+  if (model.ok() && !show_progress && summary != nullptr) LogTrained(label, *summary);
+  return model;
 }
 
 // The modal synthesis (dynamics/modal_synthesis.h) on a subject's reconstructed held takes,
@@ -443,14 +470,111 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   for (const Json& entry : b.reconstruction) reconstruction.push_back(entry);
   const double data_s = SecondsSince(data_start);
 
-  // --- 2. removal F on A's reconstructed takes, tested on the held-out frequency ---
+  // The held-out walk: section 2 films subject A walking it, section 4 has subject B walk it for
+  // the retargeting truth (simulated beside F's training below).
+  const sim::MotionOptions walk = WalkInPlace(options.test_walk_step_hz, options.seed + 50);
+  const std::string test_name = TakeName(test_simulated.info.expression, test_hz);
+  const dynamics::FrameRange test_scored = dynamics::ScoredFrames(test_simulated, skip);
+  const std::vector<int> jiggle =
+      eval::JigglingVertices(test_simulated.channels.at("dynamic_offset"), test_scored);
+  const double test_offset_mm =
+      eval::MeanOffsetNorm(test_simulated.channels.at("dynamic_offset"), jiggle, test_scored);
+  const PointCache& test_truth = test_simulated.channels.at("quasistatic");
+
+  // Paper Fig. 5: F trained on the slowest 1 .. n frequencies. Every bar, the full set included,
+  // is trained with the same options and exactly the same number of Adam steps
+  // (learn::MlpTrainOptions::optimizer_steps): the full set trains subset_epochs first, and each
+  // subset trains that many steps on its own rows, so the bars differ only in their
+  // frequencies. Round 1 took the last bar from F at removal_epochs and the others at
+  // subset_epochs.
+  const size_t n_hz = options.train_hz.size();
+  std::vector<Json> bars(n_hz);
+  long budget_steps = 0;
+  auto train_bar = [&](size_t k) -> Status {
+    const size_t per_frequency = options.expressions.size();
+    std::vector<Take> subset(a.reconstructed.begin(), a.reconstructed.begin() + k * per_frequency);
+    subset.insert(subset.end(), a.reconstructed.begin() + n_hz * per_frequency,
+                  a.reconstructed.end());
+    learn::MlpTrainSummary subset_summary;
+    FACEDYN_ASSIGN_OR_RETURN(
+        const dynamics::RemovalModel model,
+        TrainF(subset, face, options.removal_targets, options.subset_epochs, options.removal_batch,
+               options.seed, fmt::format("F on {} frequencies", k), &subset_summary,
+               /*show_progress=*/false, k == n_hz ? 0 : budget_steps));
+    if (k == n_hz) budget_steps = subset_summary.optimizer_steps;
+    FACEDYN_ASSIGN_OR_RETURN(const Take subset_removed,
+                             dynamics::RemoveDynamics(model, test_reconstructed, face));
+    const double error_mm =
+        eval::MeanDistanceOverVertices(subset_removed.positions, test_truth, jiggle, test_scored);
+    bars[k - 1] = {
+        {"train_hz", std::vector<double>(options.train_hz.begin(), options.train_hz.begin() + k)},
+        {"training_walk_step_hz", options.training_walk_step_hz},
+        {"epochs", subset_summary.epochs},
+        {"training_rows", subset_summary.training_rows},
+        {"optimizer_steps", subset_summary.optimizer_steps},
+        {"jiggle_mean_mm", Round4(error_mm)},
+        {"relative_to_offset", Round4(test_offset_mm > 0 ? error_mm / test_offset_mm : 0)}};
+    return Status::Ok();
+  };
+
+  // --- 2. the networks that need only the data, two at a time ---
+  // A's removal F; subject B's chain (F_B, B's takes decomposed by it, H_B, B's modal model, and
+  // B walking the held-out walk for the retargeting truth); Fig. 5's full-set bar. LibTorch
+  // trains these small networks on one core (the default demo's CPU, sampled every 2 s, read
+  // 1.00 through F's 90 s), so two at once take about the time of one. The results are those of
+  // training one after the other (learn/mlp.h, Determinism): only F shows a progress bar.
+  const auto networks_start = Clock::now();
+  std::optional<dynamics::RemovalModel> f_trained;
   learn::MlpTrainSummary f_summary;
-  FACEDYN_ASSIGN_OR_RETURN(
-      const dynamics::RemovalModel f_model,
-      TrainF(a.reconstructed, face, options.removal_targets, options.removal_epochs,
-             options.removal_batch, options.seed, "F", &f_summary));
-  FACEDYN_RETURN_IF_ERROR(f_model.Save(JoinPath(models_dir, "F.pt")));
+  struct SubjectBModels {
+    std::optional<dynamics::RemovalModel> f;
+    std::optional<dynamics::SynthesisModel> h;
+    std::optional<dynamics::ModalSynthesisModel> modal;
+    learn::MlpTrainSummary f_summary, h_summary;
+    Json modal_fit;
+    Eigen::Matrix3Xd shape;  // the quasistatic: mean shape of F_B's removal of B's neutral take
+    std::optional<Take> walk_truth;
+  } b_models;
+  auto train_b_chain = [&]() -> Status {
+    FACEDYN_ASSIGN_OR_RETURN(
+        b_models.f, TrainF(b.reconstructed, face_b, options.removal_targets,
+                           options.second_subject_removal_epochs, options.removal_batch,
+                           options.seed, "F_B", &b_models.f_summary, /*show_progress=*/false));
+    std::vector<Take> decomposed_b;
+    for (const Take& take : b.reconstructed) {
+      FACEDYN_ASSIGN_OR_RETURN(Take decomposed,
+                               dynamics::RemoveDynamics(*b_models.f, take, face_b));
+      decomposed_b.push_back(std::move(decomposed));
+    }
+    FACEDYN_ASSIGN_OR_RETURN(b_models.h, TrainH(decomposed_b, face_b, options.synthesis_epochs,
+                                                options.seed, "H_B", &b_models.h_summary,
+                                                /*show_progress=*/false));
+    FACEDYN_RETURN_IF_ERROR(b_models.h->Save(JoinPath(models_dir, "H_B.pt")));
+    b_models.shape = dynamics::MeanShapeInSkull(decomposed_b.front(), skip);
+    decomposed_b.clear();
+    FACEDYN_ASSIGN_OR_RETURN(b_models.modal, TrainModal(b.reconstructed, face_b, options.seed,
+                                                        "modal_B", &b_models.modal_fit));
+    spdlog::info("simulating subject B walking subject A's walk ({:.1f} s) for the truth",
+                 options.walk_seconds);
+    FACEDYN_ASSIGN_OR_RETURN(b_models.walk_truth,
+                             Simulate(face_b, "neutral", walk, options.walk_seconds, tissue_b,
+                                      options.seed + 50));
+    return Status::Ok();
+  };
+  std::vector<std::function<Status()>> first_networks = {
+      [&]() -> Status {
+        FACEDYN_ASSIGN_OR_RETURN(
+            f_trained, TrainF(a.reconstructed, face, options.removal_targets,
+                              options.removal_epochs, options.removal_batch, options.seed, "F",
+                              &f_summary, /*show_progress=*/true));
+        return f_trained->Save(JoinPath(models_dir, "F.pt"));
+      },
+      train_b_chain};
+  if (options.subset_epochs > 0) first_networks.push_back([&] { return train_bar(n_hz); });
+  FACEDYN_RETURN_IF_ERROR(RunSideBySide(first_networks));
+  const dynamics::RemovalModel& f_model = *f_trained;
   training["F"] = TrainingJson(f_summary, options.removal_epochs);
+  const double networks_s = SecondsSince(networks_start);
 
   // The modal model (dynamics/modal_synthesis.h) on the same held takes, decomposed by their held
   // mean: a removal by synthesis from the skull's motion beside F, and A's synthesis in section 3.
@@ -473,7 +597,6 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
 
   Take removed;
   std::vector<Take> modal_storage;
-  const std::string test_name = TakeName(test_simulated.info.expression, test_hz);
   {
     double cutoff_hz = 0.0;
     FACEDYN_ASSIGN_OR_RETURN(const std::vector<eval::NamedRemoval> others,
@@ -485,12 +608,6 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
     result["removal"]["methods"]["modal_lowpass"]["cutoff_hz"] = Round4(cutoff_hz);
   }
   result["removal"]["F_targets"] = dynamics::RemovalTargetsName(options.removal_targets);
-  const dynamics::FrameRange test_scored = dynamics::ScoredFrames(test_simulated, skip);
-  const std::vector<int> jiggle =
-      eval::JigglingVertices(test_simulated.channels.at("dynamic_offset"), test_scored);
-  const double test_offset_mm =
-      eval::MeanOffsetNorm(test_simulated.channels.at("dynamic_offset"), jiggle, test_scored);
-  const PointCache& test_truth = test_simulated.channels.at("quasistatic");
   // A copy: Json is an ordered_json, whose objects are vectors that move on insertion.
   const Json methods = result["removal"]["methods"];
 
@@ -504,7 +621,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   //   walk's dynamics are at the step rate and its first harmonics (2-6 Hz), in the band a
   //   low-pass must pass to keep a performance, where the platform's 6-11 Hz are above it. The
   //   simulation is also the truth for H's synthesis of the walk (section 3).
-  const sim::MotionOptions walk = WalkInPlace(options.test_walk_step_hz, options.seed + 50);
+  const auto held_out_start = Clock::now();
   std::vector<TakeSpec> extra_specs = {
       {fmt::format("{} walk {:g} steps/s", test_simulated.info.expression,
                    options.test_walk_step_hz),
@@ -543,47 +660,31 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   result["removal_walk"]["training_walk_step_hz"] = options.training_walk_step_hz;
   Take walk_truth = std::move(extra.simulated.front());
   extra = SubjectTakes();
+  const double held_out_s = SecondsSince(held_out_start);
 
-  // Paper Fig. 5: F trained on the slowest 1 .. n frequencies.
-  if (options.subset_epochs > 0) {
-    const size_t n = options.train_hz.size();
-    const size_t per_frequency = options.expressions.size();
-    // Every bar, the full set included, is trained here with the same options and exactly the
-    // same number of Adam steps (learn::MlpTrainOptions::optimizer_steps): the full set trains
-    // subset_epochs first, and each subset trains that many steps on its own rows, so the bars
-    // differ only in their frequencies. Round 1 took the last bar from F at removal_epochs and
-    // the others at subset_epochs.
-    std::vector<Json> bars(n);
-    long budget_steps = 0;
-    std::vector<size_t> order = {n};
-    for (size_t k = 1; k < n; ++k) order.push_back(k);
-    for (size_t k : order) {
-      std::vector<Take> subset(a.reconstructed.begin(),
-                               a.reconstructed.begin() + k * per_frequency);
-      const size_t platform_takes = n * per_frequency;
-      subset.insert(subset.end(), a.reconstructed.begin() + platform_takes,
-                    a.reconstructed.end());
-      learn::MlpTrainSummary subset_summary;
-      FACEDYN_ASSIGN_OR_RETURN(
-          const dynamics::RemovalModel model,
-          TrainF(subset, face, options.removal_targets, options.subset_epochs,
-                 options.removal_batch, options.seed, fmt::format("F on {} frequencies", k),
-                 &subset_summary, budget_steps));
-      if (k == n) budget_steps = subset_summary.optimizer_steps;
-      FACEDYN_ASSIGN_OR_RETURN(const Take subset_removed,
-                               dynamics::RemoveDynamics(model, test_reconstructed, face));
-      const double error_mm = eval::MeanDistanceOverVertices(subset_removed.positions, test_truth,
-                                                             jiggle, test_scored);
-      bars[k - 1] = {
-          {"train_hz",
-           std::vector<double>(options.train_hz.begin(), options.train_hz.begin() + k)},
-          {"training_walk_step_hz", options.training_walk_step_hz},
-          {"epochs", subset_summary.epochs},
-          {"training_rows", subset_summary.training_rows},
-          {"optimizer_steps", subset_summary.optimizer_steps},
-          {"jiggle_mean_mm", Round4(error_mm)},
-          {"relative_to_offset", Round4(test_offset_mm > 0 ? error_mm / test_offset_mm : 0)}};
+  // --- 3. synthesis H on A's takes decomposed by F, beside Fig. 5's subset bars ---
+  const auto second_networks_start = Clock::now();
+  std::optional<dynamics::SynthesisModel> h_trained;
+  learn::MlpTrainSummary h_summary;
+  std::vector<std::function<Status()>> second_networks = {[&]() -> Status {
+    std::vector<Take> decomposed_a;
+    for (const Take& take : a.reconstructed) {
+      FACEDYN_ASSIGN_OR_RETURN(Take decomposed, dynamics::RemoveDynamics(f_model, take, face));
+      decomposed_a.push_back(std::move(decomposed));
     }
+    FACEDYN_ASSIGN_OR_RETURN(h_trained, TrainH(decomposed_a, face, options.synthesis_epochs,
+                                               options.seed, "H", &h_summary,
+                                               /*show_progress=*/false));
+    return h_trained->Save(JoinPath(models_dir, "H.pt"));
+  }};
+  if (options.subset_epochs > 0) {
+    for (size_t k = 1; k < n_hz; ++k) second_networks.push_back([&, k] { return train_bar(k); });
+  }
+  FACEDYN_RETURN_IF_ERROR(RunSideBySide(second_networks));
+  const dynamics::SynthesisModel& h_model = *h_trained;
+  training["H"] = TrainingJson(h_summary, options.synthesis_epochs);
+  const double second_networks_s = SecondsSince(second_networks_start);
+  if (options.subset_epochs > 0) {
     Json subsets = Json::array();
     for (Json& bar : bars) subsets.push_back(std::move(bar));
     result["removal_by_training_frequencies"] = {
@@ -596,20 +697,6 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
           {"moving_average", methods["moving_average"]["jiggle_mean_mm"]},
           {"no_removal", methods["no_removal"]["jiggle_mean_mm"]}}}};
   }
-
-  // --- 3. synthesis H on A's takes decomposed by F ---
-  std::vector<Take> decomposed_a;
-  for (const Take& take : a.reconstructed) {
-    FACEDYN_ASSIGN_OR_RETURN(Take decomposed, dynamics::RemoveDynamics(f_model, take, face));
-    decomposed_a.push_back(std::move(decomposed));
-  }
-  learn::MlpTrainSummary h_summary;
-  FACEDYN_ASSIGN_OR_RETURN(
-      const dynamics::SynthesisModel h_model,
-      TrainH(decomposed_a, face, options.synthesis_epochs, options.seed, "H", &h_summary));
-  FACEDYN_RETURN_IF_ERROR(h_model.Save(JoinPath(models_dir, "H.pt")));
-  training["H"] = TrainingJson(h_summary, options.synthesis_epochs);
-  decomposed_a.clear();
 
   // Fig. 7: remove, then resynthesise the held-out take with its own head motion.
   FACEDYN_ASSIGN_OR_RETURN(
@@ -667,37 +754,16 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   }
   result["synthesis"] = synthesis;
 
-  // --- 4. retargeting to subject B: B's own F and H, A's walk ---
-  learn::MlpTrainSummary fb_summary, hb_summary;
-  FACEDYN_ASSIGN_OR_RETURN(dynamics::RemovalModel fb_model,
-                           TrainF(b.reconstructed, face_b, options.removal_targets,
-                                  options.second_subject_removal_epochs, options.removal_batch,
-                                  options.seed, "F_B", &fb_summary));
-  training["F_B"] = TrainingJson(fb_summary, options.second_subject_removal_epochs);
-  std::vector<Take> decomposed_b;
-  for (const Take& take : b.reconstructed) {
-    FACEDYN_ASSIGN_OR_RETURN(Take decomposed, dynamics::RemoveDynamics(fb_model, take, face_b));
-    decomposed_b.push_back(std::move(decomposed));
-  }
-  FACEDYN_ASSIGN_OR_RETURN(
-      const dynamics::SynthesisModel hb_model,
-      TrainH(decomposed_b, face_b, options.synthesis_epochs, options.seed, "H_B", &hb_summary));
-  FACEDYN_RETURN_IF_ERROR(hb_model.Save(JoinPath(models_dir, "H_B.pt")));
-  training["H_B"] = TrainingJson(hb_summary, options.synthesis_epochs);
-  // B's quasistatic: the shape of F_B's removal of B's first (neutral) take.
-  const Eigen::Matrix3Xd shape_b = dynamics::MeanShapeInSkull(decomposed_b.front(), skip);
-  decomposed_b.clear();
-  std::printf("  simulating subject B walking subject A's walk (%.1f s) for the truth\n",
-              options.walk_seconds);
-  std::fflush(stdout);
-  FACEDYN_ASSIGN_OR_RETURN(
-      Take retarget_truth,
-      Simulate(face_b, "neutral", walk, options.walk_seconds, tissue_b, options.seed + 50));
+  // --- 4. retargeting to subject B: B's own F and H (trained in section 2), A's walk ---
+  dynamics::RemovalModel fb_model = std::move(*b_models.f);
+  const dynamics::SynthesisModel& hb_model = *b_models.h;
+  const dynamics::ModalSynthesisModel& modal_b = *b_models.modal;
+  training["F_B"] = TrainingJson(b_models.f_summary, options.second_subject_removal_epochs);
+  training["H_B"] = TrainingJson(b_models.h_summary, options.synthesis_epochs);
+  training["modal_B"] = std::move(b_models.modal_fit);
+  Take retarget_truth = std::move(*b_models.walk_truth);
   const Take b_quasistatic =
-      dynamics::HeldShapeTake(face_b, shape_b, walk_truth.world_from_skull, fps);
-  FACEDYN_ASSIGN_OR_RETURN(
-      const dynamics::ModalSynthesisModel modal_b,
-      TrainModal(b.reconstructed, face_b, options.seed, "modal_B", &training["modal_B"]));
+      dynamics::HeldShapeTake(face_b, b_models.shape, walk_truth.world_from_skull, fps);
   FACEDYN_ASSIGN_OR_RETURN(eval::RetargetingResult retargeting,
                            eval::ScoreRetargeting(hb_model, walk_truth, face, retarget_truth,
                                                   face_b, b_quasistatic, skip, &modal_b));
@@ -752,6 +818,11 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
       {"synthesis_epochs", options.synthesis_epochs},
       {"subset_epochs", options.subset_epochs},
       {"data_s", Round4(data_s)},
+      {"steps_s",
+       {{"data", Round4(data_s)},
+        {"F_beside_B_networks", Round4(networks_s)},
+        {"held_out_takes", Round4(held_out_s)},
+        {"H_beside_subset_bars", Round4(second_networks_s)}}},
       {"error_metric",
        "per-vertex |prediction - truth| in mm over frames away from the feature window at the "
        "ends; jiggle_mean_mm over vertices whose mean true offset is >= 20% of the largest"}};
@@ -772,7 +843,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
     artifacts->second_subject_reconstructed = std::move(b.reconstructed);
     artifacts->second_subject_removal = std::move(fb_model);
     artifacts->second_subject_removal_targets = options.removal_targets;
-    artifacts->second_subject_removal_steps = fb_summary.optimizer_steps;
+    artifacts->second_subject_removal_steps = b_models.f_summary.optimizer_steps;
     artifacts->second_subject_removal_batch = options.removal_batch;
     artifacts->retarget_truth = std::move(retarget_truth);
     artifacts->retargeted = std::move(retargeted);

@@ -14,6 +14,7 @@
 
 #include "app/command.h"
 #include "core/json_io.h"
+#include "core/parallel_for.h"
 #include "core/take.h"
 #include "solve/anchor.h"
 #include "solve/fdls_solver.h"
@@ -49,6 +50,7 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
     int epochs = 0;
     uint64_t seed = 1;
     int threads = 1;
+    int networks_at_once = 0;  // 0: the machine's cores
     bool json = false;
   };
   auto train_options = std::make_shared<TrainOptions>();
@@ -62,13 +64,21 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
   train->add_option("--epochs", train_options->epochs, "Epochs (0: the tables' value)");
   train->add_option("--seed", train_options->seed, "Training data and initialisation seed")
       ->capture_default_str();
-  train->add_option("--threads", train_options->threads, "LibTorch threads")->capture_default_str();
+  train->add_option("--threads", train_options->threads, "LibTorch threads per network")
+      ->capture_default_str();
+  train
+      ->add_option("--networks-at-once", train_options->networks_at_once,
+                   "Networks trained at once, one per thread (0: the machine's cores); the "
+                   "result is the same whatever the count")
+      ->capture_default_str();
   train->add_flag("--json", train_options->json, "Print the training summary as JSON");
   train->callback([train_options, selected] {
     *selected = [train_options]() -> Status {
       const TrainOptions& o = *train_options;
-      if (o.epochs < 0 || o.threads < 1)
-        return InvalidArgumentError("--epochs must be >= 0 and --threads >= 1");
+      if (o.epochs < 0 || o.threads < 1 || o.networks_at_once < 0) {
+        return InvalidArgumentError(
+            "--epochs must be >= 0, --threads >= 1 and --networks-at-once >= 0");
+      }
       FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(o.rig));
       FACEDYN_ASSIGN_OR_RETURN(const solve::Puppet puppet, solve::MakePuppet(rig));
       solve::SolveConfig config;
@@ -90,6 +100,8 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
       solve::FdlsTrainOptions train_settings;
       train_settings.seed = o.seed;
       train_settings.num_threads = o.threads;
+      train_settings.concurrent_networks =
+          o.networks_at_once > 0 ? o.networks_at_once : ParallelThreadCount(0, 1 << 20);
       train_settings.show_progress = !o.json;
       std::vector<solve::RegionTrainSummary> summaries;
       FACEDYN_ASSIGN_OR_RETURN(

@@ -86,7 +86,10 @@ StatusOr<Json> RunSolveDemoStage(const FaceRig& face, const DemoDynamicsArtifact
                            solve::MakeTrainingSet(puppet, poses, data_options));
   solve::FdlsTrainOptions train_options;
   train_options.seed = options.seed;
-  train_options.num_threads = 2;
+  // One LibTorch thread per network, two networks at once: these small networks do not speed up
+  // on a second LibTorch thread (it spins), and the jaw's and regions' are independent.
+  train_options.num_threads = 1;
+  train_options.concurrent_networks = 2;
   train_options.show_progress = true;
   std::vector<solve::RegionTrainSummary> summaries;
   FACEDYN_ASSIGN_OR_RETURN(

@@ -6,9 +6,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <utility>
+#include <vector>
 
 #include "core/file_util.h"
+#include "core/parallel_for.h"
 #include "dynamics/features.h"
 #include "dynamics/removal_model.h"
 #include "eval/metrics.h"
@@ -153,9 +156,15 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
   }
 
   // 2. The twin under head motions nobody captured: its fitted material, never the subject's.
+  // The takes are independent: simulated two at a time.
   const double fps = captured.front().info.fps;
-  std::vector<Take> twin_takes;
-  for (size_t m = 0; m < options.twin_motions.size(); ++m) {
+  const int twin_count = static_cast<int>(options.twin_motions.size());
+  for (const TwinDemoOptions::HeadMotion& motion : options.twin_motions) {
+    std::printf("  twin: %s\n", MotionLabel(motion).c_str());
+  }
+  std::fflush(stdout);
+  std::vector<std::optional<Take>> simulated_twin(twin_count);
+  FACEDYN_RETURN_IF_ERROR(ParallelFor(twin_count, 0, [&](int m) -> Status {
     sim::PerformanceOptions performance;
     performance.expression = "neutral";
     performance.seconds = options.twin_seconds;
@@ -164,14 +173,18 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
     performance.tissue = twin.prior;  // layers, density, muscles; the material is the fitted one
     performance.material = twin.material;
     performance.motion = HeadMotionOptions(options.twin_motions[m], options.seed * 100 + 10 + m);
-    std::printf("  twin: %s\n", MotionLabel(options.twin_motions[m]).c_str());
-    std::fflush(stdout);
-    FACEDYN_ASSIGN_OR_RETURN(Take take, sim::SimulatePerformance(subject, performance));
-    take.info.source = "twin perform";
-    twin_takes.push_back(std::move(take));
-  }
+    FACEDYN_ASSIGN_OR_RETURN(simulated_twin[m], sim::SimulatePerformance(subject, performance));
+    simulated_twin[m]->info.source = "twin perform";
+    return Status::Ok();
+  }));
+  std::vector<Take> twin_takes;
+  for (std::optional<Take>& take : simulated_twin) twin_takes.push_back(std::move(*take));
+  simulated_twin.clear();
 
-  // 3. F with the twin's takes beside the captured ones, on the captured F's budget and targets.
+  // 3. F with the twin's takes beside the captured ones, on the captured F's budget and targets;
+  // 4. the subject filmed under head motions no training take has, to score F against its
+  // truth. The training runs on one core (LibTorch does not spread this small network), so the
+  // held-out takes are simulated and filmed beside it.
   const dynamics::RemovalModel& f_captured = *captured_removal.model;
   dynamics::RemovalTrainOptions train;
   train.targets = captured_removal.targets;
@@ -179,16 +192,45 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
   train.train.batch_size = captured_removal.batch_size;
   train.train.seed = captured_removal.seed;
   train.train.final_learning_rate_fraction = 0.05;
+  train.train.num_threads = 1;
+  train.train.show_progress = false;  // the filming beside it shows its progress
   train.train.progress_label = "F_B augmented";
   std::vector<dynamics::TrainingTake> training;
   for (const Take& take : captured) training.emplace_back(&take, &subject);
   for (const Take& take : twin_takes) {
     training.emplace_back(&take, &subject, dynamics::RemovalTargets::kExact, options.twin_weight);
   }
+  std::optional<dynamics::RemovalModel> trained_augmented;
   learn::MlpTrainSummary augmented_summary;
-  FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel f_augmented,
-                           dynamics::TrainRemoval(training, train, &augmented_summary));
-  FACEDYN_RETURN_IF_ERROR(f_augmented.Save(JoinPath(models_dir, "F_B_augmented.pt")));
+  const int test_count = static_cast<int>(options.test_motions.size());
+  std::vector<std::optional<Take>> test_simulated(test_count);
+  std::vector<std::optional<Take>> test_reconstructed(test_count);
+  spdlog::info("training F_B augmented ({} captured, {} twin takes) beside filming {} takes",
+               captured.size(), twin_takes.size(), test_count);
+  FACEDYN_RETURN_IF_ERROR(ParallelFor(1 + test_count, 2, [&](int job) -> Status {
+    if (job == 0) {
+      FACEDYN_ASSIGN_OR_RETURN(trained_augmented,
+                               dynamics::TrainRemoval(training, train, &augmented_summary));
+      spdlog::info("trained F_B augmented: {} steps in {:.1f} s", augmented_summary.optimizer_steps,
+                   augmented_summary.train_s);
+      return trained_augmented->Save(JoinPath(models_dir, "F_B_augmented.pt"));
+    }
+    const int m = job - 1;
+    sim::PerformanceOptions performance;
+    performance.expression = "neutral";
+    performance.seconds = options.test_seconds;
+    performance.fps = fps;
+    performance.seed = options.seed + 50 + m;
+    performance.tissue = true_tissue;
+    performance.motion = HeadMotionOptions(options.test_motions[m], options.seed * 100 + 77 + m);
+    FACEDYN_ASSIGN_OR_RETURN(test_simulated[m], sim::SimulatePerformance(subject, performance));
+    FACEDYN_ASSIGN_OR_RETURN(reconstruct::Reconstruction reconstruction,
+                             eval::FilmSimulatedTake(subject, cameras, *test_simulated[m],
+                                                     options.seed * 1000 + 600 + m));
+    test_reconstructed[m] = std::move(reconstruction.take);
+    return Status::Ok();
+  }));
+  const dynamics::RemovalModel& f_augmented = *trained_augmented;
   result["training"] = {
       {"captured_takes", captured.size()},
       {"twin_takes", twin_takes.size()},
@@ -198,27 +240,16 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
       {"rows_augmented", augmented_summary.training_rows}};
   twin_takes.clear();
 
-  // 4. The subject filmed under head motions no training take has, scored against its truth.
   const int window = f_captured.config().features.window_frames();
   Json removal = Json::array();
   std::printf(
       "\nRemoval on subject %s's held-out head motions (filmed: rendered by 8 cameras, dots "
       "detected), error vs the exact quasistatic over the jiggling vertices:\n",
       subject.name.c_str());
-  for (size_t m = 0; m < options.test_motions.size(); ++m) {
-    sim::PerformanceOptions performance;
-    performance.expression = "neutral";
-    performance.seconds = options.test_seconds;
-    performance.fps = fps;
-    performance.seed = options.seed + 50 + m;
-    performance.tissue = true_tissue;
-    performance.motion = HeadMotionOptions(options.test_motions[m], options.seed * 100 + 77 + m);
+  for (int m = 0; m < test_count; ++m) {
     const std::string name = "neutral " + MotionLabel(options.test_motions[m]);
-    FACEDYN_ASSIGN_OR_RETURN(const Take simulated, sim::SimulatePerformance(subject, performance));
-    FACEDYN_ASSIGN_OR_RETURN(
-        const reconstruct::Reconstruction reconstruction,
-        eval::FilmSimulatedTake(subject, cameras, simulated, options.seed * 1000 + 600 + m));
-    const Take& reconstructed = reconstruction.take;
+    const Take& simulated = *test_simulated[m];
+    const Take& reconstructed = *test_reconstructed[m];
     FACEDYN_ASSIGN_OR_RETURN(const Take by_captured,
                              dynamics::RemoveDynamics(f_captured, reconstructed, subject));
     FACEDYN_ASSIGN_OR_RETURN(const Take by_augmented,

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <mutex>
 #include <random>
 #include <utility>
 
@@ -155,11 +156,18 @@ Mlp& Mlp::operator=(Mlp&&) noexcept = default;
 
 StatusOr<Mlp> Mlp::Create(const MlpShape& shape, uint64_t seed) {
   FACEDYN_RETURN_IF_ERROR(shape.Check());
-  torch::manual_seed(seed);
   Mlp model;
   model.impl_ = std::make_unique<Impl>();
   model.impl_->shape = shape;
-  model.impl_->net = Net(shape);
+  {
+    // The initial weights come from LibTorch's process-wide generator: seeding it and drawing
+    // them must not interleave with another thread's, or networks created at once (the demo
+    // trains independent ones side by side) would depend on the threads' timing.
+    static std::mutex global_generator_mutex;
+    std::lock_guard<std::mutex> lock(global_generator_mutex);
+    torch::manual_seed(seed);
+    model.impl_->net = Net(shape);
+  }
   model.impl_->net->eval();
   return model;
 }

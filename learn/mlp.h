@@ -29,6 +29,9 @@
 // MlpTrainOptions::seed): training on CPU is reproducible for a seed and a LibTorch thread count
 // (MlpTrainOptions::num_threads; LibTorch's intra-op parallelism splits work statically, so the
 // same count gives the same summation order). torch::set_num_threads is process-wide.
+// Independent networks may be created and trained on different threads at once with the same
+// results as one after the other: Create seeds and draws the initial weights under a lock, and
+// training draws only from its own generators.
 #pragma once
 
 #include <Eigen/Core>

@@ -6,10 +6,13 @@
 #include <chrono>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <random>
 
 #include "core/file_util.h"
 #include "core/json_io.h"
+#include "core/parallel_for.h"
+#include "core/progress.h"
 
 namespace facedyn::solve {
 namespace {
@@ -47,6 +50,9 @@ Eigen::MatrixXd Rows(const Eigen::MatrixXd& matrix, const std::vector<int>& rows
 
 Status FdlsTrainOptions::Check() const {
   if (num_threads < 0) return InvalidArgumentError(fmt::format("num_threads: {} < 0", num_threads));
+  if (concurrent_networks < 1) {
+    return InvalidArgumentError(fmt::format("concurrent_networks: {} < 1", concurrent_networks));
+  }
   if (!(validation_fraction >= 0.0 && validation_fraction < 0.9)) {
     return InvalidArgumentError(
         fmt::format("validation_fraction: {} is not in [0, 0.9)", validation_fraction));
@@ -148,27 +154,34 @@ StatusOr<FdlsSolver> FdlsSolver::Train(const Puppet& puppet, const ResolvedConfi
   FdlsSolver solver;
   solver.puppet_ = puppet;
   if (summaries != nullptr) summaries->clear();
-  RegionTrainSummary summary;
-  {
-    const Eigen::MatrixXf inputs = RegionInputs(puppet, config.jaw, data.markers, nullptr);
-    FACEDYN_ASSIGN_OR_RETURN(solver.jaw_, TrainNetwork(config.jaw, config.network, inputs, 0,
-                                                       data.weights, options, &summary));
-    if (summaries != nullptr) summaries->push_back(summary);
-  }
-  // Eq. (4): the conditioned networks see the ground-truth jaw while training.
+  // Job 0 is the jaw's network, job 1 + r region r's. Eq. (4): the conditioned networks see the
+  // ground-truth jaw while training, so no job waits for another.
   const Eigen::MatrixXd true_jaw = Rows(data.weights, config.jaw.channels);
-  for (const ResolvedRegion& region : config.regions) {
-    const bool conditioned = region.spec.jaw_conditioned;
+  const int jobs = 1 + static_cast<int>(config.regions.size());
+  std::vector<std::optional<Network>> networks(jobs);
+  std::vector<RegionTrainSummary> job_summaries(jobs);
+  const bool concurrent = ParallelThreadCount(options.concurrent_networks, jobs) > 1;
+  FdlsTrainOptions job_options = options;
+  job_options.show_progress = options.show_progress && !concurrent;
+  Progress progress(
+      "solve networks", jobs,
+      options.show_progress && concurrent ? ProgressMode::kAuto : ProgressMode::kSilent);
+  FACEDYN_RETURN_IF_ERROR(ParallelFor(jobs, options.concurrent_networks, [&](int job) -> Status {
+    const ResolvedRegion& region = job == 0 ? config.jaw : config.regions[job - 1];
+    const bool conditioned = job > 0 && region.spec.jaw_conditioned;
     const Eigen::MatrixXf inputs =
         RegionInputs(puppet, region, data.markers, conditioned ? &true_jaw : nullptr);
     FACEDYN_ASSIGN_OR_RETURN(
-        Network network,
-        TrainNetwork(region, config.network, inputs,
-                     conditioned ? static_cast<int>(config.jaw.channels.size()) : 0, data.weights,
-                     options, &summary));
-    solver.regions_.push_back(std::move(network));
-    if (summaries != nullptr) summaries->push_back(summary);
-  }
+        networks[job], TrainNetwork(region, config.network, inputs,
+                                    conditioned ? static_cast<int>(config.jaw.channels.size()) : 0,
+                                    data.weights, job_options, &job_summaries[job]));
+    progress.Advance();
+    return Status::Ok();
+  }));
+  progress.Finish();
+  solver.jaw_ = std::move(*networks[0]);
+  for (int job = 1; job < jobs; ++job) solver.regions_.push_back(std::move(*networks[job]));
+  if (summaries != nullptr) *summaries = std::move(job_summaries);
   return solver;
 }
 

@@ -30,6 +30,12 @@ namespace facedyn::solve {
 struct FdlsTrainOptions {
   uint64_t seed = 1;
   int num_threads = 0;               // LibTorch threads while training (0: leave as is)
+  // Networks trained at once, each on its own thread (the jaw's and the regions' are independent
+  // while training: Eq. 4 conditions the regions on the true jaw). The networks are bitwise
+  // those trained one at a time (learn/mlp.h, Determinism). LibTorch runs these small networks
+  // on one core whatever num_threads says, so 2 on a 2-core machine halves the training time.
+  // With more than 1, show_progress counts finished networks instead of each one's epochs.
+  int concurrent_networks = 1;
   double validation_fraction = 0.1;  // tuples held out of each network's optimisation
   bool show_progress = false;
   Status Check() const;
@@ -47,9 +53,9 @@ struct RegionTrainSummary {
 
 class FdlsSolver {
  public:
-  // Trains the jaw network, then the region networks, on `data` (3M x N markers of the puppet,
-  // C x N weights). Errors: options, a data set that does not match the puppet, a network that
-  // fails to train.
+  // Trains the jaw network and the region networks (options.concurrent_networks at once) on `data`
+  // (3M x N markers of the puppet, C x N weights). Errors: options, a data set that does not match
+  // the puppet, a network that fails to train.
   static StatusOr<FdlsSolver> Train(const Puppet& puppet, const ResolvedConfig& config,
                                     const TrainingSet& data, const FdlsTrainOptions& options,
                                     std::vector<RegionTrainSummary>* summaries);

@@ -5,9 +5,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <random>
+#include <thread>
 
 #include "tests/support/test_support.h"
 
@@ -399,6 +401,43 @@ TEST(TrainMlp, ResidualDropoutAndExtraInputFitDeterministicallyAndRoundTrip) {
   EXPECT_DOUBLE_EQ(config["mlp"]["dropout"].get<double>(), 0.1);
   const Eigen::MatrixXf inputs = data.inputs_.leftCols(16);
   EXPECT_EQ(loaded->Predict(inputs), first.Predict(inputs));
+}
+
+// Independent networks created and trained on threads at once (as the demo trains F beside
+// subject B's networks) come out bitwise as when trained one after the other: creation seeds
+// LibTorch's global generator under a lock, dropout and input noise use the trainer's own.
+TEST(TrainMlp, NetworksTrainedOnThreadsAtOnceMatchTheSequentialOnes) {
+  const ExtraInputDataset data(600);
+  const std::vector<long> rows = AllRows(data);
+  MlpTrainOptions options = QuietOptions(4);
+  options.batch_size = 100;
+  options.input_noise_std = 0.05;
+  constexpr int kNetworks = 4;
+  auto create_and_train = [&](int k) {
+    Mlp model = Mlp::Create(FdlsShape(), 100 + k).value();
+    MlpTrainOptions own = options;
+    own.seed = 200 + k;
+    EXPECT_TRUE(TrainMlp(data, rows, {}, own, &model, nullptr).ok());
+    return model.FlatParameters();
+  };
+  std::vector<std::vector<float>> sequential;
+  for (int k = 0; k < kNetworks; ++k) sequential.push_back(create_and_train(k));
+  for (int round = 0; round < 3; ++round) {
+    std::vector<std::vector<float>> concurrent(kNetworks);
+    std::atomic<int> ready{0};
+    std::vector<std::thread> threads;
+    for (int k = 0; k < kNetworks; ++k) {
+      threads.emplace_back([&, k] {
+        ++ready;
+        while (ready.load() < kNetworks) std::this_thread::yield();  // start together
+        concurrent[k] = create_and_train(k);
+      });
+    }
+    for (std::thread& thread : threads) thread.join();
+    for (int k = 0; k < kNetworks; ++k) {
+      EXPECT_EQ(concurrent[k], sequential[k]) << "network " << k << ", round " << round;
+    }
+  }
 }
 
 TEST(TrainMlp, RefusesMismatchedSizesAndNoRows) {

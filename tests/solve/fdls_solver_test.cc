@@ -140,6 +140,47 @@ TEST(SelectSalientSamples, DropsNearDuplicatesKeepsDistinctPoses) {
   EXPECT_EQ(SelectSalientSamples(markers, 1.0, 1.0), (std::vector<int>{0, 1, 2, 3, 4}));
 }
 
+// The networks trained two at a time are bitwise the ones trained one after the other (each
+// region's input sees the true jaw, so no network waits for another), and a count below 1 is
+// refused by name.
+TEST(FdlsSolver, NetworksTrainedSideBySideAreTheSequentialOnes) {
+  const Puppet& puppet = ProceduralPuppet();
+  ResolvedConfig config = ProceduralResolved();
+  config.network.hidden_units = 16;
+  config.network.epochs = 2;
+  config.network.batch_size = 64;
+  TrainingDataOptions data_options;
+  data_options.random_combos = 200;
+  data_options.rom_clips = 4;
+  data_options.augment_copies = 0;
+  data_options.jaw_channels = config.jaw.channels;
+  const Eigen::MatrixXd weights = MakeTrainingWeights(puppet, data_options).value();
+  const TrainingSet data = MakeTrainingSet(puppet, weights, data_options).value();
+  FdlsTrainOptions train;
+  train.num_threads = 1;
+  std::vector<RegionTrainSummary> one_summaries, two_summaries;
+  const StatusOr<FdlsSolver> one = FdlsSolver::Train(puppet, config, data, train, &one_summaries);
+  ASSERT_TRUE(one.ok()) << one.status().ToString();
+  train.concurrent_networks = 2;
+  const StatusOr<FdlsSolver> two = FdlsSolver::Train(puppet, config, data, train, &two_summaries);
+  ASSERT_TRUE(two.ok()) << two.status().ToString();
+  ASSERT_EQ(one_summaries.size(), 1 + config.regions.size());
+  ASSERT_EQ(two_summaries.size(), one_summaries.size());
+  EXPECT_EQ(two_summaries.front().region, one_summaries.front().region);  // the jaw first
+  for (size_t k = 0; k < one_summaries.size(); ++k) {
+    EXPECT_EQ(two_summaries[k].region, one_summaries[k].region);
+    EXPECT_EQ(two_summaries[k].validation_rmse, one_summaries[k].validation_rmse);
+  }
+  const Eigen::MatrixXd markers = data.markers.leftCols(50);
+  EXPECT_EQ(two->Solve(markers).value(), one->Solve(markers).value());
+
+  train.concurrent_networks = 0;
+  const StatusOr<FdlsSolver> refused = FdlsSolver::Train(puppet, config, data, train, nullptr);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("concurrent_networks"), std::string::npos)
+      << refused.status().message();
+}
+
 // A small solver trained on the puppet reproduces the puppet's frames it never saw.
 TEST(FdlsSolver, TrainedSolverReproducesThePuppetsOwnFrames) {
   const Puppet& puppet = ProceduralPuppet();

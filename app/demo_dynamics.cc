@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <future>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -149,6 +150,8 @@ Status SimulateAndReconstruct(const FaceRig& face, const eval::SimulatedCameraRi
   std::mutex mutex;  // guards next, failed, *done and stdout
   size_t next = 0;
   bool failed = false;
+  const unsigned workers = static_cast<unsigned>(
+      std::min<size_t>(specs.size(), std::clamp(std::thread::hardware_concurrency(), 1u, 2u)));
   auto work = [&]() {
     for (;;) {
       size_t i = 0;
@@ -167,9 +170,12 @@ Status SimulateAndReconstruct(const FaceRig& face, const eval::SimulatedCameraRi
       Result& result = results[i];
       StatusOr<Take> simulated =
           Simulate(face, spec.expression, spec.motion, seconds_of(spec), tissue, spec.motion.seed);
-      // Two takes run at once, one per core: a filmed take renders and detects on its own.
+      // Two takes run at once, one per core: a filmed take renders and detects on its own. The
+      // last two film on every core: whichever ends later would otherwise run alone on one
+      // (subject B's odd count of takes left 25 s of the default demo on one core). The images
+      // do not depend on the thread count (each camera's noise is seeded by camera and frame).
       eval::FilmOptions film;
-      film.threads = 1;
+      film.threads = i + workers >= specs.size() ? 0 : 1;
       StatusOr<reconstruct::Reconstruction> reconstruction =
           !simulated.ok()
               ? StatusOr<reconstruct::Reconstruction>(simulated.status())
@@ -193,8 +199,6 @@ Status SimulateAndReconstruct(const FaceRig& face, const eval::SimulatedCameraRi
       result.reconstructed = std::move(reconstruction->take);
     }
   };
-  const unsigned workers = static_cast<unsigned>(
-      std::min<size_t>(specs.size(), std::clamp(std::thread::hardware_concurrency(), 1u, 2u)));
   std::vector<std::thread> threads;
   for (unsigned w = 1; w < workers; ++w) threads.emplace_back(work);
   work();
@@ -489,8 +493,20 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   // subset_epochs.
   const size_t n_hz = options.train_hz.size();
   std::vector<Json> bars(n_hz);
-  long budget_steps = 0;
+  // The full set's step count, for the subsets: they may start before the full set is done
+  // (they run side by side with other networks below), so they wait for it. Always set, -1 when
+  // the full set failed, so no subset waits forever.
+  std::promise<long> budget_promise;
+  std::shared_future<long> budget_steps = budget_promise.get_future().share();
   auto train_bar = [&](size_t k) -> Status {
+    long budget = 0;
+    if (k < n_hz) {
+      budget = budget_steps.get();
+      if (budget < 1) {
+        return FailedPreconditionError(fmt::format(
+            "Fig. 5's subset of {} frequencies: the full set's training failed", k));
+      }
+    }
     const size_t per_frequency = options.expressions.size();
     std::vector<Take> subset(a.reconstructed.begin(), a.reconstructed.begin() + k * per_frequency);
     subset.insert(subset.end(), a.reconstructed.begin() + n_hz * per_frequency,
@@ -500,8 +516,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
         const dynamics::RemovalModel model,
         TrainF(subset, face, options.removal_targets, options.subset_epochs, options.removal_batch,
                options.seed, fmt::format("F on {} frequencies", k), &subset_summary,
-               /*show_progress=*/false, k == n_hz ? 0 : budget_steps));
-    if (k == n_hz) budget_steps = subset_summary.optimizer_steps;
+               /*show_progress=*/false, budget));
     FACEDYN_ASSIGN_OR_RETURN(const Take subset_removed,
                              dynamics::RemoveDynamics(model, test_reconstructed, face));
     const double error_mm =
@@ -518,11 +533,12 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   };
 
   // --- 2. the networks that need only the data, two at a time ---
-  // A's removal F; subject B's chain (F_B, B's takes decomposed by it, H_B, B's modal model, and
-  // B walking the held-out walk for the retargeting truth); Fig. 5's full-set bar. LibTorch
-  // trains these small networks on one core (the default demo's CPU, sampled every 2 s, read
-  // 1.00 through F's 90 s), so two at once take about the time of one. The results are those of
-  // training one after the other (learn/mlp.h, Determinism): only F shows a progress bar.
+  // A's removal F; Fig. 5's bars (the full set first); subject B's chain (F_B, B's takes
+  // decomposed by it, H_B, B's modal model, and B walking the held-out walk for the retargeting
+  // truth). LibTorch trains these small networks on one core (the default demo's CPU, sampled
+  // every 2 s, read 1.00 through F's 90 s), so two at once take about the time of one. The
+  // results are those of training one after the other (learn/mlp.h, Determinism): only F shows
+  // a progress bar, the others log a line when done.
   const auto networks_start = Clock::now();
   std::optional<dynamics::RemovalModel> f_trained;
   learn::MlpTrainSummary f_summary;
@@ -570,7 +586,15 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
         return f_trained->Save(JoinPath(models_dir, "F.pt"));
       },
       train_b_chain};
-  if (options.subset_epochs > 0) first_networks.push_back([&] { return train_bar(n_hz); });
+  if (options.subset_epochs > 0) {
+    // The full set right after F, so it is running or done before any subset starts waiting.
+    first_networks.insert(first_networks.begin() + 1, [&]() -> Status {
+      const Status status = train_bar(n_hz);
+      budget_promise.set_value(status.ok() ? bars[n_hz - 1]["optimizer_steps"].get<long>() : -1);
+      return status;
+    });
+    for (size_t k = 1; k < n_hz; ++k) first_networks.push_back([&, k] { return train_bar(k); });
+  }
   FACEDYN_RETURN_IF_ERROR(RunSideBySide(first_networks));
   const dynamics::RemovalModel& f_model = *f_trained;
   training["F"] = TrainingJson(f_summary, options.removal_epochs);
@@ -578,17 +602,17 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
 
   // The modal model (dynamics/modal_synthesis.h) on the same held takes, decomposed by their held
   // mean: a removal by synthesis from the skull's motion beside F, and A's synthesis in section 3.
-  FACEDYN_ASSIGN_OR_RETURN(
-      const dynamics::ModalSynthesisModel modal_a,
-      TrainModal(a.reconstructed, face, options.seed, "modal_A", &training["modal_A"]));
+  // Fitted (one core) beside the filming of the held-out takes below, as is F's scoring on the
+  // held-out take.
+  std::optional<dynamics::ModalSynthesisModel> modal_trained;
   // The modal model's removals of `reconstructed`, named as the comparison reports them: alone,
   // and followed by the low-pass its own validation error calls for (cutoff in *cutoff_hz).
   auto modal_removals = [&](const Take& reconstructed, std::vector<Take>* storage,
                             double* cutoff_hz) -> StatusOr<std::vector<eval::NamedRemoval>> {
     storage->clear();
-    FACEDYN_ASSIGN_OR_RETURN(Take modal, modal_a.Remove(reconstructed, face));
+    FACEDYN_ASSIGN_OR_RETURN(Take modal, modal_trained->Remove(reconstructed, face));
     FACEDYN_ASSIGN_OR_RETURN(Take filtered,
-                             modal_a.RemoveThenLowPass(reconstructed, face, cutoff_hz));
+                             modal_trained->RemoveThenLowPass(reconstructed, face, cutoff_hz));
     storage->push_back(std::move(modal));
     storage->push_back(std::move(filtered));
     return std::vector<eval::NamedRemoval>{{"modal", &(*storage)[0]},
@@ -597,19 +621,21 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
 
   Take removed;
   std::vector<Take> modal_storage;
-  {
+  Json test_removal;
+  auto score_test_take = [&]() -> Status {
+    FACEDYN_ASSIGN_OR_RETURN(
+        modal_trained,
+        TrainModal(a.reconstructed, face, options.seed, "modal_A", &training["modal_A"]));
     double cutoff_hz = 0.0;
     FACEDYN_ASSIGN_OR_RETURN(const std::vector<eval::NamedRemoval> others,
                              modal_removals(test_reconstructed, &modal_storage, &cutoff_hz));
-    FACEDYN_ASSIGN_OR_RETURN(result["removal"],
+    FACEDYN_ASSIGN_OR_RETURN(test_removal,
                              eval::CompareRemovalOnReconstruction(
                                  f_model, reference_removal, test_name, test_simulated,
                                  test_reconstructed, face, skip, &removed, others));
-    result["removal"]["methods"]["modal_lowpass"]["cutoff_hz"] = Round4(cutoff_hz);
-  }
-  result["removal"]["F_targets"] = dynamics::RemovalTargetsName(options.removal_targets);
-  // A copy: Json is an ordered_json, whose objects are vectors that move on insertion.
-  const Json methods = result["removal"]["methods"];
+    test_removal["methods"]["modal_lowpass"]["cutoff_hz"] = Round4(cutoff_hz);
+    return Status::Ok();
+  };
 
   // Two more takes of subject A, never trained on, simulated and filmed (rendered by the 8
   // cameras, dots detected), two at a time as the training takes:
@@ -633,11 +659,36 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
                            options.performance_expression,
                            PlatformMotion(test_hz, options.seed + 70), test_hz, options.seconds});
   }
+  // H (section 3) needs only F and the training takes: it trains on one core beside the filming,
+  // as do the modal fit and F's scoring on the held-out take.
+  std::optional<dynamics::SynthesisModel> h_trained;
+  learn::MlpTrainSummary h_summary;
+  auto train_h = [&]() -> Status {
+    std::vector<Take> decomposed_a;
+    for (const Take& take : a.reconstructed) {
+      FACEDYN_ASSIGN_OR_RETURN(Take decomposed, dynamics::RemoveDynamics(f_model, take, face));
+      decomposed_a.push_back(std::move(decomposed));
+    }
+    FACEDYN_ASSIGN_OR_RETURN(h_trained, TrainH(decomposed_a, face, options.synthesis_epochs,
+                                               options.seed, "H", &h_summary,
+                                               /*show_progress=*/false));
+    return h_trained->Save(JoinPath(models_dir, "H.pt"));
+  };
   SubjectTakes extra;
   int extra_done = 0;
-  FACEDYN_RETURN_IF_ERROR(SimulateAndReconstruct(face, cameras, extra_specs, options.seconds,
-                                                 tissue_a, "A", &extra_done,
-                                                 static_cast<int>(extra_specs.size()), &extra));
+  FACEDYN_RETURN_IF_ERROR(RunSideBySide(
+      {[&] {
+         return SimulateAndReconstruct(face, cameras, extra_specs, options.seconds, tissue_a, "A",
+                                       &extra_done, static_cast<int>(extra_specs.size()), &extra);
+       },
+       train_h, score_test_take}));
+  const dynamics::ModalSynthesisModel& modal_a = *modal_trained;
+  const dynamics::SynthesisModel& h_model = *h_trained;
+  training["H"] = TrainingJson(h_summary, options.synthesis_epochs);
+  result["removal"] = std::move(test_removal);
+  result["removal"]["F_targets"] = dynamics::RemovalTargetsName(options.removal_targets);
+  // A copy: Json is an ordered_json, whose objects are vectors that move on insertion.
+  const Json methods = result["removal"]["methods"];
   for (size_t i = 0; i < extra_specs.size(); ++i) {
     reconstruction.push_back(extra.reconstruction[i]);
     double cutoff_hz = 0.0;
@@ -662,28 +713,6 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   extra = SubjectTakes();
   const double held_out_s = SecondsSince(held_out_start);
 
-  // --- 3. synthesis H on A's takes decomposed by F, beside Fig. 5's subset bars ---
-  const auto second_networks_start = Clock::now();
-  std::optional<dynamics::SynthesisModel> h_trained;
-  learn::MlpTrainSummary h_summary;
-  std::vector<std::function<Status()>> second_networks = {[&]() -> Status {
-    std::vector<Take> decomposed_a;
-    for (const Take& take : a.reconstructed) {
-      FACEDYN_ASSIGN_OR_RETURN(Take decomposed, dynamics::RemoveDynamics(f_model, take, face));
-      decomposed_a.push_back(std::move(decomposed));
-    }
-    FACEDYN_ASSIGN_OR_RETURN(h_trained, TrainH(decomposed_a, face, options.synthesis_epochs,
-                                               options.seed, "H", &h_summary,
-                                               /*show_progress=*/false));
-    return h_trained->Save(JoinPath(models_dir, "H.pt"));
-  }};
-  if (options.subset_epochs > 0) {
-    for (size_t k = 1; k < n_hz; ++k) second_networks.push_back([&, k] { return train_bar(k); });
-  }
-  FACEDYN_RETURN_IF_ERROR(RunSideBySide(second_networks));
-  const dynamics::SynthesisModel& h_model = *h_trained;
-  training["H"] = TrainingJson(h_summary, options.synthesis_epochs);
-  const double second_networks_s = SecondsSince(second_networks_start);
   if (options.subset_epochs > 0) {
     Json subsets = Json::array();
     for (Json& bar : bars) subsets.push_back(std::move(bar));
@@ -698,6 +727,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
           {"no_removal", methods["no_removal"]["jiggle_mean_mm"]}}}};
   }
 
+  // --- 3. synthesis H on A's takes decomposed by F (trained beside the held-out filming) ---
   // Fig. 7: remove, then resynthesise the held-out take with its own head motion.
   FACEDYN_ASSIGN_OR_RETURN(
       Take resynthesised,
@@ -820,9 +850,8 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
       {"data_s", Round4(data_s)},
       {"steps_s",
        {{"data", Round4(data_s)},
-        {"F_beside_B_networks", Round4(networks_s)},
-        {"held_out_takes", Round4(held_out_s)},
-        {"H_beside_subset_bars", Round4(second_networks_s)}}},
+        {"F_beside_B_networks_and_subset_bars", Round4(networks_s)},
+        {"held_out_takes_beside_H", Round4(held_out_s)}}},
       {"error_metric",
        "per-vertex |prediction - truth| in mm over frames away from the feature window at the "
        "ends; jiggle_mean_mm over vertices whose mean true offset is >= 20% of the largest"}};

@@ -3,10 +3,12 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -87,6 +89,48 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
       subject.name.c_str(), platform.size());
   std::fflush(stdout);
 
+  // Section 4's held-out takes need nothing fitted or trained: they are simulated and filmed
+  // (on every core) from here on, beside the twin's fit (Ceres on one core) and F's training.
+  const double fps = captured.front().info.fps;
+  const int test_count = static_cast<int>(options.test_motions.size());
+  std::vector<std::optional<Take>> test_simulated(test_count);
+  std::vector<std::optional<Take>> test_reconstructed(test_count);
+  Status filming_status;
+  std::atomic<bool> stop_filming{false};
+  std::thread filming([&] {
+    for (int m = 0; m < test_count && !stop_filming; ++m) {
+      sim::PerformanceOptions performance;
+      performance.expression = "neutral";
+      performance.seconds = options.test_seconds;
+      performance.fps = fps;
+      performance.seed = options.seed + 50 + m;
+      performance.tissue = true_tissue;
+      performance.motion = HeadMotionOptions(options.test_motions[m], options.seed * 100 + 77 + m);
+      StatusOr<Take> simulated = sim::SimulatePerformance(subject, performance);
+      if (!simulated.ok()) {
+        filming_status = simulated.status();
+        return;
+      }
+      StatusOr<reconstruct::Reconstruction> reconstruction = eval::FilmSimulatedTake(
+          subject, cameras, *simulated, options.seed * 1000 + 600 + m);
+      if (!reconstruction.ok()) {
+        filming_status = reconstruction.status();
+        return;
+      }
+      test_simulated[m] = std::move(*simulated);
+      test_reconstructed[m] = std::move(reconstruction->take);
+    }
+  });
+  // Every return below waits for the filming (told to stop after its current take) first.
+  struct JoinOnExit {
+    std::thread* thread;
+    std::atomic<bool>* stop;
+    ~JoinOnExit() {
+      *stop = true;
+      if (thread->joinable()) thread->join();
+    }
+  } join_filming{&filming, &stop_filming};
+
   // 1. The twin, from markers and skull pose only.
   physics::TwinFitOptions fit_options;
   if (options.single_group) {
@@ -157,7 +201,6 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
 
   // 2. The twin under head motions nobody captured: its fitted material, never the subject's.
   // The takes are independent: simulated two at a time.
-  const double fps = captured.front().info.fps;
   const int twin_count = static_cast<int>(options.twin_motions.size());
   for (const TwinDemoOptions::HeadMotion& motion : options.twin_motions) {
     std::printf("  twin: %s\n", MotionLabel(motion).c_str());
@@ -181,10 +224,8 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
   for (std::optional<Take>& take : simulated_twin) twin_takes.push_back(std::move(*take));
   simulated_twin.clear();
 
-  // 3. F with the twin's takes beside the captured ones, on the captured F's budget and targets;
-  // 4. the subject filmed under head motions no training take has, to score F against its
-  // truth. The training runs on one core (LibTorch does not spread this small network), so the
-  // held-out takes are simulated and filmed beside it.
+  // 3. F with the twin's takes beside the captured ones, on the captured F's budget and targets
+  // (on one core, beside the filming of section 4's takes if it is still running).
   const dynamics::RemovalModel& f_captured = *captured_removal.model;
   dynamics::RemovalTrainOptions train;
   train.targets = captured_removal.targets;
@@ -200,37 +241,17 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
   for (const Take& take : twin_takes) {
     training.emplace_back(&take, &subject, dynamics::RemovalTargets::kExact, options.twin_weight);
   }
-  std::optional<dynamics::RemovalModel> trained_augmented;
+  spdlog::info("training F_B augmented ({} captured, {} twin takes)", captured.size(),
+               twin_takes.size());
   learn::MlpTrainSummary augmented_summary;
-  const int test_count = static_cast<int>(options.test_motions.size());
-  std::vector<std::optional<Take>> test_simulated(test_count);
-  std::vector<std::optional<Take>> test_reconstructed(test_count);
-  spdlog::info("training F_B augmented ({} captured, {} twin takes) beside filming {} takes",
-               captured.size(), twin_takes.size(), test_count);
-  FACEDYN_RETURN_IF_ERROR(ParallelFor(1 + test_count, 2, [&](int job) -> Status {
-    if (job == 0) {
-      FACEDYN_ASSIGN_OR_RETURN(trained_augmented,
-                               dynamics::TrainRemoval(training, train, &augmented_summary));
-      spdlog::info("trained F_B augmented: {} steps in {:.1f} s", augmented_summary.optimizer_steps,
-                   augmented_summary.train_s);
-      return trained_augmented->Save(JoinPath(models_dir, "F_B_augmented.pt"));
-    }
-    const int m = job - 1;
-    sim::PerformanceOptions performance;
-    performance.expression = "neutral";
-    performance.seconds = options.test_seconds;
-    performance.fps = fps;
-    performance.seed = options.seed + 50 + m;
-    performance.tissue = true_tissue;
-    performance.motion = HeadMotionOptions(options.test_motions[m], options.seed * 100 + 77 + m);
-    FACEDYN_ASSIGN_OR_RETURN(test_simulated[m], sim::SimulatePerformance(subject, performance));
-    FACEDYN_ASSIGN_OR_RETURN(reconstruct::Reconstruction reconstruction,
-                             eval::FilmSimulatedTake(subject, cameras, *test_simulated[m],
-                                                     options.seed * 1000 + 600 + m));
-    test_reconstructed[m] = std::move(reconstruction.take);
-    return Status::Ok();
-  }));
-  const dynamics::RemovalModel& f_augmented = *trained_augmented;
+  FACEDYN_ASSIGN_OR_RETURN(const dynamics::RemovalModel trained_augmented,
+                           dynamics::TrainRemoval(training, train, &augmented_summary));
+  spdlog::info("trained F_B augmented: {} steps in {:.1f} s", augmented_summary.optimizer_steps,
+               augmented_summary.train_s);
+  FACEDYN_RETURN_IF_ERROR(trained_augmented.Save(JoinPath(models_dir, "F_B_augmented.pt")));
+  filming.join();
+  FACEDYN_RETURN_IF_ERROR(filming_status.WithContext("filming the twin stage's held-out takes"));
+  const dynamics::RemovalModel& f_augmented = trained_augmented;
   result["training"] = {
       {"captured_takes", captured.size()},
       {"twin_takes", twin_takes.size()},

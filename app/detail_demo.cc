@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <future>
 #include <vector>
 
 #include "app/capture_demo.h"
@@ -71,6 +72,45 @@ StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCame
   std::printf("\nFine detail from a head-mounted camera (Masquerade, %zu HMC markers)\n",
               layout.size());
 
+  // 2 (first, as it needs nothing from 1). The HMC take: filmed through the capture path,
+  // reconstructed by the head-mounted path, on a thread of its own beside the range-of-motion
+  // simulation (one core). The future's destructor waits for it on any early return.
+  const std::string session_dir = JoinPath(dir, "hmc-session");
+  const std::string take_name = "dialogue";
+  struct HmcTake {
+    std::string take_dir;
+    double diameter_px = 0.0;  // the dots' diameter in the images, at the layout's mean depth
+    double detect_s = 0.0;
+    reconstruct::Reconstruction reconstruction;
+  };
+  FaceRig painted = face;
+  painted.markers = layout;
+  std::future<StatusOr<HmcTake>> hmc_future =
+      std::async(std::launch::async, [&]() -> StatusOr<HmcTake> {
+        HmcTake hmc;
+        FACEDYN_ASSIGN_OR_RETURN(hmc.take_dir, CaptureSimulatedTake(config, session_dir, take_name));
+        double depth = 0.0;
+        for (const Marker& m : layout) {
+          depth +=
+              (config.cameras[0].cam_from_world * m.point.Evaluate(face.neutral.positions_mm)).z();
+        }
+        hmc.diameter_px = layout.front().diameter_mm * config.cameras[0].fx() * layout.size() /
+                          std::max(1e-9, depth);
+        reconstruct::SessionInputOptions input_options;
+        input_options.detection = reconstruct::MarkerDetectionOptionsForDiameter(hmc.diameter_px);
+        FACEDYN_ASSIGN_OR_RETURN(const reconstruct::SessionDetections input,
+                                 reconstruct::DetectSessionTake(session_dir, take_name,
+                                                                input_options));
+        hmc.detect_s = input.detect_s;
+        FACEDYN_ASSIGN_OR_RETURN(
+            hmc.reconstruction,
+            reconstruct::ReconstructTake(painted, input.cameras, input.detections, input.fps,
+                                         input.head_mounted
+                                             ? reconstruct::HeadMountedReconstructionOptions()
+                                             : reconstruct::ReconstructionOptions()));
+        return hmc;
+      });
+
   // 1. Training: a range-of-motion performance (no head motion) reconstructed on the multi-view
   // rig, stabilised into the skull frame: Masquerade's high-resolution captures.
   // The same simulator films it as films the HMC take (sim/performance.h "range_of_motion"):
@@ -105,28 +145,11 @@ StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCame
   std::printf("  trained on %zu reconstructed range-of-motion frames (%zu selected) in %.1f s\n",
               set.frames_mm.size(), summary.global_frames.size(), train_s);
 
-  // 2. The HMC take: filmed through the capture path, reconstructed by the head-mounted path.
-  const std::string session_dir = JoinPath(dir, "hmc-session");
-  const std::string take_name = "dialogue";
-  FACEDYN_ASSIGN_OR_RETURN(const std::string take_dir,
-                           CaptureSimulatedTake(config, session_dir, take_name));
-  double depth = 0.0;  // the dots' diameter in the images, at the layout's mean depth
-  for (const Marker& m : layout) {
-    depth += (config.cameras[0].cam_from_world * m.point.Evaluate(face.neutral.positions_mm)).z();
-  }
-  const double diameter_px =
-      layout.front().diameter_mm * config.cameras[0].fx() * layout.size() / std::max(1e-9, depth);
-  reconstruct::SessionInputOptions input_options;
-  input_options.detection = reconstruct::MarkerDetectionOptionsForDiameter(diameter_px);
-  FACEDYN_ASSIGN_OR_RETURN(const reconstruct::SessionDetections input,
-                           reconstruct::DetectSessionTake(session_dir, take_name, input_options));
-  FaceRig painted = face;
-  painted.markers = layout;
-  FACEDYN_ASSIGN_OR_RETURN(const reconstruct::Reconstruction reconstruction,
-                           reconstruct::ReconstructTake(
-                               painted, input.cameras, input.detections, input.fps,
-                               input.head_mounted ? reconstruct::HeadMountedReconstructionOptions()
-                                                  : reconstruct::ReconstructionOptions()));
+  // 2. The HMC take (captured and reconstructed beside step 1, above).
+  FACEDYN_ASSIGN_OR_RETURN(const HmcTake hmc, hmc_future.get());
+  const std::string& take_dir = hmc.take_dir;
+  const double diameter_px = hmc.diameter_px;
+  const reconstruct::Reconstruction& reconstruction = hmc.reconstruction;
   const MarkerTracks tracks = reconstruct::MarkerTracksOf(painted, reconstruction);
   FACEDYN_ASSIGN_OR_RETURN(const detail::MarkerFrames markers,
                            detail::MarkersFromTracks(tracks, reconstruction.take.world_from_skull,
@@ -251,7 +274,7 @@ StatusOr<Json> RunDetailDemoStage(const FaceRig& face, const eval::SimulatedCame
       {"marker_frames_filled", markers.filled},
       {"marker_error_median_mm", sorted.empty() ? 0.0 : sorted[sorted.size() / 2]},
       {"marker_error_p95_mm", eval::Percentile95(sorted)},
-      {"detect_s", input.detect_s},
+      {"detect_s", hmc.detect_s},
       {"upsample_frames_per_s", frames / std::max(1e-9, upsample_s)}};
   json["methods"] = {{"large_scale_only", eval::DetailErrorsJson(large_only)},
                      {"masquerade", eval::DetailErrorsJson(masquerade)}};

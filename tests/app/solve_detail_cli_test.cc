@@ -109,6 +109,9 @@ TEST(SolveCli, BadInputIsNamed) {
   ASSERT_EQ(RunCommand(Facedyn("--quiet solve train --epochs 1 --out " + dir.Join("solver")), &out),
             0)
       << out;
+  EXPECT_EQ(RunCommand(Facedyn("solve train --networks-at-once -1 --out " + dir.Join("s2")), &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("--networks-at-once >= 0"));
   const std::string take = Takes().Join("smile");
   const std::string model = " --model " + dir.Join("solver") + " --out " + dir.Join("w.csv");
   // The simulator's truth never feeds a method.

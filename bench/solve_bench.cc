@@ -2,20 +2,27 @@
 //
 //   solve_bench [--quick] [--seed N] [--seeds 1,2,3] [--epochs N] [--seconds S] [--fps N]
 //               [--noise-mm S] [--salient T[,T...]] [--smoothness L] [--threads N]
+//               [--active-channels K] [--filmed-seconds S] [--ict DIR [--config REGIONS.yaml]]
 //
 // Subject: the procedural face (sim/, the embedded default rig; the solve library itself never
-// links sim/). Its puppet generates the training tuples (FDLS 4.1: one-hot sweeps, ROM clips,
-// random sparse combinations, noisy and mask-shifted copies). Test: a held-out speech-like
-// performance with known weights, drawn from another seed and never used in training: smooth
-// key-to-key curves (smoothstep between keys every 0.12-0.3 s for the jaw and mouth, 0.4-1.0 s
-// elsewhere, about half the keys at zero), `--seconds` at `--fps`. Markers are the puppet's
-// own, clean and with `--noise-mm` Gaussian noise per coordinate.
+// links sim/), or with --ict DIR the ICT-FaceKit face (sim/ict_import.h: its 55 ARKit-named
+// shapes and painted markers) with config/solve/ict.yaml's region tables (--config: others).
+// Its puppet generates the training tuples (FDLS 4.1: one-hot sweeps, ROM clips, random sparse
+// combinations, noisy and mask-shifted copies). Test: a held-out speech-like performance with
+// known weights, drawn from another seed and never used in training: smooth key-to-key curves
+// (smoothstep between keys every 0.12-0.3 s for the jaw and the channels of regions over the
+// rig's lips, 0.4-1.0 s elsewhere; a key is away from zero with probability
+// min(1/2, K / channels), so that about K = `--active-channels` (default 5) channels move at a
+// time), `--seconds` at `--fps`. Markers are the puppet's own, clean and with `--noise-mm`
+// Gaussian noise per coordinate, and filmed: the first `--filmed-seconds` (default 2; 0 skips
+// it) rendered, detected and reconstructed on the simulated stage (see FilmedStudy).
 //
 // Methods, each on both marker sets: the network (FDLS 4.4, jaw first), the QP baseline (Eq. 2
 // per frame from zero, every channel free, Ceres bounded trust region) and the network followed
 // by fine-tuning (4.5: Eq. 2 from the network's solve, every channel free). Figures: weight
-// RMSE (over frames and channels), jaw weight RMSE, marker RMSE (mm, distance between the
-// puppet's markers at the solved weights and the observed markers). Speed: frames/s of each
+// RMSE (over frames and channels), jaw weight RMSE, the jaw's rotation error (degrees RMS: the
+// jaw-opening weight's error times that shape's hinge angle), marker RMSE (mm, distance between
+// the puppet's markers at the solved weights and the observed markers). Speed: frames/s of each
 // method on the whole performance, LibTorch on `--threads` (default 2) threads, median of 3.
 //
 // --seed N: training data, network initialisation and test performance from seed N (the test
@@ -46,11 +53,16 @@
 
 #include "bench/bench_flags.h"
 #include "core/json_io.h"
+#include "eval/simulated_stage.h"
+#include "reconstruct/pipeline.h"
+#include "sim/expressions.h"
+#include "sim/ict_import.h"
 #include "sim/procedural_face.h"
 #include "solve/anchor.h"
 #include "solve/fdls_solver.h"
 #include "solve/marker_fit.h"
 #include "solve/solve_config.h"
+#include "solve/solve_io.h"
 #include "solve/training_data.h"
 
 namespace {
@@ -86,16 +98,20 @@ std::vector<std::string> Split(const std::string& list) {
 }
 
 // Speech-like weights (C x N): per channel, keys at random intervals, smoothstep between them.
+// A key is away from zero with probability min(1/2, active_channels / C): about
+// `active_channels` channels are moving at any time, as in a face talking (on the procedural
+// puppet's 10 channels that is every other key, the generator's original rule, draw for draw).
 Eigen::MatrixXd SpeechLikeWeights(const Puppet& puppet, const std::vector<int>& fast_channels,
-                                  int frames, double fps, uint64_t seed) {
+                                  int frames, double fps, double active_channels, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const double zero_key = 1.0 - std::min(0.5, active_channels / puppet.channel_count());
   Eigen::MatrixXd w(puppet.channel_count(), frames);
   for (int c = 0; c < puppet.channel_count(); ++c) {
     const bool fast = std::count(fast_channels.begin(), fast_channels.end(), c) > 0;
     const double min_gap = fast ? 0.12 : 0.4, max_gap = fast ? 0.3 : 1.0;
     const double peak = fast ? 0.9 : 0.6;
-    auto key_value = [&]() { return unit(rng) < 0.5 ? 0.0 : peak * unit(rng); };
+    auto key_value = [&]() { return unit(rng) < zero_key ? 0.0 : peak * unit(rng); };
     double t0 = 0.0, v0 = 0.0;
     double t1 = min_gap + (max_gap - min_gap) * unit(rng), v1 = key_value();
     for (int f = 0; f < frames; ++f) {
@@ -116,23 +132,49 @@ Eigen::MatrixXd SpeechLikeWeights(const Puppet& puppet, const std::vector<int>& 
 struct Figures {
   double weight_rmse = 0.0;
   double jaw_rmse = 0.0;
+  double jaw_deg_rms = 0.0;  // mandible rotation error, degrees RMS
   double marker_rmse_mm = 0.0;
 };
 
-Figures Score(const Puppet& puppet, const std::vector<int>& jaw, const Eigen::MatrixXd& solved,
-              const Eigen::MatrixXd& truth, const Eigen::MatrixXd& markers) {
+// The rig's jaw hinge: the jaw-opening channel and the mandible rotation of that shape at
+// weight 1 (sim::JawOpenAngleRad: the rig's own hinge fitted to the shape for an ICT rig). A
+// jaw weight error times the angle is the jaw's rotation error; the sideways and forward jaw
+// shapes are not rotations about the hinge and count only in the jaw weight RMSE.
+struct JawHinge {
+  int channel = -1;
+  double rad_per_weight = 0.0;
+};
+
+JawHinge FindJawHinge(const facedyn::FaceRig& rig, const Puppet& puppet) {
+  JawHinge hinge;
+  for (const char* name : {"jaw_open", "jawOpen"}) {
+    if (puppet.ChannelIndex(name) >= 0) hinge.channel = puppet.ChannelIndex(name);
+  }
+  hinge.rad_per_weight = facedyn::sim::JawOpenAngleRad(rig);
+  return hinge;
+}
+
+Figures Score(const Puppet& puppet, const std::vector<int>& jaw, const JawHinge& hinge,
+              const Eigen::MatrixXd& solved, const Eigen::MatrixXd& truth,
+              const Eigen::MatrixXd& markers, const MarkerPresence* present = nullptr) {
   Figures f;
   f.weight_rmse = std::sqrt((solved - truth).squaredNorm() / static_cast<double>(truth.size()));
   double jaw_sum = 0.0;
   for (int c : jaw) jaw_sum += (solved.row(c) - truth.row(c)).squaredNorm();
   f.jaw_rmse = std::sqrt(jaw_sum / static_cast<double>(jaw.size() * truth.cols()));
-  f.marker_rmse_mm = MarkerRmseMm(puppet, solved, markers);
+  if (hinge.channel >= 0) {
+    f.jaw_deg_rms = std::sqrt((solved.row(hinge.channel) - truth.row(hinge.channel)).squaredNorm() /
+                              static_cast<double>(truth.cols())) *
+                    std::abs(hinge.rad_per_weight) * 180.0 / M_PI;
+  }
+  f.marker_rmse_mm = MarkerRmseMm(puppet, solved, markers, present);
   return f;
 }
 
 Json ToJson(const Figures& f, double frames_per_s) {
   return Json{{"weight_rmse", f.weight_rmse},
               {"jaw_weight_rmse", f.jaw_rmse},
+              {"jaw_deg_rms", f.jaw_deg_rms},
               {"marker_rmse_mm", f.marker_rmse_mm},
               {"frames_per_s", frames_per_s}};
 }
@@ -159,12 +201,104 @@ struct Settings {
   std::vector<double> salient;  // candidate thresholds (empty: no salient study)
   double smoothness = 0.0;
   int threads = 2;
+  double filmed_seconds = 2.0;  // 0: no filmed study
+  double active_channels = 5.0;  // channels away from zero at a time in the performances
 };
+
+// The first `--filmed-seconds` of the test performance filmed by the simulated stage's 8-camera
+// rig (calibrated from 60 views of a simulated ChArUco board, as the default demo's; every frame rendered with blur, noise,
+// distortion and self-occlusion, the dots detected, triangulated, tracked and labelled, the skull
+// pose estimated: eval::FilmSimulatedTake, as `facedyn demo` films), the head still. The solves
+// read the labelled marker tracks in the estimated skull frame (solve::MarkersFromTracks); a
+// marker the tracker lost is missing (the network refills it from its neighbours, the fits leave
+// it out). Figures as for the clean and noisy markers (marker RMSE against the filmed markers
+// present: the fit's residual), plus "true_marker_rmse_mm": the puppet's markers at the solved
+// weights against the markers' true positions on the performance, and the filmed markers' own
+// error against those true positions.
+Json FilmedStudy(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConfig& config,
+                 const JawHinge& hinge, const FdlsSolver& solver, const Eigen::MatrixXd& truth,
+                 const Settings& settings, uint64_t seed) {
+  namespace eval = facedyn::eval;
+  const int frames = static_cast<int>(std::min<Eigen::Index>(
+      truth.cols(), std::lround(settings.filmed_seconds * settings.fps)));
+  const Eigen::MatrixXd weights = truth.leftCols(frames);
+  facedyn::BlendshapeWeightsTrack track;
+  track.names = puppet.channel_names;
+  for (int f = 0; f < frames; ++f) track.time_s.push_back(f / settings.fps);
+  track.weights = weights.transpose();
+  const facedyn::Take performance =
+      Check(DriveRig(rig, track, "the test performance"), "driving the rig");
+  const auto start = Clock::now();
+  const eval::SimulatedCameraRig cameras =
+      Check(eval::CalibrateSimulatedCameraRig(60, 2020 + seed), "calibrating the camera rig");
+  eval::FilmTimings timings;
+  eval::FilmOptions film;
+  film.timings = &timings;
+  film.progress = true;
+  const facedyn::reconstruct::Reconstruction reconstruction =
+      Check(eval::FilmSimulatedTake(rig, cameras, performance, 5000 + seed, film), "filming");
+  const double film_s = Seconds(start);
+  const facedyn::MarkerTracks tracks = facedyn::reconstruct::MarkerTracksOf(rig, reconstruction);
+  const MarkerFrames filmed =
+      Check(MarkersFromTracks(puppet, tracks, reconstruction.take.world_from_skull),
+            "filmed markers");
+  const Eigen::MatrixXd true_markers =
+      (puppet.marker_basis_mm * weights).colwise() + puppet.StackedNeutral();
+  // The filmed markers against the truth (present ones), and the mean of that error: the part
+  // every marker shares (the estimated skull pose's and the calibration's).
+  double sq = 0.0;
+  int present = 0;
+  Eigen::Vector3d bias_mm = Eigen::Vector3d::Zero();
+  for (int f = 0; f < frames; ++f) {
+    for (int m = 0; m < puppet.marker_count(); ++m) {
+      if (!filmed.present(m, f)) continue;
+      const Eigen::Vector3d error =
+          filmed.markers_in_skull.block<3, 1>(3 * m, f) - true_markers.block<3, 1>(3 * m, f);
+      sq += error.squaredNorm();
+      bias_mm += error;
+      ++present;
+    }
+  }
+  if (present > 0) bias_mm /= present;
+  Json out = {{"frames", frames},
+              {"fps", settings.fps},
+              {"cameras", cameras.truth.size()},
+              {"present_fraction", static_cast<double>(present) / (frames * puppet.marker_count())},
+              {"filmed_marker_rms_mm", present > 0 ? std::sqrt(sq / present) : 0.0},
+              {"filmed_marker_mean_error_mm", bias_mm.norm()},
+              {"calibration_worst_centre_error_mm", cameras.worst_centre_error_mm},
+              {"film_s", film_s},
+              {"render_s", timings.render_s},
+              {"detect_s", timings.detect_s},
+              {"reconstruct_s", timings.reconstruct_s}};
+  const Eigen::MatrixXd network =
+      Check(solver.Solve(filmed.markers_in_skull, filmed.present), "network solve (filmed)");
+  MarkerFitSummary qp_summary, tune_summary;
+  const Eigen::MatrixXd qp = Check(
+      SolveMarkersQp(puppet, filmed.markers_in_skull, &filmed.present, &qp_summary), "qp (filmed)");
+  const Eigen::MatrixXd tuned =
+      Check(FitWeightsToMarkers(puppet, filmed.markers_in_skull, network, &filmed.present,
+                                MarkerFitOptions{}, &tune_summary),
+            "finetune (filmed)");
+  for (const auto& [name, solved] :
+       {std::pair<const char*, const Eigen::MatrixXd*>{"network", &network},
+        {"qp_baseline", &qp},
+        {"network_finetuned", &tuned}}) {
+    Json figures = ToJson(Score(puppet, config.jaw.channels, hinge, *solved, weights,
+                                filmed.markers_in_skull, &filmed.present),
+                          0.0);
+    figures.erase("frames_per_s");
+    figures["true_marker_rmse_mm"] = MarkerRmseMm(puppet, *solved, true_markers);
+    out[name] = figures;
+  }
+  return out;
+}
 
 Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConfig& base,
            const Settings& settings, uint64_t seed) {
   ResolvedConfig config = base;
   config.network.epochs = settings.epochs;
+  const JawHinge hinge = FindJawHinge(rig, puppet);
   TrainingDataOptions data_options;
   data_options.seed = seed;
   data_options.jaw_channels = config.jaw.channels;
@@ -201,14 +335,16 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
                                    {"validation_weight_rmse", s.validation_rmse}});
   }
 
-  // The held-out performance: jaw and mouth channels fast, the rest slow.
+  // The held-out performance: jaw and mouth channels (those of regions over the rig's lips) fast,
+  // the rest slow.
   std::vector<int> fast = config.jaw.channels;
   for (const ResolvedRegion& region : config.regions) {
-    if (region.spec.name == "mouth")
+    const std::vector<std::string>& over = region.spec.rig_regions;
+    if (std::find(over.begin(), over.end(), "lips") != over.end())
       fast.insert(fast.end(), region.channels.begin(), region.channels.end());
   }
   const int frames = static_cast<int>(std::lround(settings.seconds * settings.fps));
-  const Eigen::MatrixXd truth = SpeechLikeWeights(puppet, fast, frames, settings.fps, 1000 + seed);
+  const Eigen::MatrixXd truth = SpeechLikeWeights(puppet, fast, frames, settings.fps, settings.active_channels, 1000 + seed);
   const Eigen::MatrixXd clean =
       (puppet.marker_basis_mm * truth).colwise() + puppet.StackedNeutral();
   Eigen::MatrixXd noisy = clean;
@@ -239,10 +375,10 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
     });
     Json entry = {
         {"network",
-         ToJson(Score(puppet, config.jaw.channels, network, truth, *markers), network_fps)},
-        {"qp_baseline", ToJson(Score(puppet, config.jaw.channels, qp, truth, *markers), qp_fps)},
+         ToJson(Score(puppet, config.jaw.channels, hinge, network, truth, *markers), network_fps)},
+        {"qp_baseline", ToJson(Score(puppet, config.jaw.channels, hinge, qp, truth, *markers), qp_fps)},
         {"network_finetuned",
-         ToJson(Score(puppet, config.jaw.channels, tuned, truth, *markers), tune_fps)}};
+         ToJson(Score(puppet, config.jaw.channels, hinge, tuned, truth, *markers), tune_fps)}};
     entry["qp_baseline"]["iterations_per_frame"] =
         static_cast<double>(qp_summary.iterations) / frames;
     entry["network_finetuned"]["iterations_per_frame"] =
@@ -259,12 +395,14 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
                        "smooth finetune");
       });
       entry["network_finetuned_smooth"] =
-          ToJson(Score(puppet, config.jaw.channels, smooth, truth, *markers), smooth_fps);
+          ToJson(Score(puppet, config.jaw.channels, hinge, smooth, truth, *markers), smooth_fps);
       entry["network_finetuned_smooth"]["smoothness_mm2"] = settings.smoothness;
       entry["network_finetuned_smooth"]["converged"] = smooth_summary.converged;
     }
     test[name] = entry;
   }
+  if (settings.filmed_seconds > 0.0)
+    test["filmed"] = FilmedStudy(rig, puppet, config, hinge, solver, truth, settings, seed);
   if (!settings.salient.empty()) {
     // Salient selection (Eq. 3) with its threshold chosen on a validation performance (another
     // seed) that the test never shares: one network per candidate threshold on the kept tuples
@@ -272,7 +410,7 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
     // the validation performance's clean markers and on them with the test's noise level (its own
     // draw), and only then are the chosen networks scored on the test performance.
     const Eigen::MatrixXd validation_truth =
-        SpeechLikeWeights(puppet, fast, frames, settings.fps, 3000 + seed);
+        SpeechLikeWeights(puppet, fast, frames, settings.fps, settings.active_channels, 3000 + seed);
     const Eigen::MatrixXd validation_clean =
         (puppet.marker_basis_mm * validation_truth).colwise() + puppet.StackedNeutral();
     Eigen::MatrixXd validation_noisy = validation_clean;
@@ -281,7 +419,7 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
     for (Eigen::Index i = 0; i < validation_noisy.size(); ++i)
       validation_noisy.data()[i] += validation_normal(validation_rng);
     auto validation_rmse = [&](const FdlsSolver& s, const Eigen::MatrixXd& markers) {
-      return Score(puppet, config.jaw.channels, Check(s.Solve(markers), "validation solve"),
+      return Score(puppet, config.jaw.channels, hinge, Check(s.Solve(markers), "validation solve"),
                    validation_truth, markers)
           .weight_rmse;
     };
@@ -326,7 +464,7 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
       for (const auto& [name, markers] :
            {std::pair<const char*, const Eigen::MatrixXd*>{"clean", &clean}, {"noisy", &noisy}}) {
         Json figures =
-            ToJson(Score(puppet, config.jaw.channels,
+            ToJson(Score(puppet, config.jaw.channels, hinge,
                          Check(networks[best]->Solve(*markers), "solve"), truth, *markers),
                    0.0);
         figures.erase("frames_per_s");
@@ -335,7 +473,7 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
     }
     for (const auto& [name, markers] :
          {std::pair<const char*, const Eigen::MatrixXd*>{"clean", &clean}, {"noisy", &noisy}}) {
-      Json figures = ToJson(Score(puppet, config.jaw.channels,
+      Json figures = ToJson(Score(puppet, config.jaw.channels, hinge,
                                   Check(solver.Solve(*markers), "solve"), truth, *markers),
                             0.0);
       figures.erase("frames_per_s");
@@ -375,9 +513,9 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
     const Eigen::MatrixXd aligned = Check(AlignToAnchor(shifted, offsets), "align");
     const Eigen::MatrixXd after = Check(solver.Solve(aligned), "solve aligned");
     const Eigen::MatrixXd clean_solve = Check(solver.Solve(clean), "solve clean");
-    const Figures f_clean = Score(puppet, config.jaw.channels, clean_solve, truth, clean);
-    const Figures f_before = Score(puppet, config.jaw.channels, before, truth, shifted);
-    const Figures f_after = Score(puppet, config.jaw.channels, after, truth, aligned);
+    const Figures f_clean = Score(puppet, config.jaw.channels, hinge, clean_solve, truth, clean);
+    const Figures f_before = Score(puppet, config.jaw.channels, hinge, before, truth, shifted);
+    const Figures f_after = Score(puppet, config.jaw.channels, hinge, after, truth, aligned);
     const double added = f_before.weight_rmse - f_clean.weight_rmse;
     test["anchor_alignment"] = {
         {"scale", 1.03},
@@ -410,12 +548,29 @@ Json Replicates(const std::vector<Json>& studies) {
   for (const char* set : {"clean", "noisy"}) {
     for (const char* method : {"network", "qp_baseline", "network_finetuned"}) {
       for (const char* figure :
-           {"weight_rmse", "jaw_weight_rmse", "marker_rmse_mm", "frames_per_s"}) {
+           {"weight_rmse", "jaw_weight_rmse", "jaw_deg_rms", "marker_rmse_mm", "frames_per_s"}) {
         std::vector<double> values;
         for (const Json& s : studies)
           values.push_back(s["test"][set][method][figure].get<double>());
         out[set][method][figure] = MeanSd(values);
       }
+    }
+  }
+  if (studies.front()["test"].contains("filmed")) {
+    for (const char* method : {"network", "qp_baseline", "network_finetuned"}) {
+      for (const char* figure : {"weight_rmse", "jaw_weight_rmse", "jaw_deg_rms",
+                                 "marker_rmse_mm", "true_marker_rmse_mm"}) {
+        std::vector<double> values;
+        for (const Json& s : studies)
+          values.push_back(s["test"]["filmed"][method][figure].get<double>());
+        out["filmed"][method][figure] = MeanSd(values);
+      }
+    }
+    for (const char* figure :
+         {"present_fraction", "filmed_marker_rms_mm", "filmed_marker_mean_error_mm"}) {
+      std::vector<double> values;
+      for (const Json& s : studies) values.push_back(s["test"]["filmed"][figure].get<double>());
+      out["filmed"][figure] = MeanSd(values);
     }
   }
   for (const char* figure : {"network_weight_rmse_shifted", "network_weight_rmse_aligned",
@@ -447,6 +602,8 @@ int main(int argc, char** argv) {
   Settings settings;
   std::vector<uint64_t> seeds{1};
   bool epochs_given = false;
+  std::string ict_dir;      // --ict: the ICT-FaceKit face instead of the procedural one
+  std::string config_path;  // --config: region tables (default: the rig's own)
   for (int k = 1; k < argc; ++k) {
     const std::string arg = argv[k];
     auto next = [&]() -> const char* {
@@ -484,10 +641,19 @@ int main(int argc, char** argv) {
       }
     } else if (arg == "--threads") {
       settings.threads = static_cast<int>(facedyn::bench::FlagInteger("solve_bench", arg, next()));
+    } else if (arg == "--active-channels") {
+      settings.active_channels = facedyn::bench::FlagNumber("solve_bench", arg, next());
+    } else if (arg == "--filmed-seconds") {
+      settings.filmed_seconds = facedyn::bench::FlagNumber("solve_bench", arg, next());
+    } else if (arg == "--ict") {
+      ict_dir = next();
+    } else if (arg == "--config") {
+      config_path = next();
     } else if (arg == "--help" || arg == "-h") {
       std::printf(
           "solve_bench [--quick] [--seed N] [--seeds 1,2,3] [--epochs N] [--seconds S] [--fps N]\n"
-          "            [--noise-mm S] [--salient T[,T...]] [--smoothness L] [--threads N]\n");
+          "            [--noise-mm S] [--salient T[,T...]] [--smoothness L] [--threads N]\n"
+          "            [--active-channels K] [--filmed-seconds S] [--ict DIR [--config REGIONS.yaml]]\n");
       return 0;
     } else {
       std::fprintf(stderr, "solve_bench: unknown flag '%s' (--help lists them)\n", arg.c_str());
@@ -496,13 +662,15 @@ int main(int argc, char** argv) {
   }
   if (settings.quick && !epochs_given) settings.epochs = 10;
   if (settings.epochs < 1 || settings.threads < 1 || !(settings.seconds > 0) ||
-      !(settings.fps > 0) || settings.noise_mm < 0 ||
+      !(settings.fps > 0) || settings.noise_mm < 0 || !(settings.filmed_seconds >= 0) ||
+      !(settings.active_channels > 0) ||
       std::any_of(settings.salient.begin(), settings.salient.end(),
                   [](double t) { return !(t > 0.0 && t <= 1.0); }) ||
       seeds.empty()) {
     std::fprintf(
         stderr,
-        "solve_bench: --epochs and --threads >= 1, --seconds and --fps > 0, --noise-mm >= 0, "
+        "solve_bench: --epochs and --threads >= 1, --seconds and --fps > 0, --noise-mm and "
+        "--filmed-seconds >= 0, --active-channels > 0, "
         "--salient thresholds in (0, 1], at least one seed\n");
     return 2;
   }
@@ -510,10 +678,25 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "solve_bench: --seconds x --fps gives fewer than 2 frames\n");
     return 2;
   }
-  const facedyn::FaceRig rig = Check(
-      facedyn::sim::MakeProceduralFace(facedyn::sim::ProceduralFaceOptions{}), "procedural face");
+  if (!config_path.empty() && ict_dir.empty()) {
+    std::fprintf(stderr, "solve_bench: --config goes with --ict (the procedural face's tables "
+                         "are embedded)\n");
+    return 2;
+  }
+  facedyn::FaceRig rig;
+  if (ict_dir.empty()) {
+    rig = Check(facedyn::sim::MakeProceduralFace(facedyn::sim::ProceduralFaceOptions{}),
+                "procedural face");
+  } else {
+    facedyn::sim::IctImportOptions ict;
+    ict.dir = ict_dir;
+    rig = Check(facedyn::sim::ImportIctFaceKit(ict), "ICT-FaceKit face");
+    if (config_path.empty())
+      config_path = std::string(FACEDYN_SOURCE_DIR) + "/config/solve/ict.yaml";
+  }
   const Puppet puppet = Check(MakePuppet(rig), "puppet");
-  const SolveConfig config = Check(ProceduralSolveConfig(), "solve config");
+  const SolveConfig config = config_path.empty() ? Check(ProceduralSolveConfig(), "solve config")
+                                                 : Check(ReadSolveConfig(config_path), "solve config");
   const ResolvedConfig resolved = Check(ResolveSolveConfig(config, rig, puppet), "solve config");
   std::vector<Json> studies;
   for (uint64_t seed : seeds) studies.push_back(Study(rig, puppet, resolved, settings, seed));

@@ -201,26 +201,26 @@ struct Settings {
   std::vector<double> salient;  // candidate thresholds (empty: no salient study)
   double smoothness = 0.0;
   int threads = 2;
-  double filmed_seconds = 2.0;  // 0: no filmed study
+  double filmed_seconds = 2.0;   // 0: no filmed study
   double active_channels = 5.0;  // channels away from zero at a time in the performances
 };
 
 // The first `--filmed-seconds` of the test performance filmed by the simulated stage's 8-camera
-// rig (calibrated from 60 views of a simulated ChArUco board, as the default demo's; every frame rendered with blur, noise,
-// distortion and self-occlusion, the dots detected, triangulated, tracked and labelled, the skull
-// pose estimated: eval::FilmSimulatedTake, as `facedyn demo` films), the head still. The solves
-// read the labelled marker tracks in the estimated skull frame (solve::MarkersFromTracks); a
-// marker the tracker lost is missing (the network refills it from its neighbours, the fits leave
-// it out). Figures as for the clean and noisy markers (marker RMSE against the filmed markers
-// present: the fit's residual), plus "true_marker_rmse_mm": the puppet's markers at the solved
-// weights against the markers' true positions on the performance, and the filmed markers' own
-// error against those true positions.
+// rig (calibrated from 60 views of a simulated ChArUco board, as the default demo's; every frame
+// rendered with blur, noise, distortion and self-occlusion, the dots detected, triangulated,
+// tracked and labelled, the skull pose estimated: eval::FilmSimulatedTake, as `facedyn demo`
+// films), the head still. The solves read the labelled marker tracks in the estimated skull frame
+// (solve::MarkersFromTracks); a marker the tracker lost is missing (the network refills it from its
+// neighbours, the fits leave it out). Figures as for the clean and noisy markers (marker RMSE
+// against the filmed markers present: the fit's residual), plus "true_marker_rmse_mm": the puppet's
+// markers at the solved weights against the markers' true positions on the performance, and the
+// filmed markers' own error against those true positions.
 Json FilmedStudy(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConfig& config,
                  const JawHinge& hinge, const FdlsSolver& solver, const Eigen::MatrixXd& truth,
                  const Settings& settings, uint64_t seed) {
   namespace eval = facedyn::eval;
-  const int frames = static_cast<int>(std::min<Eigen::Index>(
-      truth.cols(), std::lround(settings.filmed_seconds * settings.fps)));
+  const int frames = static_cast<int>(
+      std::min<Eigen::Index>(truth.cols(), std::lround(settings.filmed_seconds * settings.fps)));
   const Eigen::MatrixXd weights = truth.leftCols(frames);
   facedyn::BlendshapeWeightsTrack track;
   track.names = puppet.channel_names;
@@ -239,9 +239,8 @@ Json FilmedStudy(const facedyn::FaceRig& rig, const Puppet& puppet, const Resolv
       Check(eval::FilmSimulatedTake(rig, cameras, performance, 5000 + seed, film), "filming");
   const double film_s = Seconds(start);
   const facedyn::MarkerTracks tracks = facedyn::reconstruct::MarkerTracksOf(rig, reconstruction);
-  const MarkerFrames filmed =
-      Check(MarkersFromTracks(puppet, tracks, reconstruction.take.world_from_skull),
-            "filmed markers");
+  const MarkerFrames filmed = Check(
+      MarkersFromTracks(puppet, tracks, reconstruction.take.world_from_skull), "filmed markers");
   const Eigen::MatrixXd true_markers =
       (puppet.marker_basis_mm * weights).colwise() + puppet.StackedNeutral();
   // The filmed markers against the truth (present ones), and the mean of that error: the part
@@ -344,7 +343,8 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
       fast.insert(fast.end(), region.channels.begin(), region.channels.end());
   }
   const int frames = static_cast<int>(std::lround(settings.seconds * settings.fps));
-  const Eigen::MatrixXd truth = SpeechLikeWeights(puppet, fast, frames, settings.fps, settings.active_channels, 1000 + seed);
+  const Eigen::MatrixXd truth =
+      SpeechLikeWeights(puppet, fast, frames, settings.fps, settings.active_channels, 1000 + seed);
   const Eigen::MatrixXd clean =
       (puppet.marker_basis_mm * truth).colwise() + puppet.StackedNeutral();
   Eigen::MatrixXd noisy = clean;
@@ -376,7 +376,8 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
     Json entry = {
         {"network",
          ToJson(Score(puppet, config.jaw.channels, hinge, network, truth, *markers), network_fps)},
-        {"qp_baseline", ToJson(Score(puppet, config.jaw.channels, hinge, qp, truth, *markers), qp_fps)},
+        {"qp_baseline",
+         ToJson(Score(puppet, config.jaw.channels, hinge, qp, truth, *markers), qp_fps)},
         {"network_finetuned",
          ToJson(Score(puppet, config.jaw.channels, hinge, tuned, truth, *markers), tune_fps)}};
     entry["qp_baseline"]["iterations_per_frame"] =
@@ -409,8 +410,8 @@ Json Study(const facedyn::FaceRig& rig, const Puppet& puppet, const ResolvedConf
     // (same epochs); every tuple (no selection) is a candidate too. The choice is made twice, on
     // the validation performance's clean markers and on them with the test's noise level (its own
     // draw), and only then are the chosen networks scored on the test performance.
-    const Eigen::MatrixXd validation_truth =
-        SpeechLikeWeights(puppet, fast, frames, settings.fps, settings.active_channels, 3000 + seed);
+    const Eigen::MatrixXd validation_truth = SpeechLikeWeights(
+        puppet, fast, frames, settings.fps, settings.active_channels, 3000 + seed);
     const Eigen::MatrixXd validation_clean =
         (puppet.marker_basis_mm * validation_truth).colwise() + puppet.StackedNeutral();
     Eigen::MatrixXd validation_noisy = validation_clean;
@@ -558,8 +559,8 @@ Json Replicates(const std::vector<Json>& studies) {
   }
   if (studies.front()["test"].contains("filmed")) {
     for (const char* method : {"network", "qp_baseline", "network_finetuned"}) {
-      for (const char* figure : {"weight_rmse", "jaw_weight_rmse", "jaw_deg_rms",
-                                 "marker_rmse_mm", "true_marker_rmse_mm"}) {
+      for (const char* figure : {"weight_rmse", "jaw_weight_rmse", "jaw_deg_rms", "marker_rmse_mm",
+                                 "true_marker_rmse_mm"}) {
         std::vector<double> values;
         for (const Json& s : studies)
           values.push_back(s["test"]["filmed"][method][figure].get<double>());
@@ -653,7 +654,8 @@ int main(int argc, char** argv) {
       std::printf(
           "solve_bench [--quick] [--seed N] [--seeds 1,2,3] [--epochs N] [--seconds S] [--fps N]\n"
           "            [--noise-mm S] [--salient T[,T...]] [--smoothness L] [--threads N]\n"
-          "            [--active-channels K] [--filmed-seconds S] [--ict DIR [--config REGIONS.yaml]]\n");
+          "            [--active-channels K] [--filmed-seconds S] [--ict DIR [--config "
+          "REGIONS.yaml]]\n");
       return 0;
     } else {
       std::fprintf(stderr, "solve_bench: unknown flag '%s' (--help lists them)\n", arg.c_str());
@@ -679,8 +681,9 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (!config_path.empty() && ict_dir.empty()) {
-    std::fprintf(stderr, "solve_bench: --config goes with --ict (the procedural face's tables "
-                         "are embedded)\n");
+    std::fprintf(stderr,
+                 "solve_bench: --config goes with --ict (the procedural face's tables "
+                 "are embedded)\n");
     return 2;
   }
   facedyn::FaceRig rig;
@@ -695,8 +698,9 @@ int main(int argc, char** argv) {
       config_path = std::string(FACEDYN_SOURCE_DIR) + "/config/solve/ict.yaml";
   }
   const Puppet puppet = Check(MakePuppet(rig), "puppet");
-  const SolveConfig config = config_path.empty() ? Check(ProceduralSolveConfig(), "solve config")
-                                                 : Check(ReadSolveConfig(config_path), "solve config");
+  const SolveConfig config = config_path.empty()
+                                 ? Check(ProceduralSolveConfig(), "solve config")
+                                 : Check(ReadSolveConfig(config_path), "solve config");
   const ResolvedConfig resolved = Check(ResolveSolveConfig(config, rig, puppet), "solve config");
   std::vector<Json> studies;
   for (uint64_t seed : seeds) studies.push_back(Study(rig, puppet, resolved, settings, seed));

@@ -167,7 +167,8 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
   run->add_option("--model", run_options->model, "Solver folder (facedyn solve train --out)")
       ->required();
   run->add_option("--out", run_options->out,
-                  "Weights CSV to write (time_s, one column per channel)")
+                  "Weights CSV to write (time_s, one column per channel); its JSON twin goes "
+                  "beside it (W.csv -> W.json)")
       ->required();
   run->add_option("--anchor", run_options->anchor,
                   "Neutral-ish anchor frame for shape alignment (FDLS 4.4.2); -1: none")
@@ -260,10 +261,14 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
         out["finetune_converged"] = summary.converged;
       }
       FACEDYN_RETURN_IF_ERROR(solve::WriteWeightsCsv(o.out, puppet, frames.time_s, weights));
+      const std::string json_twin = solve::WeightsJsonTwinPath(o.out);
+      FACEDYN_RETURN_IF_ERROR(solve::WriteWeightsJson(json_twin, puppet, frames.time_s, weights));
+      out["weights_csv"] = o.out;
+      out["weights_json"] = json_twin;
       if (o.json) {
         std::printf("%s\n", out.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       } else {
-        spdlog::info("solved {} frames into {} (marker RMSE {:.3f} mm)", n, o.out,
+        spdlog::info("solved {} frames into {} and {} (marker RMSE {:.3f} mm)", n, o.out, json_twin,
                      out.value("finetuned_marker_rmse_mm", network_rmse_mm));
       }
       return Status::Ok();
@@ -276,10 +281,11 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
     std::string out;
   };
   auto apply_options = std::make_shared<ApplyOptions>();
-  auto* apply = solve->add_subcommand("apply", "Drive a rig with a weights CSV; write a Take");
+  auto* apply =
+      solve->add_subcommand("apply", "Drive a rig with a weights CSV or JSON; write a Take");
   apply
       ->add_option("--weights", apply_options->weights,
-                   "Weights CSV (time_s, one column per channel)")
+                   "Weights CSV (time_s, one column per channel), or its JSON twin (.json)")
       ->required();
   apply->add_option("--rig", apply_options->rig, "FaceRig folder, or 'procedural'")
       ->capture_default_str();
@@ -289,7 +295,7 @@ void AddSolveCommands(CLI::App& app, CommandRunner* selected) {
       const ApplyOptions& o = *apply_options;
       FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(o.rig));
       FACEDYN_ASSIGN_OR_RETURN(const BlendshapeWeightsTrack track,
-                               ReadBlendshapeWeightsCsv(o.weights));
+                               ReadBlendshapeWeights(o.weights));
       FACEDYN_ASSIGN_OR_RETURN(const Take take, solve::DriveRig(rig, track, o.weights));
       FACEDYN_RETURN_IF_ERROR(SaveTake(take, o.out));
       spdlog::info("drove rig '{}' with {} frames of {} into {}", rig.name, track.sample_count(),

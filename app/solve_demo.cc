@@ -146,7 +146,10 @@ StatusOr<Json> RunSolveDemoStage(const FaceRig& face, const DemoDynamicsArtifact
     }
     const std::string csv = JoinPath(solve_dir, std::string(key) + "_weights.csv");
     FACEDYN_RETURN_IF_ERROR(solve::WriteWeightsCsv(csv, puppet, markers.time_s, tuned));
+    const std::string json_twin = solve::WeightsJsonTwinPath(csv);
+    FACEDYN_RETURN_IF_ERROR(solve::WriteWeightsJson(json_twin, puppet, markers.time_s, tuned));
     figures[key]["weights_csv"] = csv;
+    figures[key]["weights_json"] = json_twin;
     curves.emplace_back(key, tuned);
   }
   {

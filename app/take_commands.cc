@@ -67,9 +67,10 @@ void AddExportCommand(CLI::App& app, CommandRunner* selected) {
   auto* rig_option = command->add_option("--rig", options->rig_dir,
                                   "FaceRig folder (facedyn sim face): exported as DIR/rig.glb");
   take_option->excludes(rig_option);
-  command->add_option("--weights", options->weights_csv,
-                      "With --rig: blendshape weights over time (CSV time_s,<name>,...) to "
-                      "animate the morph targets")
+  command
+      ->add_option("--weights", options->weights_csv,
+                   "With --rig: blendshape weights over time (CSV time_s,<name>,..., or "
+                   "the JSON twin solve run writes) to animate the morph targets")
       ->needs(rig_option);
   command->add_option("--format", options->format, "obj | ply | pc2 | mdd | glb (--rig: glb)")
       ->required()
@@ -89,7 +90,7 @@ void AddExportCommand(CLI::App& app, CommandRunner* selected) {
         FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFaceRig(options->rig_dir));
         std::optional<BlendshapeWeightsTrack> weights;
         if (!options->weights_csv.empty()) {
-          FACEDYN_ASSIGN_OR_RETURN(weights, ReadBlendshapeWeightsCsv(options->weights_csv));
+          FACEDYN_ASSIGN_OR_RETURN(weights, ReadBlendshapeWeights(options->weights_csv));
         }
         FACEDYN_RETURN_IF_ERROR(MakeDirectories(options->out_dir));
         const std::string path = JoinPath(options->out_dir, "rig.glb");

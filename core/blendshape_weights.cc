@@ -2,11 +2,15 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <set>
 
+#include "core/config_node.h"
 #include "core/csv.h"
 #include "core/file_util.h"
+#include "core/json_io.h"
 
 namespace facedyn {
 
@@ -90,6 +94,75 @@ Status WriteBlendshapeWeightsCsv(const std::string& path, const BlendshapeWeight
     text += "\n";
   }
   return WriteFileAtomic(path, text);
+}
+
+namespace {
+constexpr char kJsonFormat[] = "facedyn.blendshape_weights";
+constexpr int kJsonVersion = 1;
+}  // namespace
+
+StatusOr<BlendshapeWeightsTrack> ReadBlendshapeWeightsJson(const std::string& path) {
+  FACEDYN_ASSIGN_OR_RETURN(const ConfigNode root, ConfigNode::ReadFile(path));
+  if (!root.IsMap()) return DataLossError(path + ": expected a JSON object (blendshape weights)");
+  FACEDYN_RETURN_IF_ERROR(root.CheckFields({"format", "version", "names", "time_s", "weights"}));
+  FACEDYN_ASSIGN_OR_RETURN(const std::string format, root.Get<std::string>("format"));
+  if (format != kJsonFormat) {
+    return root.Error("format", fmt::format("'{}' is not '{}'", format, kJsonFormat));
+  }
+  FACEDYN_ASSIGN_OR_RETURN(const int version, root.Get<int>("version"));
+  if (version != kJsonVersion) {
+    return root.Error(
+        "version", fmt::format("{} is not a version this build reads ({})", version, kJsonVersion));
+  }
+  BlendshapeWeightsTrack track;
+  FACEDYN_ASSIGN_OR_RETURN(track.names, root.Get<std::vector<std::string>>("names"));
+  FACEDYN_ASSIGN_OR_RETURN(track.time_s, root.Get<std::vector<double>>("time_s"));
+  FACEDYN_ASSIGN_OR_RETURN(const ConfigNode samples, root.Child("weights"));
+  if (!samples.IsSequence()) return samples.Error("expected an array with one array per sample");
+  if (samples.size() != track.time_s.size()) {
+    return samples.Error(
+        fmt::format("{} samples of weights for {} times", samples.size(), track.time_s.size()));
+  }
+  track.weights.resize(static_cast<Eigen::Index>(track.time_s.size()),
+                       static_cast<Eigen::Index>(track.names.size()));
+  for (size_t s = 0; s < samples.size(); ++s) {
+    FACEDYN_ASSIGN_OR_RETURN(const ConfigNode sample, samples.At(s));
+    FACEDYN_ASSIGN_OR_RETURN(const std::vector<double> values, sample.As<std::vector<double>>());
+    if (values.size() != track.names.size()) {
+      return sample.Error(fmt::format("sample {} has {} weights for {} names", s, values.size(),
+                                      track.names.size()));
+    }
+    for (size_t c = 0; c < values.size(); ++c) {
+      track.weights(static_cast<Eigen::Index>(s), static_cast<Eigen::Index>(c)) = values[c];
+    }
+  }
+  const Status valid = track.Validate();
+  if (!valid.ok()) return DataLossError(path + ": " + valid.message());
+  return track;
+}
+
+Status WriteBlendshapeWeightsJson(const std::string& path, const BlendshapeWeightsTrack& track) {
+  FACEDYN_RETURN_IF_ERROR(track.Validate());
+  // One sample per line: readable and diffable, where a pretty-printed dump would put every
+  // number on a line of its own.
+  std::string text = "{\"format\": " + Json(kJsonFormat).dump() +
+                     ", \"version\": " + std::to_string(kJsonVersion) + ",\n \"names\": " +
+                     Json(track.names).dump(-1, ' ', false, kJsonReplaceInvalidUtf8) +
+                     ",\n \"time_s\": " + Json(track.time_s).dump() + ",\n \"weights\": [";
+  for (int s = 0; s < track.sample_count(); ++s) {
+    Json row = Json::array();
+    for (Eigen::Index c = 0; c < track.weights.cols(); ++c) row.push_back(track.weights(s, c));
+    text += (s == 0 ? "\n  " : ",\n  ") + row.dump();
+  }
+  text += "\n ]}\n";
+  return WriteFileAtomic(path, text);
+}
+
+StatusOr<BlendshapeWeightsTrack> ReadBlendshapeWeights(const std::string& path) {
+  std::string extension = path.size() >= 5 ? path.substr(path.size() - 5) : "";
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return extension == ".json" ? ReadBlendshapeWeightsJson(path) : ReadBlendshapeWeightsCsv(path);
 }
 
 }  // namespace facedyn

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <map>
 
@@ -52,6 +53,26 @@ Status WriteWeightsCsv(const std::string& path, const Puppet& puppet,
   FACEDYN_ASSIGN_OR_RETURN(const BlendshapeWeightsTrack track,
                            WeightsToTrack(puppet, time_s, weights));
   return WriteBlendshapeWeightsCsv(path, track);
+}
+
+Status WriteWeightsJson(const std::string& path, const Puppet& puppet,
+                        const std::vector<double>& time_s, const Eigen::MatrixXd& weights) {
+  FACEDYN_ASSIGN_OR_RETURN(const BlendshapeWeightsTrack track,
+                           WeightsToTrack(puppet, time_s, weights));
+  return WriteBlendshapeWeightsJson(path, track);
+}
+
+std::string WeightsJsonTwinPath(const std::string& csv_path) {
+  const size_t slash = csv_path.find_last_of('/');
+  const size_t dot = csv_path.find_last_of('.');
+  const bool has_extension =
+      dot != std::string::npos && (slash == std::string::npos || dot > slash);
+  if (has_extension) {
+    std::string extension = csv_path.substr(dot);
+    for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (extension == ".csv") return csv_path.substr(0, dot) + ".json";
+  }
+  return csv_path + ".json";
 }
 
 StatusOr<Eigen::MatrixXd> ReadWeightsCsv(const std::string& path, const Puppet& puppet,

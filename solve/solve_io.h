@@ -34,6 +34,12 @@ StatusOr<Eigen::MatrixXd> WeightsFromTrack(const Puppet& puppet,
                                            const std::string& source);
 Status WriteWeightsCsv(const std::string& path, const Puppet& puppet,
                        const std::vector<double>& time_s, const Eigen::MatrixXd& weights);
+// The same weights as the CSV's JSON twin (core/blendshape_weights.h's JSON layout), and where a
+// command puts it: the CSV's path with ".json" for its ".csv" extension (appended when it has
+// none), so `solve run --out W.csv` writes W.csv and W.json.
+Status WriteWeightsJson(const std::string& path, const Puppet& puppet,
+                        const std::vector<double>& time_s, const Eigen::MatrixXd& weights);
+std::string WeightsJsonTwinPath(const std::string& csv_path);
 // Reads `path` onto the puppet's channels; times into *time_s.
 StatusOr<Eigen::MatrixXd> ReadWeightsCsv(const std::string& path, const Puppet& puppet,
                                          std::vector<double>* time_s);

@@ -80,6 +80,20 @@ TEST(SolveCli, TrainRunOnATakeFinetuneAndApply) {
   EXPECT_EQ(lines[0].rfind("time_s,", 0), 0u) << lines[0];
   EXPECT_THAT(lines[0], HasSubstr("smile"));
   EXPECT_THAT(lines[0], HasSubstr("jaw_open"));
+  // The CSV's JSON twin beside it, with the same channels and samples.
+  EXPECT_EQ(network["weights_json"], dir.Join("w.json"));
+  const auto twin = nlohmann::json::parse(::facedyn::testing::ReadBytes(dir.Join("w.json")));
+  EXPECT_EQ(twin["format"], "facedyn.blendshape_weights");
+  EXPECT_EQ(twin["time_s"].size(), 12u);
+  ASSERT_EQ(twin["weights"].size(), 12u);
+  EXPECT_EQ(twin["weights"][0].size(), twin["names"].size());
+  EXPECT_EQ(
+      lines[0], "time_s," + [&] {
+        std::string names;
+        for (const auto& name : twin["names"])
+          names += (names.empty() ? "" : ",") + name.get<std::string>();
+        return names;
+      }());
 
   // Fine-tuning all channels on the marker residual only lowers it.
   ASSERT_EQ(
@@ -92,15 +106,17 @@ TEST(SolveCli, TrainRunOnATakeFinetuneAndApply) {
   EXPECT_LE(finetuned["finetuned_marker_rmse_mm"].get<double>(),
             finetuned["network_marker_rmse_mm"].get<double>() + 1e-9);
 
-  // The weights drive a character with the same channel names.
-  ASSERT_EQ(RunCommand(Facedyn("--quiet solve apply --weights " + dir.Join("w2.csv") + " --out " +
-                               dir.Join("driven")),
-                       &out),
-            0)
-      << out;
-  ASSERT_EQ(RunCommand(Facedyn("take info --json " + dir.Join("driven") + " 2>/dev/null"), &out), 0)
-      << out;
-  EXPECT_EQ(nlohmann::json::parse(out)["frames"], 12);
+  // The weights drive a character with the same channel names, from the CSV or its JSON twin.
+  for (const char* weights : {"w2.csv", "w2.json"}) {
+    const std::string driven = dir.Join(std::string("driven_") + weights);
+    ASSERT_EQ(RunCommand(Facedyn("--quiet solve apply --weights " + dir.Join(weights) + " --out " +
+                                 driven),
+                         &out),
+              0)
+        << out;
+    ASSERT_EQ(RunCommand(Facedyn("take info --json " + driven + " 2>/dev/null"), &out), 0) << out;
+    EXPECT_EQ(nlohmann::json::parse(out)["frames"], 12) << weights;
+  }
 }
 
 TEST(SolveCli, BadInputIsNamed) {
@@ -128,6 +144,19 @@ TEST(SolveCli, BadInputIsNamed) {
   EXPECT_EQ(RunCommand(Facedyn("solve run --markers " + dir.Join("m.csv") + model), &out), 1);
   EXPECT_THAT(out, HasSubstr("m.csv"));
   EXPECT_FALSE(std::filesystem::exists(dir.Join("w.csv")));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("w.json")));
+  // A weights JSON with a sample short of weights is named with its line, and no take is written.
+  std::ofstream(dir.Join("w.json"))
+      << "{\"format\": \"facedyn.blendshape_weights\", \"version\": 1,\n"
+         "\"names\": [\"smile\", \"jaw_open\"], \"time_s\": [0, 0.1],\n"
+         "\"weights\": [[0, 0.5],\n[0.2]]}\n";
+  EXPECT_EQ(RunCommand(Facedyn("solve apply --weights " + dir.Join("w.json") + " --out " +
+                               dir.Join("driven")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("w.json:4"));
+  EXPECT_THAT(out, HasSubstr("sample 1 has 1 weights for 2 names"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("driven")));
 }
 
 TEST(DetailCli, TrainApplyAndBadModel) {

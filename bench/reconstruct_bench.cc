@@ -288,6 +288,44 @@ Json BenchPipeline(const facedyn::FaceRig& rig, const facedyn::Take& take) {
   out["dynamic_offset_correlation"] = cov / std::sqrt(va * vb);
   out["dynamic_offset_true_rms_mm"] = std::sqrt(sbb / n_offset);
   out["evaluated_from_s"] = 0.5;
+  out["skull_deflection_shape"] =
+      SkullPoseEstimator(rig, SkullPoseOptions()).deflection_shape_used();
+  // The skull pose again from the same labelled markers with each deflection shape
+  // (skull_pose.h): RMS error at the origin and in rotation, and what varies over the take
+  // (the RMS about the take's mean error, which a constant offset of the skull frame does not
+  // enter).
+  Json by_shape = Json::object();
+  for (const auto& [name, shape] :
+       {std::pair{"thickness_squared", DeflectionShape::kThicknessSquared},
+        std::pair{"tissue_model", DeflectionShape::kTissueModel},
+        std::pair{"tissue_model_joint_rotation", DeflectionShape::kTissueModel}}) {
+    SkullPoseOptions options;
+    options.deflection_shape = shape;
+    options.rotation_from_thickness_law = std::string(name) != "tissue_model_joint_rotation";
+    const SkullPoseEstimator estimator(rig, options);
+    std::vector<Eigen::Vector3d> translation, rotation;
+    for (int f = skip; f < take.frame_count(); ++f) {
+      const facedyn::Rigid3 difference = take.world_from_skull[f].Inverse() *
+                                         estimator.Estimate(result->tracked[f]).world_from_skull;
+      translation.push_back(difference.translation());
+      const Eigen::AngleAxisd axis_angle(difference.rotation());
+      rotation.push_back(axis_angle.angle() * axis_angle.axis() * 180.0 / M_PI);
+    }
+    auto rms = [](const std::vector<Eigen::Vector3d>& v, bool about_mean) {
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      if (about_mean) {
+        for (const auto& x : v) mean += x / static_cast<double>(v.size());
+      }
+      double sq = 0.0;
+      for (const auto& x : v) sq += (x - mean).squaredNorm();
+      return std::sqrt(sq / v.size());
+    };
+    by_shape[name] = {{"origin_rms_mm", rms(translation, false)},
+                      {"origin_varying_rms_mm", rms(translation, true)},
+                      {"rotation_rms_deg", rms(rotation, false)},
+                      {"rotation_varying_rms_deg", rms(rotation, true)}};
+  }
+  out["skull_pose_by_deflection_shape"] = by_shape;
   // The jaw through the full pipeline (a smile barely moves it: this is the false-opening figure).
   if (!result->take.skull_from_jaw.empty() && !take.skull_from_jaw.empty()) {
     double sq_jaw = 0.0;

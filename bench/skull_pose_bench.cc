@@ -12,18 +12,25 @@
 // Variants (SkullPoseOptions): "rigid" (a plain robust rigid fit, equal weights, no
 // deflection); "deflection_wP" (prior weights (t_min / t)^P and one deflection d per frame
 // moving every marker along it; w2 is round 1's estimator); "..._normals" (then the
-// translation re-fitted to the markers' normal components only). The default is
-// deflection_w4_normals.
+// translation re-fitted to the markers' normal components only); "static..." and "ritz..."
+// (the tissue model's deflection shapes, physics/inertial_deflection.h, in place of the t^2
+// law). The default is ritz2_w4_normals.
+//
+// The simulated subject is the default tissue unless --subject-hz / --subject-damping say
+// otherwise; --heterogeneous makes its stable regions differ in stiffness (forehead x1.6, nose
+// bridge x0.6, temples x1.3), which the tissue model's shapes (one modulus) do not know.
 //
 // Also per take, a diagnostic of the truth: the share of the stable markers' true dynamic offset
 // (skull frame) that is normal to the skin, and its RMS.
 //
-//   skull_pose_bench [--noise-mm S] [--seconds S] [--skip-s S] [--seed N]
+//   skull_pose_bench [--noise-mm S] [--seconds S] [--skip-s S] [--subject-hz F]
+//                    [--subject-damping Z] [--heterogeneous] [--seed N]
 
 #include <fmt/format.h>
 
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -32,6 +39,9 @@
 #include "core/json_io.h"
 #include "core/log.h"
 #include "core/mesh.h"
+#include "physics/inertial_deflection.h"
+#include "physics/soft_tissue.h"
+#include "physics/twin.h"
 #include "reconstruct/skull_pose.h"
 #include "sim/performance.h"
 #include "sim/procedural_face.h"
@@ -78,6 +88,12 @@ int main(int argc, char** argv) {
   using namespace facedyn;
   double noise_mm = 0.0, seconds = 2.0, skip_s = 0.5;
   uint64_t seed = 1;
+  // The simulated subject's tissue (the estimators are never told it).
+  double subject_hz = physics::TissueOptions{}.fundamental_hz;
+  double subject_damping = physics::TissueOptions{}.damping_ratio;
+  // A subject whose stable regions differ in stiffness (the tissue model's shapes assume one
+  // modulus everywhere): forehead x1.6, nose bridge x0.6, temples x1.3, the rest x1.
+  bool heterogeneous = false;
   for (int k = 1; k < argc; ++k) {
     const std::string arg = argv[k];
     auto next = [&]() -> const char* {
@@ -93,11 +109,19 @@ int main(int argc, char** argv) {
       seconds = bench::FlagNumber("skull_pose_bench", arg, next());
     } else if (arg == "--skip-s") {
       skip_s = bench::FlagNumber("skull_pose_bench", arg, next());
+    } else if (arg == "--subject-hz") {
+      subject_hz = bench::FlagNumber("skull_pose_bench", arg, next());
+    } else if (arg == "--subject-damping") {
+      subject_damping = bench::FlagNumber("skull_pose_bench", arg, next());
+    } else if (arg == "--heterogeneous") {
+      heterogeneous = true;
     } else if (arg == "--seed") {
       seed = static_cast<uint64_t>(bench::FlagInteger("skull_pose_bench", arg, next()));
     } else {
-      std::fprintf(stderr,
-                   "usage: skull_pose_bench [--noise-mm S] [--seconds S] [--skip-s S] [--seed N]\n");
+      std::fprintf(
+          stderr,
+          "usage: skull_pose_bench [--noise-mm S] [--seconds S] [--skip-s S] [--subject-hz F]\n"
+          "                        [--subject-damping Z] [--heterogeneous] [--seed N]\n");
       return 2;
     }
   }
@@ -119,20 +143,75 @@ int main(int argc, char** argv) {
     v.options.thickness_weight_power = power > 0 ? power : 2.0;
     v.options.deflection_model = deflection;
     v.options.translation_from_normals = normals;
+    v.options.deflection_shape = reconstruct::DeflectionShape::kThicknessSquared;
     variants.push_back(v);
   };
   add("rigid", 0, false, false);
   add("deflection_w2", 2, true, false);  // the estimator of round 1
   add("deflection_w2_normals", 2, true, true);
   add("deflection_w4", 4, true, false);
-  add("deflection_w4_normals", 4, true, true);  // the default
+  add("deflection_w4_normals", 4, true, true);  // the default before the tissue model
   add("deflection_w6_normals", 6, true, true);
   add("deflection_w8_normals", 8, true, true);
+  // The tissue model's static deflection shapes in place of the t^2 law (default tissue
+  // options: shapes only, no subject parameter).
+  auto add_basis = [&](const std::string& name, bool angular, double power, bool normals,
+                       int blocks = 1) {
+    physics::InertialDeflectionOptions deflection;
+    deflection.angular = angular;
+    deflection.krylov_blocks = blocks;
+    auto basis = physics::MarkerInertialDeflectionBasis(face, deflection);
+    if (!basis.ok()) {
+      std::fprintf(stderr, "skull_pose_bench: %s\n", basis.status().message().c_str());
+      std::exit(1);
+    }
+    add(name, power, true, normals);
+    variants.back().options.deflection_basis = *basis;
+  };
+  // "static3": the static deflection under the three uniform loads; "static6": and the three
+  // angular ones; "ritzK": K load-dependent Ritz blocks of the three uniform loads. The default
+  // (SkullPoseOptions, DeflectionShape::kTissueModel) is ritz2_w4_normals.
+  add_basis("static3_w4_normals", false, 4, true);
+  add_basis("static6_w4_normals", true, 4, true);
+  add_basis("ritz2_w4", false, 4, false, 2);
+  add_basis("ritz2_w2_normals", false, 2, true, 2);
+  add_basis("ritz2_w3_normals", false, 3, true, 2);
+  add_basis("ritz2_w4_normals", false, 4, true, 2);
+  // ..._joint: the rotation fitted jointly with the shapes too (rotation_from_thickness_law off).
+  add_basis("ritz2_w4_normals_joint", false, 4, true, 2);
+  variants.back().options.rotation_from_thickness_law = false;
+  add_basis("static3_w4_normals_joint", false, 4, true, 1);
+  variants.back().options.rotation_from_thickness_law = false;
+  add_basis("ritz2_w6_normals", false, 6, true, 2);
+  add_basis("ritz3_w4_normals", false, 4, true, 3);
   std::vector<reconstruct::SkullPoseEstimator> estimators;
   for (const Variant& v : variants) estimators.emplace_back(face, v.options);
   const std::vector<int>& stable = estimators.front().stable_markers();
   const Eigen::Matrix3Xd normals = VertexNormals(face.neutral, face.neutral.positions_mm);
 
+  std::optional<physics::TissueMaterial> subject_material;
+  if (heterogeneous) {
+    physics::TissueOptions tissue;
+    tissue.fundamental_hz = subject_hz;
+    tissue.damping_ratio = subject_damping;
+    auto model = physics::SoftTissueModel::Create(face, tissue);
+    const std::vector<physics::StiffnessGroup> groups = {{"forehead", {"forehead"}},
+                                                         {"nose_bridge", {"nose_bridge"}},
+                                                         {"temples", {"temples"}},
+                                                         {"rest", {}}};
+    auto tet_group = model.ok() ? physics::TetStiffnessGroups(face, (*model)->shell(), groups)
+                                : StatusOr<Eigen::VectorXi>(model.status());
+    if (!tet_group.ok()) {
+      std::fprintf(stderr, "skull_pose_bench: %s\n", tet_group.status().message().c_str());
+      return 1;
+    }
+    const double scale[] = {1.6, 0.6, 1.3, 1.0};
+    subject_material = (*model)->material();
+    subject_material->tet_stiffness_scale.resize(tet_group->size());
+    for (Eigen::Index e = 0; e < tet_group->size(); ++e) {
+      subject_material->tet_stiffness_scale[e] = scale[(*tet_group)[e]];
+    }
+  }
   Json takes = Json::array();
   std::mt19937_64 rng(seed * 7919 + 17);
   std::normal_distribution<double> noise(0.0, 1.0);
@@ -142,6 +221,9 @@ int main(int argc, char** argv) {
     perform.motion = spec.motion;
     perform.seconds = seconds;
     perform.seed = seed;
+    perform.tissue.fundamental_hz = subject_hz;
+    perform.tissue.damping_ratio = subject_damping;
+    perform.material = subject_material;
     auto simulated = sim::SimulatePerformance(face, perform);
     if (!simulated.ok()) {
       std::fprintf(stderr, "skull_pose_bench: %s: %s\n", spec.name.c_str(),
@@ -205,12 +287,16 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s done\n", spec.name.c_str());
   }
   const Json out = {{"bench", "skull_pose"},
-                    {"face", "procedural, neutral, default tissue"},
+                    {"face", "procedural, neutral"},
                     {"stable_markers", stable.size()},
                     {"noise_mm", noise_mm},
                     {"seconds", seconds},
                     {"skip_s", skip_s},
                     {"seed", seed},
+                    {"subject_fundamental_hz", subject_hz},
+                    {"subject_damping_ratio", subject_damping},
+                    {"subject_stable_regions_stiffness",
+                     heterogeneous ? "forehead x1.6, nose bridge x0.6, temples x1.3" : "uniform"},
                     {"takes", takes}};
   std::printf("%s\n", out.dump(2).c_str());
   return 0;

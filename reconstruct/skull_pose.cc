@@ -2,12 +2,58 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <mutex>
 #include <set>
 
+#include "core/log.h"
 #include "core/mesh.h"
+#include "physics/inertial_deflection.h"
 #include "reconstruct/rigid_fit.h"
 
 namespace facedyn::reconstruct {
+namespace {
+
+// FNV-1a over the bytes the tissue model's shapes depend on: the skin and its faces, the skull,
+// the regions and the markers' surface points.
+uint64_t RigShapeKey(const FaceRig& rig) {
+  uint64_t h = 1469598103934665603ull;
+  auto mix = [&h](const void* data, size_t bytes) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * 1099511628211ull;
+  };
+  mix(rig.neutral.positions_mm.data(), sizeof(double) * rig.neutral.positions_mm.size());
+  mix(rig.skull.positions_mm.data(), sizeof(double) * rig.skull.positions_mm.size());
+  mix(rig.neutral.corner_vertices.data(), sizeof(int) * rig.neutral.corner_vertices.size());
+  for (const auto& [name, vertices] : rig.regions) {
+    mix(name.data(), name.size());
+    mix(vertices.data(), sizeof(vertices[0]) * vertices.size());
+  }
+  for (const Marker& marker : rig.markers) {
+    mix(marker.point.vertices.data(), sizeof(marker.point.vertices));
+    mix(marker.point.weights.data(), sizeof(marker.point.weights));
+  }
+  return h;
+}
+
+// The tissue model's shapes, computed once per rig in a process (a factorisation of the
+// flesh's stiffness, seconds): a demo reconstructs dozens of takes of one face.
+StatusOr<Eigen::MatrixXd> TissueDeflectionBasis(const FaceRig& rig) {
+  static std::mutex mutex;
+  static std::map<uint64_t, StatusOr<Eigen::MatrixXd>> cache;
+  const uint64_t key = RigShapeKey(rig);
+  std::lock_guard<std::mutex> lock(mutex);
+  const auto found = cache.find(key);
+  if (found != cache.end()) return found->second;
+  physics::InertialDeflectionOptions options;
+  options.angular = false;  // angular loads confound the pose's rotation (skull_pose_bench)
+  options.krylov_blocks = 2;
+  StatusOr<Eigen::MatrixXd> basis = physics::MarkerInertialDeflectionBasis(rig, options);
+  cache.emplace(key, basis);
+  return basis;
+}
+
+}  // namespace
 
 Status SkullPoseOptions::Check() const {
   if (!(huber_mm > 0)) return InvalidArgumentError("huber_mm must be > 0");
@@ -33,6 +79,42 @@ SkullPoseEstimator::SkullPoseEstimator(const FaceRig& rig, const SkullPoseOption
       stable = stable && (p.weights[k] == 0.0 || stable_vertices.count(p.vertices[k]) > 0);
     }
     if (stable) stable_markers_.push_back(m);
+  }
+  const Eigen::Index basis_rows = options.deflection_basis.rows();
+  if (options.deflection_basis.size() > 0 &&
+      (basis_rows != 3 * static_cast<Eigen::Index>(rig.markers.size()) ||
+       !options.deflection_basis.allFinite())) {
+    status_ = InvalidArgumentError(
+        "skull pose options: deflection_basis has " + std::to_string(basis_rows) + " rows for " +
+        std::to_string(rig.markers.size()) + " markers (3 per marker, finite)");
+    return;
+  }
+  if (!options.deflection_model) {
+    deflection_shape_used_ = "none";
+  } else if (options.deflection_basis.size() > 0) {
+    deflection_basis_ = options.deflection_basis;
+    deflection_shape_used_ = "explicit basis";
+  } else if (options.deflection_shape == DeflectionShape::kTissueModel &&
+             stable_markers_.size() >= static_cast<size_t>(options.min_markers)) {
+    if (rig.skull.vertex_count() != rig.neutral.vertex_count()) {
+      deflection_shape_used_ =
+          "thickness_squared (the rig's skull does not share the skin's topology, so it has no "
+          "tissue model)";
+    } else {
+      StatusOr<Eigen::MatrixXd> basis = TissueDeflectionBasis(rig);
+      if (basis.ok()) {
+        deflection_basis_ = std::move(*basis);
+        deflection_shape_used_ = "tissue_model";
+      } else {
+        deflection_shape_used_ =
+            "thickness_squared (tissue model: " + basis.status().message() + ")";
+      }
+    }
+    if (deflection_basis_.size() == 0) {
+      spdlog::warn("skull pose: deflection shape {}", deflection_shape_used_);
+    }
+  } else {
+    deflection_shape_used_ = "thickness_squared";
   }
   if (static_cast<int>(stable_markers_.size()) < options.min_markers) {
     status_ =
@@ -98,6 +180,16 @@ SkullPoseResult SkullPoseEstimator::Estimate(const Eigen::Matrix3Xd& markers_in_
   Eigen::VectorXd shape(n);
   for (int i = 0; i < n; ++i) shape[i] = std::pow(thickness_mm_[used[i]] / 5.0, 2);
   Eigen::Vector3d deflection = Eigen::Vector3d::Zero();  // d, skull frame, mm at 5 mm tissue
+  // The basis's rows of the used markers (3n x K), when the options carry one.
+  const bool basis = deflection_basis_.size() > 0;
+  Eigen::MatrixXd used_basis;
+  if (basis) {
+    used_basis.resize(3 * n, deflection_basis_.cols());
+    for (int i = 0; i < n; ++i) {
+      used_basis.middleRows<3>(3 * i) =
+          deflection_basis_.middleRows<3>(3 * stable_markers_[used[i]]);
+    }
+  }
   Rigid3 pose = FitRigid(src, dst, base);
   Eigen::VectorXd weights = base;
   Eigen::Matrix3Xd deflected = src;
@@ -124,6 +216,55 @@ SkullPoseResult SkullPoseEstimator::Estimate(const Eigen::Matrix3Xd& markers_in_
     pose = next;
     if (settled && iteration > 2) break;
   }
+  if (options_.deflection_model && basis) {
+    // Pose and coefficients c together by Gauss-Newton with Huber reweighting, from the t^2
+    // law's pose above: the residual of marker i is T (rest_i + B_i c) - dst_i; a pose update
+    // is a small rotation w and a translation v applied in the world frame,
+    // x <- x + w x x + v, so its Jacobian is [-[x]_x, I, R B_i] (w held at zero when the
+    // rotation is the law's). Alternating c and T (as for d above) converges slowly when the
+    // shapes are close to a rigid motion on the stable markers; the joint step does not.
+    const Eigen::Index k = used_basis.cols();
+    const Eigen::Index unknowns = 6 + k;
+    Eigen::VectorXd coefficients = Eigen::VectorXd::Zero(k);
+    deflected = src;
+    for (int iteration = 0; iteration < 4 * options_.iterations; ++iteration) {
+      const Eigen::Matrix3d rotation = pose.RotationMatrix();
+      Eigen::MatrixXd normal_matrix = Eigen::MatrixXd::Zero(unknowns, unknowns);
+      Eigen::VectorXd rhs = Eigen::VectorXd::Zero(unknowns);
+      Eigen::Matrix<double, 3, Eigen::Dynamic> jacobian(3, unknowns);
+      for (int i = 0; i < n; ++i) {
+        const Eigen::Vector3d x = pose * Eigen::Vector3d(deflected.col(i));
+        const Eigen::Vector3d r = x - dst.col(i);
+        const double e = r.norm();
+        weights[i] = base[i] * (e > options_.huber_mm ? options_.huber_mm / e : 1.0);
+        jacobian.leftCols<3>() << 0, x.z(), -x.y(), -x.z(), 0, x.x(), x.y(), -x.x(), 0;
+        jacobian.middleCols<3>(3).setIdentity();
+        jacobian.rightCols(k) = rotation * used_basis.middleRows<3>(3 * i);
+        normal_matrix.noalias() += weights[i] * jacobian.transpose() * jacobian;
+        rhs.noalias() -= weights[i] * jacobian.transpose() * r;
+      }
+      if (options_.rotation_from_thickness_law) {
+        normal_matrix.topRows<3>().setZero();
+        normal_matrix.leftCols<3>().setZero();
+        normal_matrix.topLeftCorner<3, 3>().setIdentity();
+        rhs.head<3>().setZero();
+      }
+      // A ridge of 1e-9 of the trace for directions no marker constrains. (A prior on c, a
+      // ridge of 1e-4 to 1e-1 of the markers' total weight, was no better in skull_pose_bench.)
+      normal_matrix.diagonal().array() += 1e-9 * normal_matrix.trace() / unknowns + 1e-300;
+      const Eigen::VectorXd step = normal_matrix.ldlt().solve(rhs);
+      const Eigen::Vector3d w = step.head<3>();
+      const Rigid3 update = Rigid3::FromAxisAngle(
+          w.norm() > 0 ? Eigen::Vector3d(w.normalized()) : Eigen::Vector3d::UnitX(), w.norm(),
+          step.segment<3>(3));
+      pose = update * pose;
+      coefficients += step.tail(k);
+      for (int i = 0; i < n; ++i) {
+        deflected.col(i) = src.col(i) + used_basis.middleRows<3>(3 * i) * coefficients;
+      }
+      if (step.head<6>().norm() < 1e-10 && iteration > 1) break;
+    }
+  }
   if (options_.translation_from_normals) {
     // T <- T (I, v): skull_from_world x_i moves by -v, so the normal residual against the rest
     // position (a tangential deflection has no normal part; d above has one, so it is not used)
@@ -134,8 +275,9 @@ SkullPoseResult SkullPoseEstimator::Estimate(const Eigen::Matrix3Xd& markers_in_
       Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
       for (int i = 0; i < n; ++i) {
         const Eigen::Vector3d normal = normal_in_skull_.col(used[i]);
-        const double e =
-            normal.dot(skull_from_world * Eigen::Vector3d(dst.col(i)) - src.col(i));
+        // With a basis the deflection's normal part is modelled, so it is kept.
+        const Eigen::Vector3d reference = basis ? deflected.col(i) : src.col(i);
+        const double e = normal.dot(skull_from_world * Eigen::Vector3d(dst.col(i)) - reference);
         normal_matrix += weights[i] * normal * normal.transpose();
         rhs += weights[i] * normal * e;
       }

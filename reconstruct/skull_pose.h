@@ -18,14 +18,18 @@
 //      (discounting a frown or a mislabelled point). Bridged markers enter at their (lower)
 //      confidence, missing ones not;
 //  (c) the jiggle slides the skin along itself (2-4% of its energy along the normal), so the
-//      translation is re-fitted to the markers' normal components (translation_from_normals).
-// On the noise-free take above (a)-(c) leave 0.048 mm and 0.020 degrees RMS
-// (bench/skull_pose_bench; README, "Skull pose"). Thickness is the skin-to-skull
+//      translation is re-fitted to the markers' normal components (translation_from_normals);
+//  (d) by default the t^2 law of (a) is then replaced, for the translation, by the tissue
+//      model's own deflection shapes (DeflectionShape::kTissueModel below).
+// On the noise-free take above (a)-(c) leave 0.048 mm and 0.020 degrees RMS, and (d) brings the
+// origin to 0.019 mm with the rotation unchanged (bench/skull_pose_bench seed 1, the default
+// subject; README, "Skull pose"). Thickness is the skin-to-skull
 // distance under each marker (the same surface point on the skull when the skull shares the
 // skin's topology, as physics/face_anatomy.h rigs do; otherwise the nearest skull vertex).
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "core/face_rig.h"
@@ -34,6 +38,24 @@
 #include "reconstruct/tracking.h"
 
 namespace facedyn::reconstruct {
+
+// The shape of the stable markers' jiggle that the deflection model fits per frame.
+enum class DeflectionShape {
+  // (a) above: rest_i + (t_i / 5 mm)^2 d, one 3-vector d per frame.
+  kThicknessSquared,
+  // The tissue model's own shapes (physics/inertial_deflection.h): the static deflection of the
+  // face's flesh under uniform acceleration along the skull's three axes, and one Krylov block
+  // more (K^-1 M times it: what inertia does to that shape as the frequency rises), six
+  // coefficients per frame. They carry what the t^2 law leaves out (the skin slides along the
+  // bone in directions set by the layer's shape and boundary). Shapes only: computed with a
+  // unit Young's modulus, so no parameter of the subject's tissue enters. The pose's
+  // translation and the six coefficients are fitted jointly (Gauss-Newton, the same weights)
+  // after the t^2 law's fit, whose rotation is kept unless rotation_from_thickness_law is off
+  // (see there). Needs a rig whose skull shares the skin's topology (physics/face_anatomy.h);
+  // other rigs fall back to the t^2 law (deflection_shape_used() says which). Figures in the
+  // README, "Skull pose" (bench/skull_pose_bench, bench/reconstruct_bench).
+  kTissueModel,
+};
 
 struct SkullPoseOptions {
   double huber_mm = 0.25;
@@ -53,6 +75,17 @@ struct SkullPoseOptions {
   // neutral face, weight power 2: origin error RMS 0.143 -> 0.075 mm at 11 Hz, 0.090 -> 0.042
   // at 6 Hz, 0.341 -> 0.094 on a run in place (rotation unchanged; README, "Skull pose").
   bool translation_from_normals = true;
+  DeflectionShape deflection_shape = DeflectionShape::kTissueModel;
+  // An explicit shape basis, which overrides deflection_shape: (3 x rig markers) x K, row
+  // 3m + axis for rig.markers[m], skull frame. Each frame then has K deflection coefficients
+  // instead of d, fitted like d (bench/skull_pose_bench compares bases).
+  Eigen::MatrixXd deflection_basis;
+  // With the tissue model's shapes: keep the rotation of the t^2 law's fit and fit only the
+  // translation with the shapes. Fitting the rotation with them too leaks less of noise-free
+  // simulated jiggle (skull_pose_bench) but passes more of the triangulation's noise into the
+  // rotation: on reconstruct_bench's 11 Hz take through 8 cameras at 0.2 px, 0.034 degrees RMS
+  // against the law's 0.027. The shapes come close to a rotation on the stable markers.
+  bool rotation_from_thickness_law = true;
   int min_markers = 4;
   Status Check() const;
 };
@@ -75,6 +108,9 @@ class SkullPoseEstimator {
   // Prior weight of each stable marker (same order).
   const Eigen::VectorXd& prior_weights() const { return prior_weights_; }
   const Eigen::VectorXd& thickness_mm() const { return thickness_mm_; }
+  // The deflection shape in use: "thickness_squared", "tissue_model", "explicit basis", or
+  // "none" (deflection_model off); with the reason when kTissueModel fell back.
+  const std::string& deflection_shape_used() const { return deflection_shape_used_; }
 
   // One frame: all rig markers' world positions (3 x markers), their states and confidences.
   SkullPoseResult Estimate(const Eigen::Matrix3Xd& markers_in_world,
@@ -93,6 +129,8 @@ class SkullPoseEstimator {
   Eigen::Matrix3Xd normal_in_skull_;  // unit skin normals at the stable markers (neutral)
   Eigen::VectorXd thickness_mm_;
   Eigen::VectorXd prior_weights_;
+  Eigen::MatrixXd deflection_basis_;  // (3 x rig markers) x K, or empty: the t^2 law
+  std::string deflection_shape_used_;
 };
 
 }  // namespace facedyn::reconstruct

@@ -25,6 +25,18 @@ PoseError Compare(const Rigid3& estimate, const Rigid3& truth) {
   return {difference.translation().norm(), difference.AngleRad() * 180.0 / M_PI};
 }
 
+// The procedural face, neutral, on the platform at 11 Hz and 2 mm.
+sim::PerformanceOptions ElevenHertzPlatform(double seconds) {
+  sim::PerformanceOptions performance;
+  performance.expression = "neutral";
+  performance.motion.kind = sim::MotionKind::kPlatform;
+  performance.motion.platform_hz = 11.0;
+  performance.motion.amplitude_mm = 2.0;
+  performance.seconds = seconds;
+  performance.fps = 128.0;
+  return performance;
+}
+
 TEST(SkullPoseEstimator, StableMarkersPriorAndOutlier) {
   const FaceRig& rig = testing::ProceduralFace();
   const SkullPoseEstimator estimator(rig, SkullPoseOptions());
@@ -108,13 +120,7 @@ TEST(SkullPoseEstimator, RigWithoutStableRegionsIsReported) {
 // platform take, through 8 synthetic cameras at 0.2 px noise, triangulation and tracking.
 TEST(SkullPose, SimulatedElevenHertzTakeThroughCameras) {
   const FaceRig& rig = testing::ProceduralFace();
-  sim::PerformanceOptions performance;
-  performance.expression = "neutral";
-  performance.motion.kind = sim::MotionKind::kPlatform;
-  performance.motion.platform_hz = 11.0;
-  performance.motion.amplitude_mm = 2.0;
-  performance.seconds = 1.5;
-  performance.fps = 128.0;
+  const sim::PerformanceOptions performance = ElevenHertzPlatform(1.5);
   const auto take = sim::SimulatePerformance(rig, performance);
   ASSERT_TRUE(take.ok()) << take.status().ToString();
   const std::vector<Camera> cameras = testing::FaceCameraRing(8);
@@ -158,13 +164,18 @@ TEST(SkullPose, SimulatedElevenHertzTakeThroughCameras) {
 }
 
 // The default deflection shape is the tissue model's (DeflectionShape::kTissueModel): markers
-// deflected by any combination of its shapes give back the pose exactly, where the t^2 law
-// passes part of the same deflection into the pose.
+// deflected by any combination of its shapes give back the pose exactly when the rotation is
+// fitted with the shapes, where the t^2 law passes part of the same deflection into the pose.
+// The default keeps the law's rotation (any combination includes near-rotations, which the law
+// takes for one, so its translation is not exact here; on simulated jiggle, below, it is better).
 TEST(SkullPoseEstimator, TissueModelShapesAreKeptOutOfThePose) {
   const FaceRig& rig = testing::ProceduralFace();
   const SkullPoseEstimator tissue(rig, SkullPoseOptions());
   ASSERT_TRUE(tissue.status().ok()) << tissue.status().ToString();
   EXPECT_EQ(tissue.deflection_shape_used(), "tissue_model");
+  SkullPoseOptions joint_options;
+  joint_options.rotation_from_thickness_law = false;
+  const SkullPoseEstimator joint(rig, joint_options);
   SkullPoseOptions law;
   law.deflection_shape = DeflectionShape::kThicknessSquared;
   const SkullPoseEstimator squared(rig, law);
@@ -188,26 +199,23 @@ TEST(SkullPoseEstimator, TissueModelShapesAreKeptOutOfThePose) {
   const Eigen::Matrix3Xd in_world = truth.Apply(in_skull);
   const std::vector<MarkerState> states(in_world.cols(), MarkerState::kObserved);
   const std::vector<double> confidence(in_world.cols(), 1.0);
-  const PoseError exact =
-      Compare(tissue.Estimate(in_world, states, confidence, Rigid3()).world_from_skull, truth);
-  const PoseError leaked =
-      Compare(squared.Estimate(in_world, states, confidence, Rigid3()).world_from_skull, truth);
+  auto error = [&](const SkullPoseEstimator& estimator) {
+    return Compare(estimator.Estimate(in_world, states, confidence, Rigid3()).world_from_skull,
+                   truth);
+  };
+  const PoseError exact = error(joint), by_default = error(tissue), leaked = error(squared);
   EXPECT_LT(exact.translation_mm, 1e-6);
   EXPECT_LT(exact.rotation_deg, 1e-6);
   EXPECT_GT(leaked.translation_mm, 1e-3) << "the t^2 law fits these shapes: the test shows nothing";
+  EXPECT_NEAR(by_default.rotation_deg, leaked.rotation_deg, 1e-9);  // the law's rotation
 }
 
 // On simulated jiggle (a subject whose tissue the estimator is not told, 11 Hz platform,
 // noise-free markers read off the skin) the tissue model's shapes leak less of it into the
-// pose than the t^2 law (bench/skull_pose_bench measures the figures).
+// pose's translation than the t^2 law (bench/skull_pose_bench measures the figures).
 TEST(SkullPoseEstimator, TissueModelLeaksLessSimulatedJiggle) {
   const FaceRig& rig = testing::ProceduralFace();
-  sim::PerformanceOptions performance;
-  performance.expression = "neutral";
-  performance.motion.kind = sim::MotionKind::kPlatform;
-  performance.motion.platform_hz = 11.0;
-  performance.motion.amplitude_mm = 2.0;
-  performance.seconds = 1.0;
+  sim::PerformanceOptions performance = ElevenHertzPlatform(1.0);
   performance.tissue.fundamental_hz = 9.0;
   performance.tissue.damping_ratio = 0.28;
   const auto take = sim::SimulatePerformance(rig, performance);
@@ -238,8 +246,8 @@ TEST(SkullPoseEstimator, TissueModelLeaksLessSimulatedJiggle) {
       std::sqrt(sq[1][0] / (take->frame_count() - first)),
       std::sqrt(sq[0][1] / (take->frame_count() - first)),
       std::sqrt(sq[1][1] / (take->frame_count() - first)));
-  EXPECT_LT(sq[1][0], 0.25 * sq[0][0]);  // half the RMS or less
-  EXPECT_LT(sq[1][1], sq[0][1]);
+  EXPECT_LT(sq[1][0], 0.75 * 0.75 * sq[0][0]);       // a quarter less RMS at least (0.61x measured)
+  EXPECT_NEAR(sq[1][1], sq[0][1], 1e-9 * sq[0][1]);  // the rotation is the law's
 }
 
 TEST(SkullPoseEstimator, RigWithoutTissueModelFallsBackToTheThicknessLaw) {

@@ -30,6 +30,7 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
     double marker_diameter_px = 8.0;
     bool bright = false;
     bool occlusion_refit = false;
+    std::string skull_deflection = "tissue-model";
     bool json = false;
   };
   auto options = std::make_shared<ReconstructOptions>();
@@ -55,6 +56,13 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
                    "Typical marker diameter in the images (tunes the detector)")
       ->capture_default_str();
   command->add_flag("--bright-markers", options->bright, "Markers brighter than the skin");
+  command
+      ->add_option("--skull-deflection", options->skull_deflection,
+                   "How the skull pose models the stable markers' jiggle: tissue-model (the face "
+                   "model's deflection shapes; rigs without one fall back) or thickness-squared "
+                   "(one deflection growing with tissue thickness squared)")
+      ->check(CLI::IsMember({"tissue-model", "thickness-squared"}))
+      ->capture_default_str();
   command->add_flag("--occlusion-refit", options->occlusion_refit,
                     "Refit dots smaller than their neighbours as partly hidden (off by default: "
                     "it moves obliquely seen dots off their centres; never on head-mounted takes)");
@@ -88,9 +96,13 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
           const reconstruct::SessionDetections input,
           reconstruct::DetectSessionTake(options->session, options->take, input_options));
       for (const std::string& problem : input.take_problems) spdlog::warn("{}", problem);
-      const reconstruct::ReconstructionOptions reconstruction_options =
+      reconstruct::ReconstructionOptions reconstruction_options =
           input.head_mounted ? reconstruct::HeadMountedReconstructionOptions()
                              : reconstruct::ReconstructionOptions();
+      reconstruction_options.skull.deflection_shape =
+          options->skull_deflection == "thickness-squared"
+              ? reconstruct::DeflectionShape::kThicknessSquared
+              : reconstruct::DeflectionShape::kTissueModel;
       if (input.head_mounted) {
         spdlog::info("head-mounted cameras: markers in the helmet (skull) frame, no skull pose");
       }
@@ -125,6 +137,11 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
               : Json("not estimated: " + result.jaw_status.message());
       report["frames"] = result.take.frame_count();
       report["camera_mount"] = input.head_mounted ? "head" : "world";
+      if (!input.head_mounted) {
+        report["skull_deflection_shape"] = result.take.info.metadata["skull_deflection_shape"];
+        spdlog::info("skull pose: deflection shape {}",
+                     result.take.info.metadata["skull_deflection_shape"].get<std::string>());
+      }
       report["seconds"] = {{"detect", input.detect_s},
                            {"triangulate", result.timings.triangulate_s},
                            {"track", result.timings.track_s},

@@ -155,6 +155,10 @@ StatusOr<Reconstruction> ReconstructTake(
   out.take.info.motion = "captured";
   out.take.world_from_skull = poses;
   out.take.info.metadata["camera_mount"] = options.head_mounted ? "head" : "world";
+  // Which model kept the stable markers' jiggle out of world_from_skull (skull_pose.h).
+  if (!options.head_mounted) {
+    out.take.info.metadata["skull_deflection_shape"] = skull.deflection_shape_used();
+  }
   std::vector<Eigen::Matrix3Xd> in_skull(frame_count);
   std::vector<bool> fitted(frame_count, false);
   start = std::chrono::steady_clock::now();

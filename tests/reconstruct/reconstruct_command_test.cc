@@ -126,6 +126,9 @@ TEST(ReconstructCommand, SessionWithDroppedLateAndUncalibratedCameras) {
   EXPECT_EQ(frames[0]["problem"].get<std::string>(), "");
   // The procedural face has a jaw: it is estimated, written (jaw.csv) and reported per frame.
   EXPECT_EQ(report["jaw"], "estimated");
+  // The skull pose's deflection model is recorded in the report and the take (the default).
+  EXPECT_EQ(report["skull_deflection_shape"], "tissue_model");
+  EXPECT_EQ(take->info.metadata["skull_deflection_shape"], "tissue_model");
   // The platform frequency the rig measured goes into the take (for platform-synchronous
   // quasistatic extraction).
   ASSERT_TRUE(take->info.platform_hz.has_value());
@@ -167,6 +170,12 @@ TEST(ReconstructCommand, BadSessionTakeAndCalibrationAreNamed) {
                        &out),
             1);
   EXPECT_THAT(out, HasSubstr("no take 'missing'"));
+  // An unknown deflection model is refused by name before anything is read.
+  EXPECT_NE(RunCommand(FacedynExecutable() + " reconstruct --session " + temp.Join("s") +
+                           " --take missing --out " + temp.Join("x") + " --skull-deflection rigid",
+                       &out),
+            0);
+  EXPECT_THAT(out, HasSubstr("--skull-deflection"));
 }
 
 }  // namespace

@@ -94,7 +94,8 @@ struct SkullPoseResult {
   Rigid3 world_from_skull;
   int markers_used = 0;
   double rms_mm = 0.0;  // weighted residual of the stable markers
-  Eigen::Vector3d deflection_mm = Eigen::Vector3d::Zero();  // d (see above), skull frame
+  // d (see above), skull frame: the t^2 law's fit, which the tissue model's shapes start from.
+  Eigen::Vector3d deflection_mm = Eigen::Vector3d::Zero();
   bool ok = false;  // false: too few stable markers (the pose is the initial one)
 };
 

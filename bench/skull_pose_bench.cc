@@ -30,6 +30,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <optional>
 #include <random>
 #include <string>
@@ -153,20 +154,25 @@ int main(int argc, char** argv) {
   add("deflection_w4_normals", 4, true, true);  // the default before the tissue model
   add("deflection_w6_normals", 6, true, true);
   add("deflection_w8_normals", 8, true, true);
-  // The tissue model's static deflection shapes in place of the t^2 law (default tissue
-  // options: shapes only, no subject parameter).
+  // The tissue model's deflection shapes in place of the t^2 law (default tissue options:
+  // shapes only, no subject parameter), each basis computed once.
+  std::map<std::pair<bool, int>, Eigen::MatrixXd> bases;
   auto add_basis = [&](const std::string& name, bool angular, double power, bool normals,
                        int blocks = 1) {
-    physics::InertialDeflectionOptions deflection;
-    deflection.angular = angular;
-    deflection.krylov_blocks = blocks;
-    auto basis = physics::MarkerInertialDeflectionBasis(face, deflection);
-    if (!basis.ok()) {
-      std::fprintf(stderr, "skull_pose_bench: %s\n", basis.status().message().c_str());
-      std::exit(1);
+    Eigen::MatrixXd& basis = bases[{angular, blocks}];
+    if (basis.size() == 0) {
+      physics::InertialDeflectionOptions deflection;
+      deflection.angular = angular;
+      deflection.krylov_blocks = blocks;
+      auto computed = physics::MarkerInertialDeflectionBasis(face, deflection);
+      if (!computed.ok()) {
+        std::fprintf(stderr, "skull_pose_bench: %s\n", computed.status().message().c_str());
+        std::exit(1);
+      }
+      basis = std::move(*computed);
     }
     add(name, power, true, normals);
-    variants.back().options.deflection_basis = *basis;
+    variants.back().options.deflection_basis = basis;
   };
   // "static3": the static deflection under the three uniform loads; "static6": and the three
   // angular ones; "ritzK": K load-dependent Ritz blocks of the three uniform loads. The default

@@ -45,15 +45,20 @@ StatusOr<Eigen::MatrixXd> TissueDeflectionBasis(const FaceRig& rig) {
   std::lock_guard<std::mutex> lock(mutex);
   const auto found = cache.find(key);
   if (found != cache.end()) return found->second;
-  physics::InertialDeflectionOptions options;
-  options.angular = false;  // angular loads confound the pose's rotation (skull_pose_bench)
-  options.krylov_blocks = 2;
-  StatusOr<Eigen::MatrixXd> basis = physics::MarkerInertialDeflectionBasis(rig, options);
+  StatusOr<Eigen::MatrixXd> basis =
+      physics::MarkerInertialDeflectionBasis(rig, TissueModelDeflectionOptions());
   cache.emplace(key, basis);
   return basis;
 }
 
 }  // namespace
+
+physics::InertialDeflectionOptions TissueModelDeflectionOptions() {
+  physics::InertialDeflectionOptions options;
+  options.angular = false;
+  options.krylov_blocks = 2;
+  return options;
+}
 
 Status SkullPoseOptions::Check() const {
   if (!(huber_mm > 0)) return InvalidArgumentError("huber_mm must be > 0");

@@ -35,6 +35,7 @@
 #include "core/face_rig.h"
 #include "core/rigid3.h"
 #include "core/status.h"
+#include "physics/inertial_deflection.h"
 #include "reconstruct/tracking.h"
 
 namespace facedyn::reconstruct {
@@ -56,6 +57,11 @@ enum class DeflectionShape {
   // README, "Skull pose" (bench/skull_pose_bench, bench/reconstruct_bench).
   kTissueModel,
 };
+
+// The shapes DeflectionShape::kTissueModel uses: the three uniform loads (the angular loads'
+// static shapes in place of the second block did worse: skull_pose_bench's static6 variant) and
+// two Krylov blocks (a third was no better).
+physics::InertialDeflectionOptions TissueModelDeflectionOptions();
 
 struct SkullPoseOptions {
   double huber_mm = 0.25;

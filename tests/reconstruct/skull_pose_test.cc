@@ -180,11 +180,8 @@ TEST(SkullPoseEstimator, TissueModelShapesAreKeptOutOfThePose) {
   law.deflection_shape = DeflectionShape::kThicknessSquared;
   const SkullPoseEstimator squared(rig, law);
   EXPECT_EQ(squared.deflection_shape_used(), "thickness_squared");
-  // The same shapes as the estimator's (skull_pose.cc: three uniform loads, two Krylov blocks).
-  physics::InertialDeflectionOptions shapes;
-  shapes.angular = false;
-  shapes.krylov_blocks = 2;
-  const auto basis = physics::MarkerInertialDeflectionBasis(rig, shapes);
+  // The same shapes as the estimator's.
+  const auto basis = physics::MarkerInertialDeflectionBasis(rig, TissueModelDeflectionOptions());
   ASSERT_TRUE(basis.ok()) << basis.status().ToString();
   std::mt19937 rng(5);
   std::normal_distribution<double> normal(0.0, 1.0);

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "core/file_util.h"
+#include "eval/skull_frame.h"
 #include "reconstruct/calibration.h"
 #include "reconstruct/pipeline.h"
 #include "reconstruct/synthetic_views.h"
@@ -14,37 +15,6 @@
 namespace facedyn::app {
 
 using namespace facedyn::reconstruct;
-
-namespace {
-
-// RMS of per-frame pose errors (translation mm, rotation vector rad, skull frame), in total and
-// less their mean over the take: a constant error (mostly the calibration's and the reference
-// shape's) only renames the skull frame for the whole take, while what varies from frame to
-// frame is what leaks jiggle into every stabilised trajectory (issue 20).
-Json PoseErrorSummary(const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>>& errors) {
-  if (errors.empty()) return Json::object();
-  Eigen::Vector3d mean_t = Eigen::Vector3d::Zero(), mean_r = Eigen::Vector3d::Zero();
-  for (const auto& [t, r] : errors) {
-    mean_t += t / static_cast<double>(errors.size());
-    mean_r += r / static_cast<double>(errors.size());
-  }
-  double sq_t = 0, sq_r = 0, var_t = 0, var_r = 0;
-  for (const auto& [t, r] : errors) {
-    sq_t += t.squaredNorm();
-    sq_r += r.squaredNorm();
-    var_t += (t - mean_t).squaredNorm();
-    var_r += (r - mean_r).squaredNorm();
-  }
-  const double n = static_cast<double>(errors.size()), degrees = 180.0 / M_PI;
-  return {{"origin_rms_mm", std::sqrt(sq_t / n)},
-          {"rotation_rms_deg", std::sqrt(sq_r / n) * degrees},
-          {"origin_constant_mm", mean_t.norm()},
-          {"rotation_constant_deg", mean_r.norm() * degrees},
-          {"origin_varying_rms_mm", std::sqrt(var_t / n)},
-          {"rotation_varying_rms_deg", std::sqrt(var_r / n) * degrees}};
-}
-
-}  // namespace
 
 Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
                                const std::string& out_dir, bool quick, Json* metrics,
@@ -73,8 +43,6 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
   const auto quasistatic = simulated.channels.find("quasistatic");
   double sq_t = 0, sq_r = 0, max_t = 0, max_r = 0, sq_s = 0;
   long n_pose = 0, n_sample = 0;
-  // Per scored frame, the pose error's translation (mm) and rotation vector (rad), skull frame.
-  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> pose_errors;
   double sa = 0, sb = 0, sab = 0, saa = 0, sbb = 0;
   long n_offset = 0;
   Json frames = Json::array();
@@ -89,8 +57,6 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
     if (f < skip) continue;
     const Rigid3 d = simulated.world_from_skull[f].Inverse() * result.take.world_from_skull[f];
     const double t = d.translation().norm(), r = d.AngleRad() * 180.0 / M_PI;
-    const Eigen::AngleAxisd axis_angle(d.RotationMatrix());
-    pose_errors.push_back({d.translation(), axis_angle.axis() * axis_angle.angle()});
     sq_t += t * t;
     sq_r += r * r;
     max_t = std::max(max_t, t);
@@ -156,11 +122,13 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
   m["skull_origin_max_mm"] = max_t;
   m["skull_rotation_rms_deg"] = n_pose ? std::sqrt(sq_r / n_pose) : 0.0;
   m["skull_rotation_max_deg"] = max_r;
-  const Json summary = PoseErrorSummary(pose_errors);
-  if (!summary.empty()) {
-    m["skull_origin_constant_mm"] = summary["origin_constant_mm"];
-    m["skull_origin_varying_rms_mm"] = summary["origin_varying_rms_mm"];
-    m["skull_rotation_varying_rms_deg"] = summary["rotation_varying_rms_deg"];
+  const dynamics::FrameRange scored{skip, frame_count};
+  if (!scored.empty()) {
+    const eval::SkullPoseError summary =
+        eval::ScoreSkullPoses(result.take.world_from_skull, simulated.world_from_skull, scored);
+    m["skull_origin_constant_mm"] = summary.origin_constant_mm;
+    m["skull_origin_varying_rms_mm"] = summary.origin_varying_rms_mm;
+    m["skull_rotation_varying_rms_deg"] = summary.rotation_varying_rms_deg;
   }
   // The skull pose again from the same labelled markers with each deflection shape of
   // reconstruct/skull_pose.h (the default is the tissue model's), scored the same way.
@@ -171,15 +139,13 @@ Status RunReconstructDemoStage(const FaceRig& face, const Take& simulated,
     SkullPoseOptions options = ReconstructionOptions().skull;
     options.deflection_shape = shape;
     const SkullPoseEstimator estimator(face, options);
-    std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> errors;
-    for (int f = skip; f < simulated.frame_count() && f < static_cast<int>(result.tracked.size());
-         ++f) {
-      const Rigid3 d = simulated.world_from_skull[f].Inverse() *
-                       estimator.Estimate(result.tracked[f]).world_from_skull;
-      const Eigen::AngleAxisd axis_angle(d.RotationMatrix());
-      errors.push_back({d.translation(), axis_angle.axis() * axis_angle.angle()});
-    }
-    by_shape[name] = PoseErrorSummary(errors);
+    std::vector<Rigid3> poses;
+    for (const SkullPoseResult& r : estimator.EstimateTake(result.tracked))
+      poses.push_back(r.world_from_skull);
+    const dynamics::FrameRange posed{
+        skip, std::min(frame_count, static_cast<int>(result.tracked.size()))};
+    by_shape[name] =
+        eval::SkullPoseErrorJson(eval::ScoreSkullPoses(poses, simulated.world_from_skull, posed));
     by_shape[name]["shape_used"] = estimator.deflection_shape_used();
   }
   m["skull_pose_by_deflection_shape"] = by_shape;

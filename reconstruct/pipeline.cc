@@ -90,8 +90,12 @@ StatusOr<Reconstruction> ReconstructTake(
   std::vector<bool> has_pose(frame_count, false);
   auto start = std::chrono::steady_clock::now();
   for (int f = 0; f < frame_count && options.head_mounted; ++f) has_pose[f] = true;
+  TakeReferenceResult skull_reference;
+  const std::vector<SkullPoseResult> skull_results =
+      options.head_mounted ? std::vector<SkullPoseResult>()
+                           : skull.EstimateTake(out.tracked, &skull_reference);
   for (int f = 0; f < frame_count && !options.head_mounted; ++f) {
-    const SkullPoseResult result = skull.Estimate(out.tracked[f]);
+    const SkullPoseResult& result = skull_results[f];
     poses[f] = result.world_from_skull;
     has_pose[f] = result.ok;
     out.quality[f].skull_rms_mm = result.rms_mm;
@@ -158,6 +162,13 @@ StatusOr<Reconstruction> ReconstructTake(
   // Which model kept the stable markers' jiggle out of world_from_skull (skull_pose.h).
   if (!options.head_mounted) {
     out.take.info.metadata["skull_deflection_shape"] = skull.deflection_shape_used();
+    // Where the stable markers' reference shape came from (SkullPoseEstimator::EstimateTake).
+    out.take.info.metadata["skull_reference"] =
+        skull_reference.applied ? Json{{"source", "take"},
+                                       {"markers_refined", skull_reference.markers_refined},
+                                       {"correction_rms_mm", skull_reference.correction_rms_mm},
+                                       {"correction_max_mm", skull_reference.correction_max_mm}}
+                                : Json{{"source", "rig"}, {"reason", skull_reference.reason}};
   }
   std::vector<Eigen::Matrix3Xd> in_skull(frame_count);
   std::vector<bool> fitted(frame_count, false);

@@ -92,6 +92,10 @@ struct SkullPoseOptions {
   // rotation: on reconstruct_bench's 11 Hz take through 8 cameras at 0.2 px, 0.034 degrees RMS
   // against the law's 0.027. The shapes come close to a rotation on the stable markers.
   bool rotation_from_thickness_law = true;
+  // EstimateTake only: the stable markers' reference shape is re-estimated from the take (see
+  // there) when the take has at least take_reference_min_frames posed frames.
+  bool take_reference = true;
+  int take_reference_min_frames = 32;
   int min_markers = 4;
   Status Check() const;
 };
@@ -103,6 +107,15 @@ struct SkullPoseResult {
   // d (see above), skull frame: the t^2 law's fit, which the tissue model's shapes start from.
   Eigen::Vector3d deflection_mm = Eigen::Vector3d::Zero();
   bool ok = false;  // false: too few stable markers (the pose is the initial one)
+};
+
+// What EstimateTake's take-level reference changed.
+struct TakeReferenceResult {
+  bool applied = false;
+  std::string reason;              // why not, when not applied
+  int markers_refined = 0;         // stable markers observed on enough frames to be re-estimated
+  double correction_rms_mm = 0.0;  // |new - rig reference| over those markers, skull frame
+  double correction_max_mm = 0.0;
 };
 
 class SkullPoseEstimator {
@@ -127,6 +140,25 @@ class SkullPoseEstimator {
     return Estimate(frame.positions_in_world, frame.states, frame.confidence,
                     frame.world_from_skull_tracking);
   }
+
+  // A whole take. Per frame as Estimate; then, with options.take_reference, the stable
+  // markers' reference shape is re-estimated from the take and every frame estimated again:
+  // each stable marker's reference becomes the mean over the frames that observed it of its
+  // skull-frame position under the first poses (samples more than 1 mm and 6 robust standard
+  // deviations from their median left out), the means rigidly aligned (prior weights) to
+  // the rig's reference so that the correction carries no rigid motion, and markers observed
+  // on fewer than a quarter of the posed frames keep the rig's.
+  // Why: a static per-marker mismatch between the rig's reference and what the cameras measure
+  // (a detector's centre bias on a dot seen obliquely, paint applied off the rig's points, a
+  // held expression that moves the brows) is not a rigid motion, so the per-frame fit spreads
+  // it over the pose and the deflection shapes, and the two are nearly interchangeable on the
+  // stable markers: on reconstruct_bench's filmed 11 Hz take a 0.026 mm RMS per-marker bias
+  // became a 0.17 mm constant error of the skull origin (--stage skull_offset). A take's jiggle
+  // averages out over the take, so its mean shape is the reference plus that bias. What a
+  // take-level reference cannot see is a mismatch that is itself a rigid motion (it is one
+  // with the pose) and a deflection that lasts the whole take (e.g. a changed gravity load).
+  std::vector<SkullPoseResult> EstimateTake(const std::vector<TrackedFrame>& frames,
+                                            TakeReferenceResult* reference = nullptr) const;
 
  private:
   SkullPoseOptions options_;

@@ -58,6 +58,32 @@ TEST(SkullFrameMeanDistance, FixedOffsetIsFreeJitterIsNot) {
 }
 
 // Eq. 7 with the exact offsets undoes offsets applied in the same skull frame exactly.
+// An estimate off the truth by a constant 0.3 mm along x plus +-0.1 mm along y alternating per
+// frame (and a constant 0.02 degrees about z): the constant, the varying part and the total.
+TEST(ScoreSkullPoses, SplitsConstantFromVarying) {
+  std::vector<Rigid3> truth, estimate;
+  const Rigid3 tilt = Rigid3::FromAxisAngle(Eigen::Vector3d::UnitZ(), 0.02 * M_PI / 180.0);
+  for (int f = 0; f < 10; ++f) {
+    truth.push_back(Rigid3::FromAxisAngle(Eigen::Vector3d(1, 2, 3).normalized(), 0.1 * f,
+                                          Eigen::Vector3d(5.0 * f, 1400, -20)));
+    const double wobble = (f % 2 == 0) ? 0.1 : -0.1;
+    estimate.push_back(truth.back() * Rigid3::FromTranslation(Eigen::Vector3d(0.3, wobble, 0)) *
+                       tilt);
+  }
+  const SkullPoseError error = ScoreSkullPoses(estimate, truth, {2, 10});
+  EXPECT_EQ(error.frames, 8);
+  EXPECT_NEAR(error.origin_constant_mm, 0.3, 1e-9);
+  EXPECT_NEAR(error.origin_varying_rms_mm, 0.1, 1e-9);
+  EXPECT_NEAR(error.origin_rms_mm, std::sqrt(0.3 * 0.3 + 0.1 * 0.1), 1e-9);
+  EXPECT_NEAR(error.origin_max_mm, std::sqrt(0.3 * 0.3 + 0.1 * 0.1), 1e-9);
+  EXPECT_NEAR(error.rotation_constant_deg, 0.02, 1e-9);
+  EXPECT_NEAR(error.rotation_varying_rms_deg, 0.0, 1e-9);
+  EXPECT_NEAR(error.origin_mean_mm.x(), 0.3, 1e-9);
+  const Json json = SkullPoseErrorJson(error);
+  EXPECT_NEAR(json["origin_varying_rms_mm"].get<double>(), 0.1, 1e-9);
+  EXPECT_EQ(ScoreSkullPoses(estimate, truth, {4, 4}).frames, 0);
+}
+
 TEST(RemoveExactOffsets, UndoesOffsetsRotatedByTheSkull) {
   const int frames = 10, vertices = 4;
   Take take;

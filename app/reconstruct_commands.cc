@@ -141,6 +141,8 @@ void AddReconstructCommand(CLI::App& app, CommandRunner* selected) {
         report["skull_deflection_shape"] = result.take.info.metadata["skull_deflection_shape"];
         spdlog::info("skull pose: deflection shape {}",
                      result.take.info.metadata["skull_deflection_shape"].get<std::string>());
+        report["skull_reference"] = result.take.info.metadata.value("skull_reference", Json());
+        spdlog::info("skull pose: stable markers' reference {}", report["skull_reference"].dump());
       }
       report["seconds"] = {{"detect", input.detect_s},
                            {"triangulate", result.timings.triangulate_s},

@@ -20,7 +20,10 @@
 //  (c) the jiggle slides the skin along itself (2-4% of its energy along the normal), so the
 //      translation is re-fitted to the markers' normal components (translation_from_normals);
 //  (d) by default the t^2 law of (a) is then replaced, for the translation, by the tissue
-//      model's own deflection shapes (DeflectionShape::kTissueModel below).
+//      model's own deflection shapes (DeflectionShape::kTissueModel below);
+//  (e) over a whole take (EstimateTake, what the pipeline runs) the stable markers' reference
+//      shape is re-estimated from the take, so that a static per-marker bias of the measured
+//      markers does not become a constant pose error (see there).
 // On the noise-free take above (a)-(c) leave 0.048 mm and 0.020 degrees RMS, and (d) brings the
 // origin to 0.019 mm with the rotation unchanged (bench/skull_pose_bench seed 1, the default
 // subject; README, "Skull pose"). Thickness is the skin-to-skull

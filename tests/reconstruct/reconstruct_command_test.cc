@@ -129,6 +129,11 @@ TEST(ReconstructCommand, SessionWithDroppedLateAndUncalibratedCameras) {
   // The skull pose's deflection model is recorded in the report and the take (the default).
   EXPECT_EQ(report["skull_deflection_shape"], "tissue_model");
   EXPECT_EQ(take->info.metadata["skull_deflection_shape"], "tissue_model");
+  // Where the stable markers' reference came from: this take is too short to re-estimate it
+  // (SkullPoseEstimator::EstimateTake), and the report and the take say so.
+  EXPECT_EQ(report["skull_reference"]["source"], "rig");
+  EXPECT_THAT(report["skull_reference"]["reason"].get<std::string>(), HasSubstr("fewer than 32"));
+  EXPECT_EQ(take->info.metadata["skull_reference"], report["skull_reference"]);
   // The platform frequency the rig measured goes into the take (for platform-synchronous
   // quasistatic extraction).
   ASSERT_TRUE(take->info.platform_hz.has_value());

@@ -159,10 +159,8 @@ Status WriteBlendshapeWeightsJson(const std::string& path, const BlendshapeWeigh
 }
 
 StatusOr<BlendshapeWeightsTrack> ReadBlendshapeWeights(const std::string& path) {
-  std::string extension = path.size() >= 5 ? path.substr(path.size() - 5) : "";
-  std::transform(extension.begin(), extension.end(), extension.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return extension == ".json" ? ReadBlendshapeWeightsJson(path) : ReadBlendshapeWeightsCsv(path);
+  return LowercaseExtension(path) == ".json" ? ReadBlendshapeWeightsJson(path)
+                                             : ReadBlendshapeWeightsCsv(path);
 }
 
 }  // namespace facedyn

@@ -36,4 +36,8 @@ Status MakeDirectories(const std::string& dir);
 // Joins with a single '/'.
 std::string JoinPath(const std::string& a, const std::string& b);
 
+// The extension of the path's last component with its dot, lower-cased (".PLY" -> ".ply"), or
+// "" when it has none ("take", "dir.v2/take", ".hidden"): what file formats are chosen by.
+std::string LowercaseExtension(const std::string& path);
+
 }  // namespace facedyn

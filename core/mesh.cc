@@ -33,12 +33,6 @@ struct OmTraits : public OpenMesh::DefaultTraits {
 };
 using OmMesh = OpenMesh::PolyMesh_ArrayKernelT<OmTraits>;
 
-std::string LowerExtension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext;
-}
-
 // OpenMesh prints its own diagnostics to omerr; facedyn reports through Status instead.
 void SilenceOpenMesh() {
   static const bool silenced = [] {
@@ -421,7 +415,7 @@ bool SameTopology(const Mesh& a, const Mesh& b) {
 
 StatusOr<Mesh> ReadMesh(const std::string& path) {
   SilenceOpenMesh();
-  const std::string ext = LowerExtension(path);
+  const std::string ext = LowercaseExtension(path);
   if (ext != ".obj" && ext != ".ply") {
     return InvalidArgumentError(path + ": unsupported mesh format '" + ext + "' (use .obj or .ply)");
   }
@@ -515,7 +509,7 @@ Status WriteMesh(const Mesh& mesh, const std::string& path) {
 Status WriteMesh(const Mesh& mesh, const Eigen::Matrix3Xd& positions_mm, const std::string& path) {
   SilenceOpenMesh();
   FACEDYN_CHECK(positions_mm.cols() == mesh.vertex_count(), "positions must match the mesh");
-  const std::string ext = LowerExtension(path);
+  const std::string ext = LowercaseExtension(path);
   if (ext != ".obj" && ext != ".ply") {
     return InvalidArgumentError(path + ": unsupported mesh format '" + ext + "' (use .obj or .ply)");
   }

@@ -63,15 +63,8 @@ Status WriteWeightsJson(const std::string& path, const Puppet& puppet,
 }
 
 std::string WeightsJsonTwinPath(const std::string& csv_path) {
-  const size_t slash = csv_path.find_last_of('/');
-  const size_t dot = csv_path.find_last_of('.');
-  const bool has_extension =
-      dot != std::string::npos && (slash == std::string::npos || dot > slash);
-  if (has_extension) {
-    std::string extension = csv_path.substr(dot);
-    for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    if (extension == ".csv") return csv_path.substr(0, dot) + ".json";
-  }
+  if (LowercaseExtension(csv_path) == ".csv")
+    return csv_path.substr(0, csv_path.size() - 4) + ".json";
   return csv_path + ".json";
 }
 

@@ -99,6 +99,16 @@ TEST(JoinPath, SingleSeparator) {
   EXPECT_EQ(JoinPath("/", "tmp"), "/tmp");
 }
 
+TEST(LowercaseExtension, LastComponentOnly) {
+  EXPECT_EQ(LowercaseExtension("take/frame.PLY"), ".ply");
+  EXPECT_EQ(LowercaseExtension("weights.Json"), ".json");
+  EXPECT_EQ(LowercaseExtension("a.tar.GZ"), ".gz");
+  EXPECT_EQ(LowercaseExtension("take"), "");
+  EXPECT_EQ(LowercaseExtension("dir.v2/take"), "");
+  EXPECT_EQ(LowercaseExtension(".hidden"), "");
+  EXPECT_EQ(LowercaseExtension(""), "");
+}
+
 TEST(WriteJsonFile, PrettyOrderedAndParseable) {
   TempDir dir;
   const std::string path = dir.Join("out.json");

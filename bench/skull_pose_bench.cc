@@ -30,6 +30,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -81,8 +82,23 @@ std::vector<TakeSpec> Specs(uint64_t seed) {
   return specs;
 }
 
+// Accumulated per frame by Add (sums of squares until ToJson divides by the frame count).
 struct PoseError {
   double origin_rms_mm = 0, origin_max_mm = 0, rotation_rms_deg = 0, rotation_max_deg = 0;
+  void Add(const facedyn::Rigid3& truth, const facedyn::Rigid3& estimate) {
+    const facedyn::Rigid3 d = truth.Inverse() * estimate;
+    const double t = d.translation().norm(), r = d.AngleRad() * 180.0 / M_PI;
+    origin_rms_mm += t * t;
+    rotation_rms_deg += r * r;
+    origin_max_mm = std::max(origin_max_mm, t);
+    rotation_max_deg = std::max(rotation_max_deg, r);
+  }
+  facedyn::Json ToJson(int frames) const {
+    return {{"origin_rms_mm", std::sqrt(origin_rms_mm / frames)},
+            {"origin_max_mm", origin_max_mm},
+            {"rotation_rms_deg", std::sqrt(rotation_rms_deg / frames)},
+            {"rotation_max_deg", rotation_max_deg}};
+  }
 };
 
 }  // namespace
@@ -267,14 +283,7 @@ int main(int argc, char** argv) {
         estimates.push_back(
             estimators[v].Estimate(in_world, states, confidence, Rigid3()).world_from_skull);
       }
-      for (size_t v = 0; v < estimates.size(); ++v) {
-        const Rigid3 d = truth.Inverse() * estimates[v];
-        const double t = d.translation().norm(), r = d.AngleRad() * 180.0 / M_PI;
-        errors[v].origin_rms_mm += t * t;
-        errors[v].rotation_rms_deg += r * r;
-        errors[v].origin_max_mm = std::max(errors[v].origin_max_mm, t);
-        errors[v].rotation_max_deg = std::max(errors[v].rotation_max_deg, r);
-      }
+      for (size_t v = 0; v < estimates.size(); ++v) errors[v].Add(truth, estimates[v]);
       const Eigen::Matrix3Xf frame_offsets = offsets.Frame(f);
       for (int m : stable) {
         const Eigen::Vector3d offset = face.markers[m].point.Evaluate(frame_offsets);
@@ -291,29 +300,15 @@ int main(int argc, char** argv) {
     const std::vector<reconstruct::SkullPoseResult> take_results =
         take_estimator.EstimateTake(tracked, &reference);
     PoseError take_error;
-    for (int f = first; f < take.frame_count(); ++f) {
-      const Rigid3 d = take.world_from_skull[f].Inverse() * take_results[f].world_from_skull;
-      const double t = d.translation().norm(), r = d.AngleRad() * 180.0 / M_PI;
-      take_error.origin_rms_mm += t * t;
-      take_error.rotation_rms_deg += r * r;
-      take_error.origin_max_mm = std::max(take_error.origin_max_mm, t);
-      take_error.rotation_max_deg = std::max(take_error.rotation_max_deg, r);
-    }
+    for (int f = first; f < take.frame_count(); ++f)
+      take_error.Add(take.world_from_skull[f], take_results[f].world_from_skull);
     const int frames = take.frame_count() - first;
     Json by_variant = Json::object();
-    by_variant["default_take_reference"] = {
-        {"origin_rms_mm", std::sqrt(take_error.origin_rms_mm / frames)},
-        {"origin_max_mm", take_error.origin_max_mm},
-        {"rotation_rms_deg", std::sqrt(take_error.rotation_rms_deg / frames)},
-        {"rotation_max_deg", take_error.rotation_max_deg},
-        {"reference_correction_rms_mm", reference.applied ? reference.correction_rms_mm : 0.0}};
-    for (size_t v = 0; v < errors.size(); ++v) {
-      by_variant[variants[v].name] = {
-          {"origin_rms_mm", std::sqrt(errors[v].origin_rms_mm / frames)},
-          {"origin_max_mm", errors[v].origin_max_mm},
-          {"rotation_rms_deg", std::sqrt(errors[v].rotation_rms_deg / frames)},
-          {"rotation_max_deg", errors[v].rotation_max_deg}};
-    }
+    by_variant["default_take_reference"] = take_error.ToJson(frames);
+    by_variant["default_take_reference"]["reference_correction_rms_mm"] =
+        reference.applied ? reference.correction_rms_mm : 0.0;
+    for (size_t v = 0; v < errors.size(); ++v)
+      by_variant[variants[v].name] = errors[v].ToJson(frames);
     takes.push_back({{"take", spec.name},
                      {"frames_scored", frames},
                      {"stable_marker_offset_rms_mm", std::sqrt(offset_sq / offset_n)},

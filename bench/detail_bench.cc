@@ -123,6 +123,16 @@ std::vector<Eigen::Matrix3Xd> Frames(const facedyn::FaceRig& rig,
 // Upsampling speed over the test markers: `apply_frames(threads)` upsamples every frame (the
 // models' ApplyFrames), run five times on one thread and five times on every core, alternated so
 // both see the same machine; the medians in frames/s.
+// Where a Masquerade model's bytes are (MasqueradeModel::MemoryBreakdown).
+Json MemoryPartsJson(const detail::MasqueradeModel& model) {
+  const detail::MasqueradeModel::MemoryParts parts = model.MemoryBreakdown();
+  return {{"rbf_centres", parts.rbf_centres},
+          {"rbf_coefficients", parts.rbf_coefficients},
+          {"rbf_output_bases", parts.rbf_output_bases},
+          {"region_vertices", parts.region_vertices},
+          {"feature_triangles", parts.feature_triangles}};
+}
+
 struct UpsampleSpeed {
   double one_thread = 0.0;
   double all_cores = 0.0;
@@ -398,8 +408,10 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
       large_done = true;
     }
     FACEDYN_ASSIGN_OR_RETURN(const UpsampleSpeed speed, SpeedOf(model, test_markers));
-    methods[variant.name] = {{"errors", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(result, truth, lips_it->second))},
+    methods[variant.name] = {{"errors", facedyn::eval::DetailErrorsJson(facedyn::eval::ScoreDetail(
+                                            result, truth, lips_it->second))},
                              {"memory_bytes", model.MemoryBytes()},
+                             {"memory_parts", MemoryPartsJson(model)},
                              {"mean_frames_per_region", summary.mean_frames_per_region},
                              {"regions_with_linear_part", summary.linear_regions},
                              {"train_s", summary.train_s}};
@@ -431,7 +443,8 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
       if (error <= 1.05 * uncompressed_validation) chosen_energy = energy;
       candidates.push_back({{"output_energy", energy},
                             {"validation_face_mean_mm", error},
-                            {"memory_bytes", model.MemoryBytes()}});
+                            {"memory_bytes", model.MemoryBytes()},
+                            {"memory_parts", MemoryPartsJson(model)}});
     }
     FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel model, train_global(chosen_energy));
     std::vector<Eigen::Matrix3Xd> result;
@@ -441,6 +454,7 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
         {"errors", facedyn::eval::DetailErrorsJson(
                        facedyn::eval::ScoreDetail(result, truth, lips_it->second))},
         {"memory_bytes", model.MemoryBytes()},
+        {"memory_parts", MemoryPartsJson(model)},
         {"output_energy", chosen_energy}};
     methods["masquerade_global_80_compressed"].update(speed.ToJson());
     // What `detail train --output-energy auto` chooses from the training takes alone (the

@@ -319,14 +319,18 @@ Status MasqueradeModel::CheckCompatible(const std::vector<std::string>& marker_n
   return Status::Ok();
 }
 
-size_t MasqueradeModel::MemoryBytes() const {
-  size_t bytes = 0;
-  for (const BiharmonicRbf& rbf : rbfs_) bytes += rbf.MemoryBytes();
-  for (int r = 0; r < regions_.region_count(); ++r) {
-    bytes += regions_.vertices[r].size() * (sizeof(int) + sizeof(double));
-    bytes += feature_triangles_[r].size() * (sizeof(int) + sizeof(double));
+MasqueradeModel::MemoryParts MasqueradeModel::MemoryBreakdown() const {
+  MemoryParts parts;
+  for (const BiharmonicRbf& rbf : rbfs_) {
+    parts.rbf_centres += sizeof(double) * rbf.centres().size();
+    parts.rbf_coefficients += sizeof(double) * rbf.coefficients().size();
+    parts.rbf_output_bases += sizeof(double) * rbf.output_basis().size();
   }
-  return bytes;
+  for (int r = 0; r < regions_.region_count(); ++r) {
+    parts.region_vertices += regions_.vertices[r].size() * (sizeof(int) + sizeof(double));
+    parts.feature_triangles += feature_triangles_[r].size() * (sizeof(int) + sizeof(double));
+  }
+  return parts;
 }
 
 Status MasqueradeModel::Save(const std::string& path) const {

@@ -104,10 +104,23 @@ class MasqueradeModel {
   Status Save(const std::string& path) const;
   static StatusOr<MasqueradeModel> Load(const std::string& path);
 
-  // Bytes of what was learned: the RBFs (centres, coefficients) and the region tables that
-  // blend them (vertex indices, weights, feature triangles). The neutral mesh and the
-  // large-scale factorisation are left out: the large-scale-only baseline needs them too.
-  size_t MemoryBytes() const;
+  // Bytes of what was learned: the RBFs (centres, coefficients, output bases) and the region
+  // tables that blend them (vertex indices and weights) and pose them (feature triangles and
+  // weights). The neutral mesh and the large-scale factorisation are left out: the
+  // large-scale-only baseline needs them too. MemoryBytes() is the sum of the parts.
+  struct MemoryParts {
+    size_t rbf_centres = 0;
+    size_t rbf_coefficients = 0;
+    size_t rbf_output_bases = 0;
+    size_t region_vertices = 0;
+    size_t feature_triangles = 0;
+    size_t total() const {
+      return rbf_centres + rbf_coefficients + rbf_output_bases + region_vertices +
+             feature_triangles;
+    }
+  };
+  MemoryParts MemoryBreakdown() const;
+  size_t MemoryBytes() const { return MemoryBreakdown().total(); }
 
   const std::string& subject() const { return subject_; }
   const std::vector<Marker>& markers() const { return markers_; }

@@ -126,6 +126,17 @@ TEST(MasqueradeModel, CompressedOutputsShrinkTheModelAndSurviveARoundTrip) {
   StatusOr<MasqueradeModel> compressed = MasqueradeModel::Train(set, options);
   ASSERT_TRUE(compressed.ok()) << compressed.status().ToString();
   EXPECT_LT(compressed->MemoryBytes(), full->MemoryBytes());
+  // Compression moves the RBFs' outputs into a basis and leaves the centres and the region
+  // tables as they were.
+  const MasqueradeModel::MemoryParts full_parts = full->MemoryBreakdown();
+  const MasqueradeModel::MemoryParts parts = compressed->MemoryBreakdown();
+  EXPECT_EQ(full_parts.rbf_output_bases, 0u);
+  EXPECT_GT(parts.rbf_output_bases, 0u);
+  EXPECT_LT(parts.rbf_coefficients + parts.rbf_output_bases, full_parts.rbf_coefficients);
+  EXPECT_EQ(parts.rbf_centres, full_parts.rbf_centres);
+  EXPECT_EQ(parts.region_vertices, full_parts.region_vertices);
+  EXPECT_EQ(parts.feature_triangles, full_parts.feature_triangles);
+  EXPECT_GT(parts.feature_triangles, 0u);
   // At a held-out pose it stays close to the uncompressed model (0.1% of the offsets' energy
   // dropped per region).
   const Eigen::Matrix3Xd truth = testing::TestFrame(set.neutral, 0.3, -0.6);

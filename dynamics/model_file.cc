@@ -10,10 +10,10 @@ constexpr char kPropagation[] = "propagation";
 
 Status SaveFeatureModel(const learn::Mlp& mlp, const FeatureSpec& spec, const std::string& kind,
                         int format_version, const SamplePropagation* propagation,
-                        const std::string& path) {
+                        const std::string& path, const learn::MlpAttachments& extra) {
   Json json = spec.ToJson();
   json["format_version"] = format_version;
-  learn::MlpAttachments attachments;
+  learn::MlpAttachments attachments = extra;
   if (propagation != nullptr) {
     attachments[kPropagation] = propagation->weights();
     json["propagation_method"] = propagation->method();
@@ -21,8 +21,10 @@ Status SaveFeatureModel(const learn::Mlp& mlp, const FeatureSpec& spec, const st
   return mlp.Save(path, kind, std::move(json), attachments);
 }
 
-StatusOr<learn::Mlp> LoadFeatureModel(const std::string& path, const std::string& kind, int format_version,
-                               FeatureSpec* spec, std::optional<SamplePropagation>* propagation) {
+StatusOr<learn::Mlp> LoadFeatureModel(const std::string& path, const std::string& kind,
+                                      int format_version, FeatureSpec* spec,
+                                      std::optional<SamplePropagation>* propagation,
+                                      learn::MlpAttachments* extra) {
   Json json;
   learn::MlpAttachments attachments;
   FACEDYN_ASSIGN_OR_RETURN(learn::Mlp mlp, learn::Mlp::Load(path, kind, &json, &attachments));
@@ -44,7 +46,9 @@ StatusOr<learn::Mlp> LoadFeatureModel(const std::string& path, const std::string
         std::move(found->second), json.value("propagation_method", std::string("learned")));
     if (!loaded_propagation.ok()) return loaded_propagation.status().WithContext(path);
     *propagation = std::move(loaded_propagation).value();
+    attachments.erase(found);
   }
+  if (extra != nullptr) *extra = std::move(attachments);
   return mlp;
 }
 

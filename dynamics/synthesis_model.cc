@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <random>
 #include <utility>
@@ -18,6 +19,7 @@ namespace {
 
 constexpr char kKind[] = "synthesis";
 constexpr int kSynthesisFormatVersion = 1;
+constexpr char kStretchRange[] = "stretch_range";  // attachment, 2 x 2S (SynthesisModel)
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -138,18 +140,62 @@ StatusOr<SynthesisModel> SynthesisModel::Create(const SynthesisConfig& config, u
   return model;
 }
 
+Eigen::MatrixXf SynthesisModel::Predict(const Eigen::MatrixXf& features) const {
+  if (stretch_range_.size() == 0 || features.rows() != config_.input_size()) {
+    return mlp_.Predict(features);  // a wrong size is the network's to report
+  }
+  Eigen::MatrixXf clamped = features;
+  const int first = config_.skull_descriptor_size();
+  const int count = static_cast<int>(stretch_range_.cols());
+  clamped.middleRows(first, count) =
+      clamped.middleRows(first, count)
+          .cwiseMax(stretch_range_.row(0).transpose().replicate(1, clamped.cols()))
+          .cwiseMin(stretch_range_.row(1).transpose().replicate(1, clamped.cols()));
+  return mlp_.Predict(clamped);
+}
+
+Status SynthesisModel::set_stretch_range(Eigen::MatrixXf range) {
+  const int count = config_.input_size() - config_.skull_descriptor_size();
+  if (range.size() != 0) {
+    if (range.rows() != 2 || range.cols() != count) {
+      return InvalidArgumentError(
+          "synthesis model: a stretch range of " + std::to_string(range.rows()) + " x " +
+          std::to_string(range.cols()) + ", expected 2 x " + std::to_string(count));
+    }
+    for (int c = 0; c < count; ++c) {
+      if (!(range(0, c) <= range(1, c))) {
+        return InvalidArgumentError("synthesis model: stretch feature " + std::to_string(c) +
+                                    " has minimum " + std::to_string(range(0, c)) +
+                                    " above maximum " + std::to_string(range(1, c)));
+      }
+    }
+  }
+  stretch_range_ = std::move(range);
+  return Status::Ok();
+}
+
 Status SynthesisModel::Save(const std::string& path) const {
-  return SaveFeatureModel(mlp_, config_, kKind, kSynthesisFormatVersion, propagation(), path);
+  learn::MlpAttachments extra;
+  if (stretch_range_.size() != 0) extra[kStretchRange] = stretch_range_;
+  return SaveFeatureModel(mlp_, config_, kKind, kSynthesisFormatVersion, propagation(), path,
+                          extra);
 }
 
 StatusOr<SynthesisModel> SynthesisModel::Load(const std::string& path) {
   SynthesisModel model;
-  FACEDYN_ASSIGN_OR_RETURN(model.mlp_, LoadFeatureModel(path, kKind, kSynthesisFormatVersion,
-                                                        &model.config_, &model.propagation_));
+  learn::MlpAttachments extra;
+  FACEDYN_ASSIGN_OR_RETURN(model.mlp_,
+                           LoadFeatureModel(path, kKind, kSynthesisFormatVersion, &model.config_,
+                                            &model.propagation_, &extra));
   model.config_.hidden_units = model.mlp_.shape().hidden_units;
   model.config_.linear_skip = model.mlp_.shape().linear_skip;
   FACEDYN_RETURN_IF_ERROR(CheckNetworkSizes(path, model.mlp_.shape(), model.config_.input_size(),
                                             model.config_.output_size()));
+  if (auto found = extra.find(kStretchRange); found != extra.end()) {
+    if (Status status = model.set_stretch_range(std::move(found->second)); !status.ok()) {
+      return DataLossError(path + ": " + status.message());
+    }
+  }
   return model;
 }
 
@@ -240,6 +286,11 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   }
   std::vector<FrameRange> ranges;  // per take, the frames usable for training
   long usable_frames = 0;
+  const int stretch_first = config.skull_descriptor_size();
+  const int stretch_count = config.input_size() - stretch_first;
+  Eigen::MatrixXf stretch_range(2, stretch_count);
+  stretch_range.row(0).setConstant(std::numeric_limits<float>::infinity());
+  stretch_range.row(1).setConstant(-std::numeric_limits<float>::infinity());
   for (size_t k = 0; k < decomposed.size(); ++k) {
     const Take& take = *decomposed[k].take;
     const FaceRig& rig = *decomposed[k].rig;
@@ -263,6 +314,14 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
         return status.WithContext(context);
       }
     }
+    if (!range.empty()) {
+      const Eigen::MatrixXf stretch =
+          features->block(stretch_first, range.begin, stretch_count, range.size());
+      stretch_range.row(0) =
+          stretch_range.row(0).cwiseMin(stretch.rowwise().minCoeff().transpose());
+      stretch_range.row(1) =
+          stretch_range.row(1).cwiseMax(stretch.rowwise().maxCoeff().transpose());
+    }
     data.Add(std::move(features).value(), SampleOffsetsByFrame(offsets->second, rig.skin_samples));
     ranges.push_back(range);
     usable_frames += range.size();
@@ -282,6 +341,7 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   }
   FACEDYN_RETURN_IF_ERROR(
       learn::TrainMlp(data, train_rows, validation_rows, options.train, model.mutable_mlp(), summary));
+  FACEDYN_RETURN_IF_ERROR(model.set_stretch_range(std::move(stretch_range)));
   if (learner) {
     FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, learner->Fit());
     model.set_propagation(std::move(learned));

@@ -55,8 +55,22 @@ class SynthesisModel {
   Status CheckCompatible(const Take& take, const FaceRig& rig) const {
     return config_.CheckCompatible(take, rig);
   }
-  // Raw features (input_size x F, columns = [B(t); S(t)]) -> dY (3S x F, skull frame, mm).
-  Eigen::MatrixXf Predict(const Eigen::MatrixXf& features) const { return mlp_.Predict(features); }
+  // Raw features (input_size x F, columns = [B(t); S(t)]) -> dY (3S x F, skull frame, mm), with
+  // the stretch rows S(t) clamped to stretch_range() when the model has one.
+  Eigen::MatrixXf Predict(const Eigen::MatrixXf& features) const;
+
+  // Per stretch feature (2 x 2S: row 0 the minimum, row 1 the maximum) the range over the
+  // training takes' usable frames, kept by TrainSynthesis; empty for a model without one (made
+  // by Create, or saved before it was kept). H learns the expression's effect on the dynamics
+  // only over the expressions it saw. Beyond them an MLP extrapolates without bound: an H
+  // trained on held neutral takes resynthesised a talking take with 2.9-5.1 mm of residual
+  // where the true offset was 1.1 mm (`facedyn demo --quick --seeds 1,2,3` at 4a08148, Fig. 7
+  // on speech). Clamped, it is given the nearest expression it knows instead; the skull
+  // descriptor B(t) is not clamped (a larger motion is the physics' to extrapolate, not an
+  // unknown face).
+  const Eigen::MatrixXf& stretch_range() const { return stretch_range_; }
+  // Precondition (checked): 2 x 2S with min <= max, or empty (no clamp).
+  Status set_stretch_range(Eigen::MatrixXf range);
   std::vector<float> FlatParameters() const { return mlp_.FlatParameters(); }
   learn::Mlp* mutable_mlp() { return &mlp_; }
 
@@ -72,6 +86,7 @@ class SynthesisModel {
   SynthesisConfig config_;
   learn::Mlp mlp_;
   std::optional<SamplePropagation> propagation_;
+  Eigen::MatrixXf stretch_range_;
 };
 
 struct SynthesisTrainOptions {

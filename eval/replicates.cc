@@ -1,5 +1,7 @@
 #include "eval/replicates.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -163,8 +165,10 @@ Json SummariseDemoReplicates(const std::vector<Json>& stages, const std::vector<
           values.emplace_back("modal_resynthesis_residual",
                               Number(r, "modal_resynthesis_residual_mm"));
         values.emplace_back("removed_without_synthesis", Number(r, "removed_without_synthesis_mm"));
-        figures.push_back(
-            Entry(take, "remove, then resynthesise with its own head motion (Fig. 7)", values));
+        figures.push_back(Entry(
+            take,
+            fmt::format("remove, then resynthesise the {} with its own head motion (Fig. 7)", take),
+            values));
       }
       if (!figures.empty()) resynthesis.push_back(std::move(figures));
       if (synthesis.contains("walk") && synthesis["walk"].contains("methods")) {

@@ -155,6 +155,58 @@ TEST(TrainSynthesis, LearnsAKnownFunctionOfTheSkullMotion) {
   EXPECT_LT(error, 0.3 * magnitude);
 }
 
+TEST(TrainSynthesis, KeepsTheStretchRangeAndClampsAnUnknownExpressionToIt) {
+  // Trained on a held neutral face, H has seen one expression: a stretch far outside it (a
+  // talking mouth) is predicted as the nearest stretch it knows, not extrapolated, and the
+  // range survives a round trip. The skull descriptor is left as it is.
+  const FaceRig& rig = Face();
+  const Take a = DecomposedTake(rig, 96, 0.0);
+  SynthesisTrainOptions options;
+  options.train.epochs = 2;
+  options.train.show_progress = false;
+  options.validation_fraction = 0;
+  auto model = TrainSynthesis({{&a, &rig}}, options);
+  ASSERT_TRUE(model.ok()) << model.status().message();
+  const int first = model->config().skull_descriptor_size();
+  const int count = model->config().input_size() - first;
+  const Eigen::MatrixXf range = model->stretch_range();
+  ASSERT_EQ(range.rows(), 2);
+  ASSERT_EQ(range.cols(), count);
+  EXPECT_TRUE((range.row(0).array() <= range.row(1).array()).all());
+  EXPECT_TRUE(range.allFinite());
+
+  Eigen::MatrixXf inside = Eigen::MatrixXf::Random(model->config().input_size(), 3);
+  Eigen::MatrixXf outside = inside;
+  inside.middleRows(first, count) = range.row(1).transpose().replicate(1, 3);
+  outside.middleRows(first, count) =
+      (range.row(1).array() + 50.0f).matrix().transpose().replicate(1, 3);
+  const Eigen::MatrixXf at_max = model->Predict(inside);
+  EXPECT_EQ((model->Predict(outside) - at_max).cwiseAbs().maxCoeff(), 0.0f);
+  // The unclamped network does extrapolate there: the clamp is what holds it.
+  ASSERT_TRUE(model->set_stretch_range(Eigen::MatrixXf()).ok());
+  EXPECT_GT((model->Predict(outside) - at_max).cwiseAbs().maxCoeff(), 1e-3f);
+  ASSERT_TRUE(model->set_stretch_range(range).ok());
+  // The skull descriptor rows are not clamped.
+  Eigen::MatrixXf moved = inside;
+  moved.topRows(first).array() += 50.0f;
+  EXPECT_GT((model->Predict(moved) - at_max).cwiseAbs().maxCoeff(), 1e-3f);
+
+  testing::TempDir dir;
+  ASSERT_TRUE(model->Save(dir.Join("H.pt")).ok());
+  const auto loaded = SynthesisModel::Load(dir.Join("H.pt"));
+  ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+  EXPECT_EQ(loaded->stretch_range(), range);
+  EXPECT_EQ((loaded->Predict(outside) - at_max).cwiseAbs().maxCoeff(), 0.0f);
+
+  EXPECT_THAT(model->set_stretch_range(Eigen::MatrixXf::Zero(2, count - 1)).message(),
+              HasSubstr("expected 2 x"));
+  Eigen::MatrixXf inverted = range;
+  inverted(0, 4) = inverted(1, 4) + 1.0f;
+  EXPECT_THAT(model->set_stretch_range(inverted).message(),
+              HasSubstr("stretch feature 4 has minimum"));
+  EXPECT_EQ(model->stretch_range(), range);  // a refused range leaves the model's
+}
+
 TEST(TrainSynthesis, RefusesATakeWithoutOffsets) {
   const FaceRig& rig = Face();
   Take take = DecomposedTake(rig, 40, 0.0);

@@ -45,7 +45,8 @@ Json SummariseMethodReplicates(const std::vector<Json>& replicates, const std::s
 // Returns {"replicates", "seeds", "rule", "removal": per protocol (held-out frequency,
 // performance, walk) every method's jiggle_mean_mm plus "lower_reference" (Eq. 7 with the exact
 // offsets in the estimated skull frame) with F's verdicts, "resynthesis": Fig. 7's residual
-// against removal without synthesis, "new_motion_synthesis" and "retarget": each method's
+// on the held-out take and on the held-out performance, F's removal resynthesised by H and by
+// the modal synthesis, against removal without synthesis, "new_motion_synthesis" and "retarget": each method's
 // offset_mean_mm with the verdicts of H and of the modal synthesis}. Sections a stage lacks are left out of its replicate.
 Json SummariseDemoReplicates(const std::vector<Json>& stages, const std::vector<uint64_t>& seeds);
 

@@ -706,12 +706,14 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   // that the modal model's own removal undone by its own synthesis would be).
   auto resynthesise = [&](const std::string& name, const Take& simulated,
                           const Take& reconstructed, const Take& removed_take,
-                          Take* by_h) -> StatusOr<Json> {
+                          Take* by_h) -> StatusOr<Json> {  // by_h: H's take, when wanted
+    Take h_take;
     FACEDYN_ASSIGN_OR_RETURN(
-        *by_h, dynamics::SynthesizeDynamics(h_model, removed_take, reconstructed.world_from_skull,
-                                            reconstructed.info.motion, face));
+        h_take, dynamics::SynthesizeDynamics(h_model, removed_take, reconstructed.world_from_skull,
+                                             reconstructed.info.motion, face));
     FACEDYN_ASSIGN_OR_RETURN(Json figures, eval::ResynthesisFigures(name, simulated, reconstructed,
-                                                                    removed_take, *by_h, skip));
+                                                                    removed_take, h_take, skip));
+    if (by_h != nullptr) *by_h = std::move(h_take);
     FACEDYN_ASSIGN_OR_RETURN(const Take by_modal,
                              modal_a.Synthesize(removed_take, reconstructed.world_from_skull,
                                                 reconstructed.info.motion, face));
@@ -741,11 +743,10 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   if (options.performance_expression != "") {
     FACEDYN_ASSIGN_OR_RETURN(Take performance_removed,
                              dynamics::RemoveDynamics(f_model, extra.reconstructed.back(), face));
-    Take performance_resynthesised;
     FACEDYN_ASSIGN_OR_RETURN(
         performance_resynthesis,
         resynthesise(extra_specs.back().name + " reconstructed", extra.simulated.back(),
-                     extra.reconstructed.back(), performance_removed, &performance_resynthesised));
+                     extra.reconstructed.back(), performance_removed, nullptr));
     if (artifacts != nullptr) {
       artifacts->performance_simulated = extra.simulated.back();
       artifacts->performance_reconstructed = extra.reconstructed.back();

@@ -49,6 +49,7 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
     int per_region = 0;
     double region_sigma_mm = detail::MasqueradeOptions{}.region_sigma_mm;
     double feature_sigma_mm = detail::MasqueradeOptions{}.feature_sigma_mm;
+    double pose_cell_mm = detail::MasqueradeOptions{}.pose_cell_mm;
     std::string output_energy = "1";
     bool json = false;
   };
@@ -80,6 +81,12 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
   train
       ->add_option("--feature-sigma-mm", train_options->feature_sigma_mm,
                    "Falloff of a region's pose triangles")
+      ->capture_default_str();
+  train
+      ->add_option("--pose-cell-mm", train_options->pose_cell_mm,
+                   "Cell of the pose's quadrature: one triangle carries each connected patch "
+                   "of this size (0: every triangle; smaller model, larger cell)")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   train
       ->add_option("--output-energy", train_options->output_energy,
@@ -125,6 +132,7 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
       options.per_region_frames = o.per_region;
       options.region_sigma_mm = o.region_sigma_mm;
       options.feature_sigma_mm = o.feature_sigma_mm;
+      options.pose_cell_mm = o.pose_cell_mm;
       options.output_energy =
           o.output_energy == "auto" ? detail::kChooseOutputEnergy : std::stod(o.output_energy);
       detail::MasqueradeTrainingSummary summary;

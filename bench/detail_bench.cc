@@ -108,6 +108,7 @@ struct Settings {
   double sigma_mm = 4.0;           // region blend falloff
   double feature_sigma_mm = 20.0;  // falloff of the triangles in a region's pose
   double edge_sigma_mm = 20.0;     // Bickel: falloff of a vertex's edge weights
+  double pose_cell_mm = detail::MasqueradeOptions{}.pose_cell_mm;  // the pose's quadrature cell
   bool hmc = true;
   std::string ict_dir;  // --ict: the ICT-FaceKit face region (9,409 vertices) instead
 };
@@ -300,6 +301,7 @@ facedyn::StatusOr<Json> RunHmc(const Settings& s, const facedyn::FaceRig& rig,
   detail::MasqueradeOptions masquerade_options;
   masquerade_options.region_sigma_mm = s.sigma_mm;
   masquerade_options.feature_sigma_mm = s.feature_sigma_mm;
+  masquerade_options.pose_cell_mm = s.pose_cell_mm;
   masquerade_options.global_frames = s.global_frames;
   FACEDYN_ASSIGN_OR_RETURN(const detail::MasqueradeModel masquerade,
                            detail::MasqueradeModel::Train(set, masquerade_options));
@@ -379,6 +381,7 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
   run["test_frames"] = s.test_frames;
   run["region_sigma_mm"] = s.sigma_mm;
   run["feature_sigma_mm"] = s.feature_sigma_mm;
+  run["pose_cell_mm"] = s.pose_cell_mm;
   run["bickel_edge_sigma_mm"] = s.edge_sigma_mm;
 
   // Masquerade variants.
@@ -396,6 +399,7 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
     detail::MasqueradeOptions options;
     options.region_sigma_mm = s.sigma_mm;
     options.feature_sigma_mm = s.feature_sigma_mm;
+    options.pose_cell_mm = s.pose_cell_mm;
     options.global_frames = variant.global;
     options.per_region_frames = variant.per_region;
     detail::MasqueradeTrainingSummary summary;
@@ -427,6 +431,7 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
       detail::MasqueradeOptions options;
       options.region_sigma_mm = s.sigma_mm;
       options.feature_sigma_mm = s.feature_sigma_mm;
+      options.pose_cell_mm = s.pose_cell_mm;
       options.global_frames = s.global_frames;
       options.output_energy = energy;
       return detail::MasqueradeModel::Train(set, options);
@@ -463,6 +468,7 @@ facedyn::StatusOr<Json> Run(const Settings& s, uint64_t seed) {
       detail::MasqueradeOptions options;
       options.region_sigma_mm = s.sigma_mm;
       options.feature_sigma_mm = s.feature_sigma_mm;
+      options.pose_cell_mm = s.pose_cell_mm;
       options.global_frames = s.global_frames;
       options.output_energy = detail::kChooseOutputEnergy;
       detail::MasqueradeTrainingSummary summary;
@@ -551,6 +557,8 @@ int main(int argc, char** argv) {
       s.sigma_mm = Number(next(), arg);
     } else if (arg == "--feature-sigma-mm") {
       s.feature_sigma_mm = Number(next(), arg);
+    } else if (arg == "--pose-cell-mm") {
+      s.pose_cell_mm = Number(next(), arg);
     } else if (arg == "--edge-sigma-mm") {
       s.edge_sigma_mm = Number(next(), arg);
     } else if (arg == "--seed") {
@@ -572,16 +580,17 @@ int main(int argc, char** argv) {
       std::fprintf(
           stderr,
           "usage: detail_bench [--vertices N] [--markers N] [--train-frames N] [--test-frames N] "
-          "[--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--edge-sigma-mm S] [--seed "
-          "N] [--seeds 1,2,3] [--quick] [--no-hmc] [--ict DIR]\n");
+          "[--global-frames N] [--sigma-mm S] [--feature-sigma-mm S] [--pose-cell-mm S] "
+          "[--edge-sigma-mm S] [--seed N] [--seeds 1,2,3] [--quick] [--no-hmc] [--ict DIR]\n");
       return 2;
     }
   }
   if (s.markers < 4 || s.train_frames < 2 || s.test_frames < 1 || !(s.sigma_mm > 0) ||
-      !(s.feature_sigma_mm > 0) || !(s.edge_sigma_mm > 0)) {
+      !(s.feature_sigma_mm > 0) || !(s.edge_sigma_mm > 0) || !(s.pose_cell_mm >= 0)) {
     std::fprintf(
         stderr,
-        "detail_bench: need --markers >= 4, --train-frames >= 2, --test-frames >= 1, sigmas > 0\n");
+        "detail_bench: need --markers >= 4, --train-frames >= 2, --test-frames >= 1, sigmas > 0, "
+        "--pose-cell-mm >= 0\n");
     return 2;
   }
   facedyn::InitLogging(facedyn::Verbosity::kQuiet);

@@ -33,10 +33,23 @@ class DeformationGradients {
   // 9 x T, column t = vec(F_t) (column-major) for `positions_mm` (3 x V).
   void Compute(const Eigen::Matrix3Xd& positions_mm,
                Eigen::Matrix<double, 9, Eigen::Dynamic>* f) const;
+  // Only the listed triangles: column k = vec(F) of triangle `subset[k]` (each in range).
+  void Compute(const Eigen::Matrix3Xd& positions_mm, const std::vector<int>& subset,
+               Eigen::Matrix<double, 9, Eigen::Dynamic>* f) const;
 
  private:
   Eigen::Matrix3Xi triangles_;
   Eigen::Matrix<double, 9, Eigen::Dynamic> rest_inverse_;
 };
+
+// A coarser quadrature for the integral of a smooth field over a mesh's triangles: triangles are
+// grouped into patches of those whose rest centroids share a cubic cell of side `cell_mm` AND
+// that are connected through shared edges inside it (so the two lips, or an eyelid and the cheek
+// under it, never share a patch even where one cell holds both). Returns, per triangle, its
+// patch's representative: the member with positive area whose centroid is nearest the patch's
+// area-weighted centroid (a patch of zero-area triangles only is represented by its first).
+// cell_mm <= 0: every triangle represents itself.
+std::vector<int> PatchRepresentatives(const Eigen::Matrix3Xd& rest_mm,
+                                      const Eigen::Matrix3Xi& triangles, double cell_mm);
 
 }  // namespace facedyn::detail

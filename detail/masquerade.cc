@@ -3,11 +3,13 @@
 #include <fmt/format.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <map>
 
 #include "core/binary_io.h"
 #include "core/file_util.h"
@@ -44,6 +46,10 @@ Status MasqueradeOptions::Check() const {
     return InvalidArgumentError(
         fmt::format("MasqueradeOptions.region_sigma_mm must be > 0, got {}", region_sigma_mm));
   }
+  if (!(pose_cell_mm >= 0 && std::isfinite(pose_cell_mm))) {
+    return InvalidArgumentError(fmt::format(
+        "MasqueradeOptions.pose_cell_mm must be >= 0 (0: every triangle), got {}", pose_cell_mm));
+  }
   if (!(feature_sigma_mm > 0 && std::isfinite(feature_sigma_mm))) {
     return InvalidArgumentError(
         fmt::format("MasqueradeOptions.feature_sigma_mm must be > 0, got {}", feature_sigma_mm));
@@ -75,14 +81,32 @@ Status MasqueradeModel::Build() {
 
 void MasqueradeModel::RegionPoses(const Eigen::Matrix3Xd& large_mm, Eigen::MatrixXd* poses) const {
   Eigen::Matrix<double, 9, Eigen::Dynamic> f;
-  gradients_.Compute(large_mm, &f);
+  gradients_.Compute(large_mm, pose_triangles_, &f);
   const Eigen::Matrix<double, 9, 1> identity =
       Eigen::Map<const Eigen::Matrix<double, 9, 1>>(Eigen::Matrix3d::Identity().eval().data());
   poses->resize(9, static_cast<int>(feature_triangles_.size()));
   for (size_t r = 0; r < feature_triangles_.size(); ++r) {
     Eigen::Matrix<double, 9, 1> sum = Eigen::Matrix<double, 9, 1>::Zero();
-    for (const auto& [t, w] : feature_triangles_[r]) sum += w * (f.col(t) - identity);
+    for (const PoseTriangle& p : feature_triangles_[r])
+      sum += static_cast<double>(p.weight) * (f.col(p.triangle) - identity);
     poses->col(static_cast<int>(r)) = sum;
+  }
+}
+
+void MasqueradeModel::IndexPoseTriangles() {
+  pose_triangles_.clear();
+  for (const auto& list : feature_triangles_) {
+    for (const PoseTriangle& p : list) pose_triangles_.push_back(p.triangle);
+  }
+  std::sort(pose_triangles_.begin(), pose_triangles_.end());
+  pose_triangles_.erase(std::unique(pose_triangles_.begin(), pose_triangles_.end()),
+                        pose_triangles_.end());
+  for (auto& list : feature_triangles_) {
+    for (PoseTriangle& p : list) {
+      p.triangle = static_cast<int32_t>(
+          std::lower_bound(pose_triangles_.begin(), pose_triangles_.end(), p.triangle) -
+          pose_triangles_.begin());
+    }
   }
 }
 
@@ -102,14 +126,16 @@ StatusOr<MasqueradeModel> MasqueradeModel::Train(const DetailTrainingSet& set,
                                                                 options.region_sigma_mm));
 
   // Pose triangles: Gaussian of the mean edge-path distance of the triangle's corners, times
-  // its rest area (so the pose does not depend on how finely an area is meshed).
+  // its rest area (so the pose does not depend on how finely an area is meshed); each weight is
+  // carried by its patch's representative triangle (options.pose_cell_mm).
   const Eigen::Matrix3Xi& tris = model.gradients_.triangles();
   const Eigen::Matrix3Xd& x0 = set.neutral.positions_mm;
   const int r_count = model.regions_.region_count();
   const double s2 = options.feature_sigma_mm * options.feature_sigma_mm;
+  const std::vector<int> representative = PatchRepresentatives(x0, tris, options.pose_cell_mm);
   model.feature_triangles_.assign(r_count, {});
   for (int r = 0; r < r_count; ++r) {
-    auto& list = model.feature_triangles_[r];
+    std::map<int, double> list;  // representative triangle -> weight
     double sum = 0, nearest_d = std::numeric_limits<double>::infinity();
     int nearest_t = -1;
     for (int t = 0; t < tris.cols(); ++t) {
@@ -126,18 +152,20 @@ StatusOr<MasqueradeModel> MasqueradeModel::Train(const DetailTrainingSet& set,
       }
       if (!(d <= 3 * options.feature_sigma_mm) || area <= 0) continue;
       const double w = area * std::exp(-d * d / (2 * s2));
-      list.emplace_back(t, w);
+      list[representative[t]] += w;
       sum += w;
     }
     if (list.empty() && nearest_t >= 0) {
-      list.emplace_back(nearest_t, 1.0);
+      list[nearest_t] = 1.0;
       sum = 1.0;
     }
     if (list.empty())
       return FailedPreconditionError(fmt::format(
           "detail: marker '{}' has no triangle with area near it", set.markers[r].name));
-    for (auto& entry : list) entry.second /= sum;
+    for (const auto& [t, w] : list)
+      model.feature_triangles_[r].push_back({t, static_cast<float>(w / sum)});
   }
+  model.IndexPoseTriangles();
 
   const LargeScaleFrames analysis = AnalyseFrames(set, model.deformer_, model.tangent_);
   const int n = static_cast<int>(set.frames_mm.size());
@@ -328,8 +356,9 @@ MasqueradeModel::MemoryParts MasqueradeModel::MemoryBreakdown() const {
   }
   for (int r = 0; r < regions_.region_count(); ++r) {
     parts.region_vertices += regions_.vertices[r].size() * (sizeof(int) + sizeof(double));
-    parts.feature_triangles += feature_triangles_[r].size() * (sizeof(int) + sizeof(double));
+    parts.feature_triangles += feature_triangles_[r].size() * sizeof(PoseTriangle);
   }
+  parts.feature_triangles += pose_triangles_.size() * sizeof(int);
   return parts;
 }
 
@@ -363,9 +392,9 @@ Status MasqueradeModel::Save(const std::string& path) const {
     w.Doubles(regions_.weights[r].data(), static_cast<int64_t>(regions_.weights[r].size()));
     std::vector<int> tri;
     std::vector<double> tri_w;
-    for (const auto& [t, wt] : feature_triangles_[r]) {
-      tri.push_back(t);
-      tri_w.push_back(wt);
+    for (const PoseTriangle& p : feature_triangles_[r]) {
+      tri.push_back(pose_triangles_[p.triangle]);
+      tri_w.push_back(p.weight);  // exact in the file's doubles
     }
     w.Ints(tri.data(), static_cast<int64_t>(tri.size()));
     w.Doubles(tri_w.data(), static_cast<int64_t>(tri_w.size()));
@@ -490,7 +519,7 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
       if (!(tri_w[i] >= 0 && tri_w[i] <= 1)) {
         return DataLossError(fmt::format("{}: {} has pose weight {}", path, what, tri_w[i]));
       }
-      model.feature_triangles_[g].emplace_back(tri[i], tri_w[i]);
+      model.feature_triangles_[g].push_back({tri[i], static_cast<float>(tri_w[i])});
     }
     int32_t dim = 0, centres = 0, outputs = 0;
     uint8_t linear = 0;
@@ -546,6 +575,7 @@ StatusOr<MasqueradeModel> MasqueradeModel::Load(const std::string& path) {
     return DataLossError(
         fmt::format("{}: corrupted: the trailer is not where the counts say", path));
   }
+  model.IndexPoseTriangles();
   {
     Status s = model.Build();
     if (!s.ok()) return s.WithContext(path);

@@ -23,6 +23,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <string>
 #include <utility>
 #include <vector>
@@ -54,6 +55,15 @@ struct MasqueradeOptions {
   // neighbourhood gives each region's RBF the context of its neighbours.
   double region_sigma_mm = 4.0;    // falloff of the region blend weights
   double feature_sigma_mm = 20.0;  // falloff of the triangles that make a region's pose
+  // The pose's quadrature: triangles are grouped into patches (detail/deformation_gradient.h
+  // PatchRepresentatives, cells of this side) and each patch's Gaussian weight is carried by one
+  // representative triangle, which shrinks the pose table (the large-scale skin, hence F, is
+  // smooth over a few mm). 0: every triangle. Training only: the table it makes is stored.
+  // Chosen on the validation speech of `detail_bench --ict ... --no-hmc --seeds 2,3,4
+  // --pose-cell-mm C` (C = 0, 2, 4, 8; the rule, fixed before the runs: the largest cell whose
+  // uncompressed validation face error is within 2% of every triangle's on each seed): 2 mm,
+  // a third of the ICT face's table; 4 and 8 mm cost 3.9% and 2.7% on one seed (README).
+  double pose_cell_mm = 2.0;
   int global_frames = 80;          // greedy global selection; 0 or >= #frames: every frame
   int per_region_frames = 0;       // greedy per region among the global pool; 0: the pool
   // Each region's RBF keeps the leading principal directions of its training offsets holding
@@ -134,13 +144,24 @@ class MasqueradeModel {
 
  private:
   Status Build();  // the parts rebuilt from the stored ones: deformer, frames, gradients
+  // feature_triangles_ holding mesh triangle ids -> pose_triangles_ and indices into it.
+  void IndexPoseTriangles();
 
   std::string subject_;
   MasqueradeOptions options_;
   Mesh neutral_;
   std::vector<Marker> markers_;
   MarkerRegions regions_;  // distances_mm is left empty after Load (not needed to apply)
-  std::vector<std::vector<std::pair<int, double>>> feature_triangles_;  // per region, normalised
+  // A region's pose is the weighted sum of these triangles' vec(F - I). Normalised weights in
+  // float: 8 bytes an entry, and a relative 1e-7 is far below what the pose resolves.
+  struct PoseTriangle {
+    int32_t triangle;
+    float weight;
+  };
+  // Per region, ascending. PoseTriangle::triangle indexes pose_triangles_, the ascending mesh
+  // triangles any region's pose uses: Apply computes F for those only.
+  std::vector<std::vector<PoseTriangle>> feature_triangles_;
+  std::vector<int> pose_triangles_;
   std::vector<BiharmonicRbf> rbfs_;
   LaplacianDeformer deformer_;
   TangentFrames tangent_;

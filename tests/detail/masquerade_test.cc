@@ -277,6 +277,44 @@ TEST(MasqueradeModel, IncompatibleInputNamed) {
   EXPECT_THAT(model->Apply(nan, &skin).message(), ::testing::HasSubstr("marker 2"));
 }
 
+TEST(MasqueradeModel, CoarserPoseQuadratureShrinksTheTableAndKeepsThePoses) {
+  const DetailTrainingSet set = testing::TestTrainingSet(4);
+  MasqueradeOptions options = AllFrames();
+  options.pose_cell_mm = 0.0;  // every triangle
+  StatusOr<MasqueradeModel> fine = MasqueradeModel::Train(set, options);
+  ASSERT_TRUE(fine.ok());
+  options.pose_cell_mm = 10.0;
+  StatusOr<MasqueradeModel> coarse = MasqueradeModel::Train(set, options);
+  ASSERT_TRUE(coarse.ok()) << coarse.status().ToString();
+  const MasqueradeModel::MemoryParts fine_parts = fine->MemoryBreakdown();
+  const MasqueradeModel::MemoryParts coarse_parts = coarse->MemoryBreakdown();
+  EXPECT_LT(coarse_parts.feature_triangles, fine_parts.feature_triangles / 3);
+  EXPECT_EQ(coarse_parts.region_vertices, fine_parts.region_vertices);
+  // The poses of a held-out frame's large-scale skin (smooth: F varies over the marker
+  // spacing, not over a cell) agree to a small fraction of their size.
+  const Eigen::Matrix3Xd truth = testing::TestFrame(set.neutral, 0.8, -0.6);
+  Eigen::Matrix3Xd skin, large;
+  ASSERT_TRUE(fine->Apply(set.MarkersOn(truth), &skin, &large).ok());
+  Eigen::MatrixXd fine_poses, coarse_poses;
+  fine->RegionPoses(large, &fine_poses);
+  coarse->RegionPoses(large, &coarse_poses);
+  ASSERT_EQ(coarse_poses.cols(), static_cast<int>(set.markers.size()));
+  ASSERT_GT(fine_poses.norm(), 0.05);
+  EXPECT_LT((coarse_poses - fine_poses).norm(), 0.05 * fine_poses.norm());
+  // The table survives a round trip exactly (float weights are exact in the file's doubles).
+  facedyn::testing::TempDir dir;
+  ASSERT_TRUE(coarse->Save(dir.Join("coarse.bin")).ok());
+  StatusOr<MasqueradeModel> loaded = MasqueradeModel::Load(dir.Join("coarse.bin"));
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  EXPECT_EQ(loaded->MemoryBytes(), coarse->MemoryBytes());
+  Eigen::MatrixXd loaded_poses;
+  loaded->RegionPoses(large, &loaded_poses);
+  EXPECT_EQ((loaded_poses - coarse_poses).norm(), 0.0);
+  options.pose_cell_mm = -1.0;
+  EXPECT_THAT(MasqueradeModel::Train(set, options).status().message(),
+              ::testing::HasSubstr("pose_cell_mm"));
+}
+
 TEST(MasqueradeModel, BadTrainingSetNamed) {
   DetailTrainingSet set = testing::TestTrainingSet(2);
   set.frames_mm[2] = Eigen::Matrix3Xd(set.frames_mm[2].leftCols(10));  // a copy: no aliasing

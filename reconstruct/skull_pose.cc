@@ -335,6 +335,10 @@ std::vector<SkullPoseResult> SkullPoseEstimator::EstimateTake(
   const int n = static_cast<int>(stable_markers_.size());
   std::vector<int> refined;
   Eigen::Matrix3Xd means(3, n);
+  std::vector<Rigid3> skull_from_world(frames.size());  // inverted once per frame
+  for (size_t f = 0; f < frames.size(); ++f) {
+    if (results[f].ok) skull_from_world[f] = results[f].world_from_skull.Inverse();
+  }
   std::vector<double> samples[3];
   for (int k = 0; k < n; ++k) {
     const int m = stable_markers_[k];
@@ -344,8 +348,8 @@ std::vector<SkullPoseResult> SkullPoseEstimator::EstimateTake(
           !(frames[f].confidence[m] > 0)) {
         continue;
       }
-      const Eigen::Vector3d in_skull = results[f].world_from_skull.Inverse() *
-                                       Eigen::Vector3d(frames[f].positions_in_world.col(m));
+      const Eigen::Vector3d in_skull =
+          skull_from_world[f] * Eigen::Vector3d(frames[f].positions_in_world.col(m));
       for (int axis = 0; axis < 3; ++axis) samples[axis].push_back(in_skull[axis]);
     }
     if (4 * static_cast<int>(samples[0].size()) < posed) continue;

@@ -148,6 +148,7 @@ void AddDetailCommands(CLI::App& app, CommandRunner* selected) {
             {"selected_frames", summary.global_frames.size()},
             {"mean_frames_per_region", summary.mean_frames_per_region},
             {"memory_bytes", model.MemoryBytes()},
+            {"pose_cell_mm", options.pose_cell_mm},
             {"output_energy", summary.output_energy},
             {"output_energy_validation_frames", summary.output_energy_validation_frames},
             {"train_s", summary.train_s}};

@@ -181,6 +181,22 @@ TEST(DetailCli, TrainApplyAndBadModel) {
       << out;
   EXPECT_LT(nlohmann::json::parse(out)["memory_bytes"].get<double>(),
             trained["memory_bytes"].get<double>());
+  // Every triangle in the pose (no quadrature patches): the same takes, a larger pose table.
+  EXPECT_EQ(trained["pose_cell_mm"], 2.0);
+  ASSERT_EQ(
+      RunCommand(Facedyn("--quiet detail train --takes " + smile + " " + speech +
+                         " --frames 10 --pose-cell-mm 0 --out " + dir.Join("p.bin") + " --json"),
+                 &out),
+      0)
+      << out;
+  EXPECT_GT(nlohmann::json::parse(out)["memory_bytes"].get<double>(),
+            trained["memory_bytes"].get<double>());
+  EXPECT_NE(RunCommand(Facedyn("detail train --takes " + smile +
+                               " --frames 10 --pose-cell-mm -1 --out " + dir.Join("n.bin")),
+                       &out),
+            0);
+  EXPECT_THAT(out, HasSubstr("--pose-cell-mm"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("n.bin")));
   EXPECT_NE(RunCommand(Facedyn("detail train --takes " + smile +
                                " --frames 10 --output-energy 0 "
                                "--out " +

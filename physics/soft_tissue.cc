@@ -22,13 +22,12 @@ using Solver = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
 
 // Linear-tetrahedron stiffness for E = 1 (Zienkiewicz & Taylor, The Finite Element Method,
 // vol. 1, ch. 6): K = V B^T D B with B the 6x12 strain-displacement matrix.
-Matrix12d UnitTetStiffness(const Eigen::Matrix3d& dm, double poisson) {
-  const Eigen::Matrix3d dm_inverse = dm.inverse();
-  const double volume = std::abs(dm.determinant()) / 6.0;
-  Eigen::Matrix<double, 3, 4> grad;  // gradients of the barycentric shape functions
-  grad.rightCols<3>() = dm_inverse.transpose();
-  grad.col(0) = -grad.rightCols<3>().rowwise().sum();
-  Eigen::Matrix<double, 6, 12> b = Eigen::Matrix<double, 6, 12>::Zero();
+using Vector12d = Eigen::Matrix<double, 12, 1>;
+using StrainMatrix = Eigen::Matrix<double, 6, 12>;
+
+// B from the gradients of the four barycentric shape functions (columns); linear in them.
+StrainMatrix StrainDisplacement(const Eigen::Matrix<double, 3, 4>& grad) {
+  StrainMatrix b = StrainMatrix::Zero();
   for (int n = 0; n < 4; ++n) {
     const double gx = grad(0, n), gy = grad(1, n), gz = grad(2, n);
     b(0, 3 * n) = gx;
@@ -38,14 +37,57 @@ Matrix12d UnitTetStiffness(const Eigen::Matrix3d& dm, double poisson) {
     b(4, 3 * n + 1) = gz, b(4, 3 * n + 2) = gy;
     b(5, 3 * n) = gz, b(5, 3 * n + 2) = gx;
   }
+  return b;
+}
+
+// Isotropic elasticity for E = 1 in Voigt order (xx yy zz xy yz zx, engineering shear).
+Eigen::Matrix<double, 6, 6> UnitElasticity(double poisson) {
   const double nu = poisson;
   const double scale = 1.0 / ((1 + nu) * (1 - 2 * nu));
   Eigen::Matrix<double, 6, 6> d = Eigen::Matrix<double, 6, 6>::Zero();
   d.topLeftCorner<3, 3>().setConstant(nu * scale);
   for (int i = 0; i < 3; ++i) d(i, i) = (1 - nu) * scale;
   for (int i = 3; i < 6; ++i) d(i, i) = (1 - 2 * nu) / 2 * scale;
-  return volume * b.transpose() * d * b;
+  return d;
 }
+
+// Shape-function gradients from the inverse edge matrix: node n >= 1 is row n-1 of dm^-1.
+Eigen::Matrix<double, 3, 4> ShapeGradients(const Eigen::Matrix3d& dm_inverse) {
+  Eigen::Matrix<double, 3, 4> grad;
+  grad.rightCols<3>() = dm_inverse.transpose();
+  grad.col(0) = -grad.rightCols<3>().rowwise().sum();
+  return grad;
+}
+
+Matrix12d UnitTetStiffness(const Eigen::Matrix3d& dm, double poisson) {
+  const double volume = std::abs(dm.determinant()) / 6.0;
+  const StrainMatrix b = StrainDisplacement(ShapeGradients(dm.inverse()));
+  return volume * b.transpose() * UnitElasticity(poisson) * b;
+}
+
+// One element about its rest geometry dm and a fixed displacement u, for the derivatives of its
+// nodal forces K(dm) u as the rest geometry moves (E = 1).
+struct TetLinearisation {
+  Eigen::Matrix3d g;    // dm^-1
+  double volume = 0.0;  // |V|
+  StrainMatrix b;
+  Eigen::Matrix<double, 6, 1> stress;  // D B u
+  TetLinearisation(const Eigen::Matrix3d& dm, const Vector12d& u,
+                   const Eigen::Matrix<double, 6, 6>& d)
+      : g(dm.inverse()),
+        volume(std::abs(dm.determinant()) / 6.0),
+        b(StrainDisplacement(ShapeGradients(g))),
+        stress(d * (b * u)) {}
+  // d/dt [K(dm + t d_dm) u] at t = 0. With G = dm^-1: dG = -G d_dm G, d|V| = |V| tr(G d_dm),
+  // and B is linear in the shape-function gradients.
+  Vector12d ForceDerivative(const Eigen::Matrix3d& d_dm, const Vector12d& u,
+                            const Eigen::Matrix<double, 6, 6>& d) const {
+    const double d_volume = volume * (g * d_dm).trace();
+    const StrainMatrix db = StrainDisplacement(ShapeGradients(-g * d_dm * g));
+    return d_volume * b.transpose() * stress +
+           volume * (db.transpose() * stress + b.transpose() * (d * (db * u)));
+  }
+};
 
 // Lowest `count` eigenpairs of K phi = lambda M phi (lumped, diagonal M) by subspace iteration
 // (Bathe, Finite Element Procedures, 11.6) with count + 2 vectors, using a factorised K.
@@ -629,6 +671,126 @@ Eigen::Matrix3Xd SoftTissueModel::QuasistaticSkin(const TissueForcing& forcing) 
   const Eigen::Vector3d dg = forcing.kinematics.GravityInSkull() - kGravityInWorld;
   const Eigen::VectorXd offset = m.gravity_response * dg;
   return m.SkinTargets(forcing.weights) + Eigen::Map<const Eigen::Matrix3Xd>(offset.data(), 3, m.vertex_count);
+}
+
+Eigen::Matrix3Xd SoftTissueModel::NodeTargets(const Eigen::VectorXd& weights,
+                                              double jaw_angle_rad) const {
+  FACEDYN_CHECK(weights.size() == impl_->k_shapes, "one weight per blendshape");
+  return impl_->Targets(weights, jaw_angle_rad);
+}
+
+double SoftTissueModel::FleshVolumeMm3(const Eigen::Matrix3Xd& nodes) const {
+  const Impl& m = *impl_;
+  FACEDYN_CHECK(nodes.cols() == m.rest.cols(), "one position per tissue node");
+  double volume = 0;
+  for (int e = 0; e < m.tets.cols(); ++e) {
+    Eigen::Matrix3d dm;
+    for (int c = 0; c < 3; ++c) dm.col(c) = nodes.col(m.tets(c + 1, e)) - nodes.col(m.tets(0, e));
+    volume += std::abs(dm.determinant()) / 6.0;
+  }
+  return volume;
+}
+
+StatusOr<HeldExpressionSkin> SoftTissueModel::HeldSkinWithJacobian(
+    const Eigen::Vector3d& gravity_change_in_skull, const std::vector<int>& vertices) const {
+  const Impl& m = *impl_;
+  if (!m.has_reference) return FailedPreconditionError("held expression skin: SetReference first");
+  if (!gravity_change_in_skull.allFinite())
+    return InvalidArgumentError("held expression skin: non-finite gravity");
+  std::vector<int> skin_vertices = vertices;
+  if (skin_vertices.empty()) {
+    skin_vertices.resize(m.vertex_count);
+    for (int v = 0; v < m.vertex_count; ++v) skin_vertices[v] = v;
+  }
+  for (int v : skin_vertices) {
+    if (v < 0 || v >= m.vertex_count) {
+      return InvalidArgumentError(fmt::format(
+          "held expression skin: vertex {} is not on the skin's {} vertices", v, m.vertex_count));
+    }
+  }
+  const int params = m.k_shapes + 1, jaw = m.k_shapes, n = m.rest.cols(), dofs = 3 * m.nf();
+  // The equilibrium's displacement from the targets.
+  const Eigen::VectorXd u =
+      m.static_solver->solve(m.fields.leftCols<3>() * gravity_change_in_skull);
+
+  // Each parameter's motion of every node's target (Impl::Targets differentiated).
+  std::vector<Eigen::Matrix3Xd> target_rate(params, Eigen::Matrix3Xd::Zero(3, n));
+  const Eigen::Matrix3d jaw_rotation = Eigen::AngleAxisd(m.jaw_ref, m.jaw_axis).toRotationMatrix();
+  for (int node = 0; node < n; ++node) {
+    const int vertex = node % m.vertex_count;
+    const double s = double(node / m.vertex_count) / m.layers;
+    if (s > 0) {
+      for (int k = 0; k < m.k_shapes; ++k) target_rate[k].col(node) = s * m.deltas[k].col(vertex);
+    }
+    if (m.in_jaw[vertex] && s < 1) {
+      target_rate[jaw].col(node) =
+          (1 - s) * m.jaw_axis.cross(jaw_rotation * (m.rest.col(vertex) - m.jaw_pivot));
+    }
+  }
+  // dK/dp u: the elements' rest geometry ...
+  const Eigen::Matrix<double, 6, 6> d = UnitElasticity(options_.poisson_ratio);
+  Eigen::MatrixXd dk_u = Eigen::MatrixXd::Zero(dofs, params);
+  for (int e = 0; e < m.tets.cols(); ++e) {
+    Vector12d u_e = Vector12d::Zero();
+    for (int i = 0; i < 4; ++i) {
+      const int f = m.free_index[m.tets(i, e)];
+      if (f >= 0) u_e.segment<3>(3 * i) = u.segment<3>(3 * f);
+    }
+    if (u_e.isZero(0.0)) continue;
+    Eigen::Matrix3d dm;
+    for (int c = 0; c < 3; ++c)
+      dm.col(c) = m.x_ref.col(m.tets(c + 1, e)) - m.x_ref.col(m.tets(0, e));
+    const double scale = m.youngs * (m.tet_scale.size() == m.tets.cols() ? m.tet_scale[e] : 1.0);
+    const TetLinearisation element(dm, u_e, d);
+    for (int p = 0; p < params; ++p) {
+      Eigen::Matrix3d d_dm;
+      for (int c = 0; c < 3; ++c)
+        d_dm.col(c) = target_rate[p].col(m.tets(c + 1, e)) - target_rate[p].col(m.tets(0, e));
+      if (d_dm.isZero(0.0)) continue;
+      const Vector12d force = scale * element.ForceDerivative(d_dm, u_e, d);
+      for (int i = 0; i < 4; ++i) {
+        const int f = m.free_index[m.tets(i, e)];
+        if (f >= 0) dk_u.block<3, 1>(3 * f, p) += force.segment<3>(3 * i);
+      }
+    }
+  }
+  // ... and the muscle springs' activation (see SetReference).
+  const Eigen::Matrix3Xd skin_delta = m.SkinTargets(m.w_ref) - m.rest.rightCols(m.vertex_count);
+  const double muscle_omega = 2 * M_PI * options_.muscle_hz;
+  for (int f = 0; f < m.nf(); ++f) {
+    const int node = m.free_nodes[f];
+    const int vertex = node % m.vertex_count;
+    const double norm = skin_delta.col(vertex).norm();
+    if (norm >= options_.activation_full_mm) continue;  // saturated
+    const double per_activation =
+        m.mass[node] * muscle_omega * muscle_omega / options_.activation_full_mm;
+    for (int k = 0; k < m.k_shapes; ++k) {
+      // d|delta|/dw_k; where the delta is zero, the rate as w_k grows from there.
+      const double rate = norm > 0 ? skin_delta.col(vertex).dot(m.deltas[k].col(vertex)) / norm
+                                   : m.deltas[k].col(vertex).norm();
+      if (rate != 0.0) dk_u.block<3, 1>(3 * f, k) += per_activation * rate * u.segment<3>(3 * f);
+    }
+  }
+  const Eigen::MatrixXd du = -m.static_solver->solve(dk_u);
+
+  HeldExpressionSkin result;
+  const int count = static_cast<int>(skin_vertices.size());
+  result.skin_mm.resize(3 * count);
+  result.jacobian.setZero(3 * count, params);
+  const Eigen::Matrix3Xd skin_targets = m.SkinTargets(m.w_ref);
+  for (int i = 0; i < count; ++i) {
+    const int v = skin_vertices[i];
+    result.skin_mm.segment<3>(3 * i) = skin_targets.col(v);
+    for (int k = 0; k < m.k_shapes; ++k) result.jacobian.block<3, 1>(3 * i, k) = m.deltas[k].col(v);
+    const int f = m.free_index[m.layers * m.vertex_count + v];
+    if (f < 0) continue;
+    result.skin_mm.segment<3>(3 * i) += u.segment<3>(3 * f);
+    result.jacobian.middleRows<3>(3 * i) += du.middleRows<3>(3 * f);
+  }
+  Eigen::Matrix3Xd nodes = m.x_ref;
+  for (int f = 0; f < m.nf(); ++f) nodes.col(m.free_nodes[f]) += u.segment<3>(3 * f);
+  result.flesh_volume_mm3 = FleshVolumeMm3(nodes);
+  return result;
 }
 
 Status SoftTissueModel::SetMaterial(const TissueMaterial& material) {

@@ -151,6 +151,26 @@ struct TissueSystemParts {
   double rayleigh_stiffness = 0.0;
 };
 
+// The skin of a held expression at its quasistatic equilibrium, and its derivatives with respect
+// to the expression (the targeting gradient of Bao et al. 2018, sections 5-6). A held expression
+// (w, jaw) is its own reference: the flesh's rest shape is Targets(w, jaw) and its stiffness K(w,
+// jaw) is assembled about that shape with the muscle springs of w's activation, so under a change
+// dg of gravity in the skull frame the skin settles at
+//   x(w, jaw) = skin targets(w) + skin rows of u,   K(w, jaw) u = M dg.
+// Upright (dg = 0) that is the blendshape skin exactly; tilted, the sag depends on the
+// expression through K. Derivatives by forward sensitivities on the factorised K:
+//   dx/dp = d skin targets/dp - skin rows of K^-1 (dK/dp u),
+// one multi-right-hand-side solve for all parameters; dK/dp is the exact derivative of the
+// element stiffnesses with respect to their rest geometry plus that of the springs (activation
+// min(1, |skin delta| / activation_full_mm): one-sided where the skin delta is zero or at the
+// clamp). The jaw moves no skin target in this model (the skin's share of the mandible is
+// carried by the blendshapes), only the flesh beneath, so its column is the sag's change.
+struct HeldExpressionSkin {
+  Eigen::VectorXd skin_mm;        // 3n: the requested skin vertices, skull frame, x y z per vertex
+  Eigen::MatrixXd jacobian;       // 3n x (K + 1): d skin / d (w_0 .. w_{K-1}, jaw angle in rad)
+  double flesh_volume_mm3 = 0.0;  // the flesh at the equilibrium (sum of |tet volumes|)
+};
+
 class SoftTissueModel {
  public:
   // Builds the tet shell under the rig's skin, the mass, and calibrates the material.
@@ -213,6 +233,19 @@ class SoftTissueModel {
   // The linear system about the current reference (requires SetReference), with the elastic
   // stiffness split by `tet_group` (one entry per tetrahedron in [0, group_count)).
   StatusOr<TissueSystemParts> SystemParts(const Eigen::VectorXi& tet_group, int group_count) const;
+
+  // The held expression's equilibrium skin at `vertices` (empty = every skin vertex) and its
+  // Jacobian, about the current reference as the held expression (SetReference(w, jaw, dt)
+  // first), under a change of gravity in the skull frame (mm/s^2; GravityInSkull() -
+  // kGravityInWorld). See HeldExpressionSkin. Fails on a vertex outside the skin or no reference.
+  StatusOr<HeldExpressionSkin> HeldSkinWithJacobian(const Eigen::Vector3d& gravity_change_in_skull,
+                                                    const std::vector<int>& vertices) const;
+  // Volume of the flesh (sum of the tetrahedra's |volume|, mm^3) with its nodes at `nodes`
+  // (3 x shell().node_count()), e.g. the neutral rest shape or an expression's targets.
+  double FleshVolumeMm3(const Eigen::Matrix3Xd& nodes) const;
+  // Every node's target for an expression (3 x shell().node_count(), skull frame): the rest shape
+  // of the flesh the expression holds (Bao's targets; see the header).
+  Eigen::Matrix3Xd NodeTargets(const Eigen::VectorXd& weights, double jaw_angle_rad) const;
 
   // Kinetic + elastic energy of the flesh's motion relative to its targets.
   double Energy() const;

@@ -480,5 +480,102 @@ TEST(SoftTissueModel, CreateWithMaterialMatchesCreateThenSetMaterial) {
   EXPECT_NE(refused.status().message().find("youngs_modulus_kpa"), std::string::npos);
 }
 
+// The shell with a second, sideways expression and a jaw hinged under the patch, so every
+// block of the held-expression Jacobian (elements, springs, jaw) is exercised.
+FaceRig ShellRigWithJaw() {
+  FaceRig rig = MakeShellRig(10);
+  Eigen::Matrix3Xd shear = Eigen::Matrix3Xd::Zero(3, rig.vertex_count());
+  std::vector<int> jaw;
+  for (int v = 0; v < rig.vertex_count(); ++v) {
+    const Eigen::Vector3d p = rig.neutral.positions_mm.col(v);
+    shear(0, v) = 2.0 * std::exp(-((p.x() - 15) * (p.x() - 15) + p.y() * p.y()) / (25.0 * 25.0));
+    if (p.y() < -10) jaw.push_back(v);
+  }
+  rig.blendshape_names.push_back("shear");
+  rig.blendshape_deltas_mm.push_back(shear);
+  rig.regions["jaw"] = jaw;
+  rig.jaw.region = "jaw";
+  rig.jaw.pivot_in_skull = Eigen::Vector3d(0, 10, 40);
+  rig.jaw.axis_in_skull = Eigen::Vector3d::UnitX();
+  return rig;
+}
+
+// Bao et al.'s targeting gradient: the held expression's equilibrium skin under tilted gravity,
+// differentiated with respect to the weights and the jaw with the reference moving with them,
+// against central differences of SetReference + QuasistaticSkin (which never use the Jacobian).
+TEST(SoftTissueModel, HeldSkinJacobianMatchesFiniteDifferences) {
+  const FaceRig rig = ShellRigWithJaw();
+  auto created = SoftTissueModel::Create(rig, TissueOptions());
+  ASSERT_TRUE(created.ok()) << created.status().message();
+  SoftTissueModel& model = **created;
+  // Lying back by 50 degrees: gravity turns in the skull frame.
+  TissueForcing forcing = Rest(2);
+  forcing.kinematics.world_from_skull =
+      Rigid3::FromAxisAngle(Eigen::Vector3d::UnitX(), -50 * M_PI / 180);
+  const Eigen::Vector3d dg = forcing.kinematics.GravityInSkull() - kGravityInWorld;
+  const Eigen::VectorXd w = (Eigen::VectorXd(2) << 0.35, 0.6).finished();  // partly active springs
+  const double jaw = 0.08;
+  const double dt = 1.0 / 256;
+  std::vector<int> vertices;
+  for (int v = 0; v < rig.vertex_count(); v += 3) vertices.push_back(v);
+
+  auto skin_at = [&](const Eigen::VectorXd& weights, double jaw_rad) {
+    EXPECT_TRUE(model.SetReference(weights, jaw_rad, dt).ok());
+    forcing.weights = weights;
+    const Eigen::Matrix3Xd skin = model.QuasistaticSkin(forcing);
+    Eigen::VectorXd picked(3 * vertices.size());
+    for (size_t i = 0; i < vertices.size(); ++i) picked.segment<3>(3 * i) = skin.col(vertices[i]);
+    return picked;
+  };
+  const Eigen::VectorXd at = skin_at(w, jaw);
+  auto held = model.HeldSkinWithJacobian(dg, vertices);
+  ASSERT_TRUE(held.ok()) << held.status().message();
+  EXPECT_LT((held->skin_mm - at).cwiseAbs().maxCoeff(), 1e-9);
+  ASSERT_EQ(held->jacobian.cols(), 3);
+
+  // Tilted, the flesh sags off its targets (the reference skin) by millimetres.
+  const Eigen::Matrix3Xd reference = model.ReferenceSkin();
+  double sag_mm = 0;
+  for (size_t i = 0; i < vertices.size(); ++i) {
+    sag_mm = std::max(sag_mm, (at.segment<3>(3 * i) - reference.col(vertices[i])).norm());
+  }
+  EXPECT_GT(sag_mm, 0.3);
+  for (int p = 0; p < 3; ++p) {
+    const double h = p < 2 ? 1e-5 : 1e-6;
+    Eigen::VectorXd wp = w, wm = w;
+    double jp = jaw, jm = jaw;
+    if (p < 2) {
+      wp[p] += h;
+      wm[p] -= h;
+    } else {
+      jp += h;
+      jm -= h;
+    }
+    const Eigen::VectorXd fd = (skin_at(wp, jp) - skin_at(wm, jm)) / (2 * h);
+    // The sag's share of the column (the blendshape delta itself is exact by construction).
+    Eigen::VectorXd delta = Eigen::VectorXd::Zero(fd.size());
+    if (p < 2) {
+      for (size_t i = 0; i < vertices.size(); ++i)
+        delta.segment<3>(3 * i) = rig.blendshape_deltas_mm[p].col(vertices[i]);
+    }
+    const Eigen::VectorXd sag_fd = fd - delta, sag_exact = held->jacobian.col(p) - delta;
+    ASSERT_GT(sag_fd.norm(), 1e-4)
+        << "parameter " << p << " must change the sag for this test to mean anything";
+    EXPECT_LT((sag_exact - sag_fd).norm(), 1e-4 * sag_fd.norm()) << "parameter " << p;
+  }
+  // The flesh's volume at the equilibrium, against the targets' (no sag) and the neutral's.
+  ASSERT_TRUE(model.SetReference(w, jaw, dt).ok());
+  const double targets = model.FleshVolumeMm3(model.NodeTargets(w, jaw));
+  EXPECT_GT(held->flesh_volume_mm3, 0.0);
+  EXPECT_NE(held->flesh_volume_mm3, targets);
+  EXPECT_LT(std::abs(held->flesh_volume_mm3 / targets - 1), 0.05);
+  // Refusals.
+  EXPECT_FALSE(model.HeldSkinWithJacobian(dg, {rig.vertex_count()}).ok());
+  auto fresh = SoftTissueModel::Create(rig, TissueOptions());
+  ASSERT_TRUE(fresh.ok());
+  EXPECT_EQ((*fresh)->HeldSkinWithJacobian(dg, {}).status().code(),
+            StatusCode::kFailedPrecondition);
+}
+
 }  // namespace
 }  // namespace facedyn::physics

@@ -673,6 +673,9 @@ Eigen::Matrix3Xd SoftTissueModel::QuasistaticSkin(const TissueForcing& forcing) 
   return m.SkinTargets(forcing.weights) + Eigen::Map<const Eigen::Matrix3Xd>(offset.data(), 3, m.vertex_count);
 }
 
+int SoftTissueModel::blendshape_count() const { return impl_->k_shapes; }
+int SoftTissueModel::skin_vertex_count() const { return impl_->vertex_count; }
+
 Eigen::Matrix3Xd SoftTissueModel::NodeTargets(const Eigen::VectorXd& weights,
                                               double jaw_angle_rad) const {
   FACEDYN_CHECK(weights.size() == impl_->k_shapes, "one weight per blendshape");

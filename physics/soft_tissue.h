@@ -192,6 +192,8 @@ class SoftTissueModel {
   double rayleigh_mass() const { return rayleigh_mass_; }
   double rayleigh_stiffness() const { return rayleigh_stiffness_; }
   int free_dof_count() const { return static_cast<int>(free_dofs_.size()); }
+  int blendshape_count() const;
+  int skin_vertex_count() const;
 
   // Lowest natural frequencies (Hz) of the continuous system K phi = w^2 M phi of the current
   // linearisation (after SetReference), or of the neutral face. With the step's compensation

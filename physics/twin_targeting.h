@@ -1,0 +1,62 @@
+// Targeting 3D geometry with the twin (Bao et al. 2018, section 6, "shape targeting"): the
+// expression whose held equilibrium in the twin's flesh best matches a captured frame's markers,
+// beside the plain blendshape fit.
+//
+// Why it differs from the blendshape fit: a captured expression is an equilibrium under the
+// gravity the head had. Upright, the twin's held skin is the blendshape skin exactly (the
+// blendshapes are scans, equilibria under upright gravity), so the two fits agree. Once the head
+// is tilted (lying back, a nod held, a scan on a couch), the flesh sags by up to g / w^2 (about
+// 3 mm for a 9 Hz cheek per g of gravity change), and a blendshape fit can only explain the sag
+// with wrong expression weights. The twin's fit models the sag with its fitted material, from
+// the frame's skull pose (gravity in the skull frame), so its weights are the expression's.
+//
+// The residual and its Jacobian come from SoftTissueModel::HeldSkinWithJacobian (forward
+// sensitivities, exact; tests/physics/soft_tissue_test); Ceres' Levenberg-Marquardt with the
+// weights bounded to [0, 1], started from the blendshape fit. The jaw follows the rig's
+// jaw-opening shape (FittedJawAngleRad, as the twin's linearisations do): in this model the jaw
+// moves no skin target itself, so the skin alone cannot tell it apart from the jaw shape.
+//
+// Uses what a capture has: marker positions in the skull frame, the skull's orientation (for
+// gravity), the face rig and the fitted twin's material. Never a truth channel.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "core/face_rig.h"
+#include "core/status.h"
+#include "physics/soft_tissue.h"
+
+namespace facedyn::physics {
+
+struct TargetingOptions {
+  int max_iterations = 25;  // Levenberg-Marquardt iterations of the twin fit
+  // Relative change of the cost at which the twin fit stops (Ceres' function_tolerance).
+  double function_tolerance = 1e-10;
+};
+
+struct ExpressionTargetingFit {
+  Eigen::VectorXd weights;
+  double jaw_angle_rad = 0.0;
+  double rms_mm = 0.0;               // marker residual (RMS of the 3D distances)
+  double flesh_volume_change = 0.0;  // flesh volume / neutral flesh volume - 1
+  int iterations = 0;
+  double seconds = 0.0;
+};
+
+struct ExpressionTargeting {
+  ExpressionTargetingFit blendshape;  // plain blendshape fit; its flesh = the targets (no sag)
+  ExpressionTargetingFit twin;        // the twin's held equilibrium under the frame's gravity
+};
+
+// Fits one frame (positions_in_skull: 3 x vertices.size(), mm) whose skull frame sees gravity
+// changed by gravity_change_in_skull (GravityInSkull() - kGravityInWorld, mm/s^2) from upright.
+// `model` is the twin's tissue model (its material set); its reference is left at the fit.
+// Errors: sizes disagree, a vertex off the skin, non-finite input, a rig without blendshapes.
+StatusOr<ExpressionTargeting> TargetHeldExpression(SoftTissueModel& model, const FaceRig& rig,
+                                                   const std::vector<int>& vertices,
+                                                   const Eigen::Matrix3Xd& positions_in_skull,
+                                                   const Eigen::Vector3d& gravity_change_in_skull,
+                                                   const TargetingOptions& options = {});
+
+}  // namespace facedyn::physics

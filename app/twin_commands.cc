@@ -1,10 +1,10 @@
-// `facedyn twin fit` and `facedyn twin perform`: the subject's physical twin identified from a
-// session's platform takes (physics/twin.h), and the twin simulated under motions nobody
-// captured. app/ only wires: reconstructed takes and the subject's FaceRig in, the twin's JSON
-// out; `perform` runs the face model (through sim/'s performance generator: expression curves,
-// motions) with the twin's material instead of a configured one. Nothing here reads a
-// simulator's truth: no option takes a ground-truth folder or channel, and the takes' channels
-// are not read by the fit.
+// `facedyn twin fit`, `twin perform` and `twin target`: the subject's physical twin identified
+// from a session's platform takes (physics/twin.h), the twin simulated under motions nobody
+// captured, and a held frame's expression fitted with the twin (physics/twin_targeting.h). app/
+// only wires: reconstructed takes and the subject's FaceRig in, the twin's JSON out; `perform` runs
+// the face model (through sim/'s performance generator: expression curves, motions) with the twin's
+// material instead of a configured one. Nothing here reads a simulator's truth: no option takes a
+// ground-truth folder or channel, and the takes' channels are not read by the fit.
 
 #include <spdlog/spdlog.h>
 
@@ -22,7 +22,9 @@
 #include "core/file_util.h"
 #include "core/json_io.h"
 #include "core/take.h"
+#include "physics/skull_kinematics.h"
 #include "physics/twin.h"
+#include "physics/twin_targeting.h"
 #include "rig/rig_config.h"
 #include "sim/performance.h"
 #include "sim/skull_motion.h"
@@ -73,6 +75,7 @@ std::string GroupsSpec(const std::vector<physics::StiffnessGroup>& groups) {
 }  // namespace
 
 void AddTwinPerformCommand(CLI::App* twin, CommandRunner* selected);
+void AddTwinTargetCommand(CLI::App* twin, CommandRunner* selected);
 
 void AddTwinCommands(CLI::App& app, CommandRunner* selected) {
   auto* twin = app.add_subcommand(
@@ -219,6 +222,7 @@ void AddTwinCommands(CLI::App& app, CommandRunner* selected) {
     };
   });
   AddTwinPerformCommand(twin, selected);
+  AddTwinTargetCommand(twin, selected);
 }
 
 void AddTwinPerformCommand(CLI::App* twin_command, CommandRunner* selected) {
@@ -277,6 +281,127 @@ void AddTwinPerformCommand(CLI::App* twin_command, CommandRunner* selected) {
       spdlog::info("wrote {} ({} frames of the twin, cheeks {:.2f} Hz; simulated in {:.1f} s)",
                    options->out, take.frame_count(), twin.cheek_mode.omega_rad_s / (2 * M_PI),
                    summary.simulate_s);
+      return Status::Ok();
+    };
+  });
+}
+
+void AddTwinTargetCommand(CLI::App* twin_command, CommandRunner* selected) {
+  struct TargetOptions {
+    std::string twin;
+    std::string face = "procedural";
+    std::string take;
+    double from_s = -1.0;  // < 0: the take's first held frame
+    double to_s = -1.0;    // < 0: its end
+    physics::TargetingOptions targeting;
+    std::string out;
+  };
+  auto options = std::make_shared<TargetOptions>();
+  auto* target = twin_command->add_subcommand(
+      "target",
+      "Fit a held expression with the twin: the expression whose equilibrium under the frame's "
+      "gravity matches the markers (Bao et al. 2018), beside the plain blendshape fit");
+  target->add_option("--twin", options->twin, "Twin JSON from `facedyn twin fit`")->required();
+  target->add_option("--face", options->face, "The FaceRig the twin was fitted to, or 'procedural'")
+      ->capture_default_str();
+  target->add_option("--take", options->take, "Reconstructed take folder (skin and skull pose)")
+      ->required();
+  target->add_option("--from-s", options->from_s,
+                     "Start of the held window, s (default: the take's hold start, or 0)");
+  target->add_option("--to-s", options->to_s,
+                     "End of the held window, s (default: the take's end)");
+  target
+      ->add_option("--max-iterations", options->targeting.max_iterations,
+                   "Levenberg-Marquardt iterations of the twin fit (each re-factorises the flesh)")
+      ->capture_default_str();
+  target->add_option("--out", options->out, "Result JSON to write")->required();
+  target->callback([options, selected] {
+    *selected = [options]() -> Status {
+      FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(options->face));
+      FACEDYN_ASSIGN_OR_RETURN(const physics::LoadedTwin twin,
+                               physics::LoadTwin(options->twin, rig));
+      FACEDYN_ASSIGN_OR_RETURN(const Take take, LoadTake(options->take));
+      if (take.vertex_count() != rig.vertex_count()) {
+        return FailedPreconditionError(fmt::format(
+            "twin target: take {} has {} vertices per frame, face '{}' has {} (a take in the "
+            "face's topology is needed: `facedyn reconstruct` output)",
+            options->take, take.vertex_count(), rig.name, rig.vertex_count()));
+      }
+      if (!std::isfinite(options->from_s) || !std::isfinite(options->to_s)) {
+        return InvalidArgumentError("twin target: --from-s and --to-s must be finite");
+      }
+      const double from_s = options->from_s >= 0 ? options->from_s
+                            : FirstHeldFrame(take) < take.frame_count()
+                                ? take.time_s[FirstHeldFrame(take)]
+                                : 0.0;
+      const double to_s = options->to_s >= 0 ? options->to_s : take.time_s.back() + 1.0;
+      std::vector<int> frames;
+      for (int f = 0; f < take.frame_count(); ++f) {
+        if (take.time_s[f] >= from_s - 1e-9 && take.time_s[f] < to_s) frames.push_back(f);
+      }
+      if (frames.empty()) {
+        return InvalidArgumentError(fmt::format(
+            "twin target: no frame of {} lies in [{:g}, {:g}) s (the take spans {:g}-{:g} s)",
+            options->take, from_s, to_s, take.time_s.front(), take.time_s.back()));
+      }
+      // The window's mean in the skull frame, and its mean gravity there.
+      const std::vector<int> vertices = physics::TwinMarkerVertices(rig);
+      Eigen::Matrix3Xd mean = Eigen::Matrix3Xd::Zero(3, vertices.size());
+      Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
+      const double share = 1.0 / frames.size();
+      for (int f : frames) {
+        const Rigid3 skull_from_world = take.world_from_skull[f].Inverse();
+        const Eigen::Matrix3Xf frame = take.positions.Frame(f);
+        for (size_t i = 0; i < vertices.size(); ++i) {
+          mean.col(i) +=
+              share * (skull_from_world * Eigen::Vector3d(frame.col(vertices[i]).cast<double>()));
+        }
+        gravity += share * (skull_from_world.rotation() * physics::kGravityInWorld);
+      }
+      const Eigen::Vector3d gravity_change = gravity - physics::kGravityInWorld;
+      FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<physics::SoftTissueModel> model,
+                               physics::SoftTissueModel::Create(rig, twin.tissue, twin.material));
+      spdlog::info(
+          "targeting {} frames ({:.3f}-{:.3f} s) of {} at {} markers; gravity changed by "
+          "{:.0f} mm/s^2 in the skull frame",
+          frames.size(), take.time_s[frames.front()], take.time_s[frames.back()], options->take,
+          vertices.size(), gravity_change.norm());
+      FACEDYN_ASSIGN_OR_RETURN(const physics::ExpressionTargeting fit,
+                               physics::TargetHeldExpression(*model, rig, vertices, mean,
+                                                             gravity_change, options->targeting));
+      auto fit_json = [&](const physics::ExpressionTargetingFit& f) {
+        Json weights = Json::object();
+        for (size_t k = 0; k < rig.blendshape_names.size(); ++k)
+          weights[rig.blendshape_names[k]] = f.weights[k];
+        return Json{{"weights", weights},         {"jaw_angle_rad", f.jaw_angle_rad},
+                    {"marker_rms_mm", f.rms_mm},  {"flesh_volume_change", f.flesh_volume_change},
+                    {"iterations", f.iterations}, {"seconds", f.seconds}};
+      };
+      auto twin_json = [&](const physics::ExpressionTargetingFit& f) {
+        Json json = fit_json(f);
+        json["cost_history"] = f.cost_history;
+        json["termination"] = f.termination;
+        return json;
+      };
+      const Json out = {{"format", "facedyn-twin-targeting"},
+                        {"version", 1},
+                        {"take", options->take},
+                        {"twin", options->twin},
+                        {"face", rig.name},
+                        {"frames", {frames.front(), frames.back()}},
+                        {"window_s", {take.time_s[frames.front()], take.time_s[frames.back()]}},
+                        {"markers", vertices.size()},
+                        {"gravity_change_in_skull_mm_s2",
+                         {gravity_change.x(), gravity_change.y(), gravity_change.z()}},
+                        {"blendshape", fit_json(fit.blendshape)},
+                        {"twin_fit", twin_json(fit.twin)}};
+      FACEDYN_RETURN_IF_ERROR(WriteJsonFile(options->out, out));
+      spdlog::info(
+          "marker RMS: blendshape fit {:.3f} mm, twin {:.3f} mm ({} iterations, {:.1f} s); "
+          "flesh volume change {:+.3f}% / {:+.3f}%; wrote {}",
+          fit.blendshape.rms_mm, fit.twin.rms_mm, fit.twin.iterations, fit.twin.seconds,
+          100 * fit.blendshape.flesh_volume_change, 100 * fit.twin.flesh_volume_change,
+          options->out);
       return Status::Ok();
     };
   });

@@ -41,6 +41,8 @@
 //
 // --quick: one seed, frequencies 6,8,10, neutral only, 2 s takes.
 
+#include <fmt/format.h>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -56,7 +58,10 @@
 #include "eval/metrics.h"
 #include "eval/replicates.h"
 #include "eval/simulated_stage.h"
+#include "physics/skull_kinematics.h"
 #include "physics/twin.h"
+#include "physics/twin_targeting.h"
+#include "sim/expressions.h"
 #include "sim/performance.h"
 #include "sim/procedural_face.h"
 
@@ -94,6 +99,10 @@ struct Settings {
   double sim_step_s = 1.0 / 512;
   bool clean = true;  // also fit the twin to the clean takes
   bool augmentation = true;
+  bool targeting = true;
+  double lie_back_deg = 45.0;
+  double lie_back_seconds = 3.0;
+  std::vector<std::string> targeting_expressions = {"neutral", "smile", "jaw_open", "cheek_puff"};
   double held_out_hz = 11.0;
   double test_seconds = 3.0;
   double twin_weight = 1.0;
@@ -309,6 +318,113 @@ Json RunAugmentation(const facedyn::FaceRig& face, const eval::SimulatedCameraRi
           {"seconds", {{"held_out_takes", test_s}, {"twin_takes", twin_s}, {"train", train_s}}}};
 }
 
+// Issue 23's targeting study of one seed: each held frame (the mean over the held frames of a
+// reconstructed take, in the skull frame, at the twin's marker vertices; gravity from the
+// estimated skull pose) is fitted by the blendshapes and by the twin (physics/twin_targeting.h,
+// the fitted material). Frames: the reconstructed platform takes the twin was fitted to
+// (upright) and the subject filmed lying back by --lie-back-deg holding each of
+// --targeting-expressions (the mean from 1 s after the transition ends). Scored, truth only
+// here: each fit's expression (its weights' upright blendshape skin) against the true
+// expression's, RMS over every skin vertex.
+Json RunTargeting(const facedyn::FaceRig& face, const eval::SimulatedCameraRig& cameras,
+                  const Settings& s, uint64_t seed, const std::vector<facedyn::Take>& captured,
+                  const std::vector<std::string>& captured_expressions,
+                  const physics::FittedTwin& twin, std::vector<double>* upright_ratios,
+                  std::vector<double>* tilted_ratios,
+                  std::vector<double>* tilted_expression_ratios) {
+  const auto start = Clock::now();
+  auto model =
+      Check(physics::SoftTissueModel::Create(face, twin.prior, twin.material), "twin model");
+  const std::vector<int> vertices = physics::TwinMarkerVertices(face);
+  auto expression_error = [&](const Eigen::VectorXd& fitted, const Eigen::VectorXd& truth) {
+    Eigen::Matrix3Xd difference = Eigen::Matrix3Xd::Zero(3, face.vertex_count());
+    for (size_t k = 0; k < face.blendshape_deltas_mm.size(); ++k)
+      difference += (fitted[k] - truth[k]) * face.blendshape_deltas_mm[k];
+    return std::sqrt(difference.colwise().squaredNorm().mean());
+  };
+  Json frames = Json::array();
+  auto target = [&](const std::string& name, const std::string& kind, const facedyn::Take& take,
+                    int first, const std::string& expression) {
+    const int count = take.frame_count() - first;
+    if (count < 1) Fail("targeting: take " + name + " has no held frames");
+    Eigen::Matrix3Xd mean = Eigen::Matrix3Xd::Zero(3, vertices.size());
+    Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
+    for (int f = first; f < take.frame_count(); ++f) {
+      const facedyn::Rigid3 skull_from_world = take.world_from_skull[f].Inverse();
+      const Eigen::Matrix3Xf frame = take.positions.Frame(f);
+      for (size_t i = 0; i < vertices.size(); ++i)
+        mean.col(i) +=
+            skull_from_world * Eigen::Vector3d(frame.col(vertices[i]).cast<double>()) / count;
+      gravity += skull_from_world.rotation() * physics::kGravityInWorld / count;
+    }
+    const Eigen::Vector3d dg = gravity - physics::kGravityInWorld;
+    const physics::ExpressionTargeting fit =
+        Check(physics::TargetHeldExpression(*model, face, vertices, mean, dg), "targeting " + name);
+    const Eigen::VectorXd truth = Check(sim::ExpressionWeights(face, expression), "expression");
+    const double plain_expression = expression_error(fit.blendshape.weights, truth);
+    const double twin_expression = expression_error(fit.twin.weights, truth);
+    const double ratio = fit.twin.rms_mm / fit.blendshape.rms_mm;
+    (kind == "upright" ? upright_ratios : tilted_ratios)->push_back(ratio);
+    if (kind != "upright") tilted_expression_ratios->push_back(twin_expression / plain_expression);
+    frames.push_back({{"take", name},
+                      {"kind", kind},
+                      {"held_frames", count},
+                      {"gravity_change_mm_s2", dg.norm()},
+                      {"blendshape",
+                       {{"marker_rms_mm", fit.blendshape.rms_mm},
+                        {"expression_rms_mm", plain_expression},
+                        {"flesh_volume_change", fit.blendshape.flesh_volume_change}}},
+                      {"twin",
+                       {{"marker_rms_mm", fit.twin.rms_mm},
+                        {"expression_rms_mm", twin_expression},
+                        {"flesh_volume_change", fit.twin.flesh_volume_change},
+                        {"iterations", fit.twin.iterations},
+                        {"cost_history", fit.twin.cost_history},
+                        {"termination", fit.twin.termination},
+                        {"seconds", fit.twin.seconds}}},
+                      {"twin_over_blendshape_marker_rms", ratio}});
+    std::fprintf(
+        stderr,
+        "twin_bench: seed %llu targeting %-22s |dg| %6.0f mm/s^2  markers %.3f -> %.3f mm  "
+        "expression %.3f -> %.3f mm  flesh volume %+.4f%% / %+.4f%%  (%.1f s)\n",
+        static_cast<unsigned long long>(seed), name.c_str(), dg.norm(), fit.blendshape.rms_mm,
+        fit.twin.rms_mm, plain_expression, twin_expression,
+        100 * fit.blendshape.flesh_volume_change, 100 * fit.twin.flesh_volume_change,
+        fit.twin.seconds);
+  };
+  for (size_t i = 0; i < captured.size(); ++i) {
+    const double hz = captured[i].info.platform_hz.value_or(0.0);
+    target(fmt::format("{} at {:g} Hz", captured_expressions[i], hz), "upright", captured[i],
+           facedyn::FirstHeldFrame(captured[i]), captured_expressions[i]);
+  }
+  uint64_t reconstruction_seed = seed * 1000 + 700;
+  for (const std::string& expression : s.targeting_expressions) {
+    sim::PerformanceOptions options;
+    options.expression = expression;
+    options.seconds = s.lie_back_seconds;
+    options.seed = seed + 60;
+    options.tissue.fundamental_hz = s.true_hz;
+    options.tissue.damping_ratio = s.true_damping;
+    options.tissue.max_step_s = s.sim_step_s;
+    options.motion.kind = sim::MotionKind::kLieBack;
+    options.motion.lie_back_deg = s.lie_back_deg;
+    options.motion.seed = seed * 100 + 88;
+    const facedyn::Take simulated = Check(sim::SimulatePerformance(face, options), "lie back");
+    facedyn::Take reconstructed =
+        Check(eval::ReconstructSimulatedTake(face, cameras, simulated, reconstruction_seed++),
+              "reconstruct lying back " + expression)
+            .take;
+    const double settled_s = options.motion.lie_back_s + 1.0;
+    int first = 0;
+    while (first < reconstructed.frame_count() && reconstructed.time_s[first] < settled_s) ++first;
+    target(expression + " lying back", "lying back", reconstructed, first, expression);
+  }
+  return {{"lie_back_deg", s.lie_back_deg},
+          {"marker_vertices", vertices.size()},
+          {"frames", frames},
+          {"seconds", Seconds(start)}};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -359,6 +475,12 @@ int main(int argc, char** argv) {
       s.clean = false;
     } else if (arg == "--no-augmentation") {
       s.augmentation = false;
+    } else if (arg == "--no-targeting") {
+      s.targeting = false;
+    } else if (arg == "--lie-back-deg") {
+      s.lie_back_deg = facedyn::bench::FlagNumber("twin_bench", arg, next().c_str());
+    } else if (arg == "--targeting-expressions") {
+      s.targeting_expressions = list(next(), arg, [](const std::string& t) { return t; });
     } else if (arg == "--held-out-hz") {
       s.held_out_hz = facedyn::bench::FlagNumber("twin_bench", arg, next().c_str());
     } else if (arg == "--twin-weight") {
@@ -385,6 +507,9 @@ int main(int argc, char** argv) {
   std::vector<double> clean_hz, clean_damping, rec_hz, rec_damping, fit_seconds;
   std::vector<double> clean_body_hz, clean_body_damping, rec_body_hz, rec_body_damping, rec_pitch;
   std::vector<double> motion_ratios, platform_ratios;  // augmented / captured F, per seed
+  // Targeting, per frame: twin / blendshape marker RMS (upright, lying back), and lying back
+  // the twin's expression error over the blendshape fit's.
+  std::vector<double> upright_ratios, tilted_ratios, tilted_expression_ratios;
   for (uint64_t seed : s.seeds) {
     const auto seed_start = Clock::now();
     eval::SimulatedCameraRig cameras;
@@ -460,6 +585,14 @@ int main(int argc, char** argv) {
         rec_pitch.push_back(score["pitch_error_percent"].get<double>());
       }
       fit_seconds.push_back(rec_twin.seconds);
+      if (s.targeting) {
+        std::vector<std::string> captured_expressions;
+        for (const std::string& expression : s.expressions)
+          captured_expressions.insert(captured_expressions.end(), s.frequencies.size(), expression);
+        run["targeting"] =
+            RunTargeting(face, cameras, s, seed, reconstructed, captured_expressions, rec_twin,
+                         &upright_ratios, &tilted_ratios, &tilted_expression_ratios);
+      }
       if (s.augmentation) {
         run["augmentation"] = RunAugmentation(face, cameras, s, seed, reconstructed, rec_twin,
                                               &motion_ratios, &platform_ratios);
@@ -493,6 +626,12 @@ int main(int argc, char** argv) {
       summary["reconstructed_body_hz_error_percent"] = spread(rec_body_hz);
       summary["reconstructed_body_damping_error_percent"] = spread(rec_body_damping);
       summary["reconstructed_pitch_error_percent"] = spread(rec_pitch);
+    }
+    if (s.targeting) {
+      summary["targeting_twin_over_blendshape_marker_rms_upright"] = spread(upright_ratios);
+      summary["targeting_twin_over_blendshape_marker_rms_lying_back"] = spread(tilted_ratios);
+      summary["targeting_twin_over_blendshape_expression_rms_lying_back"] =
+          spread(tilted_expression_ratios);
     }
     if (s.augmentation) {
       summary["augmented_over_captured_head_motion"] = spread(motion_ratios);

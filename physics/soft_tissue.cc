@@ -211,6 +211,7 @@ struct SoftTissueModel::Impl {
 
   // Reference expression (linearisation point) and prefactored systems.
   bool has_reference = false;
+  bool has_dynamics = false;  // the Newmark system is factorised (SetReference, not static)
   Eigen::VectorXd w_ref;
   double jaw_ref = 0.0;
   Eigen::Matrix3Xd x_ref;           // 3 x N targets of the reference expression
@@ -530,6 +531,17 @@ StatusOr<std::vector<double>> SoftTissueModel::NaturalFrequenciesHz(int count) c
 
 StatusOr<ReferenceSummary> SoftTissueModel::SetReference(const Eigen::VectorXd& weights,
                                                          double jaw_angle_rad, double dt_s) {
+  return SetReferenceWith(weights, jaw_angle_rad, dt_s, true);
+}
+
+StatusOr<ReferenceSummary> SoftTissueModel::SetStaticReference(const Eigen::VectorXd& weights,
+                                                               double jaw_angle_rad) {
+  return SetReferenceWith(weights, jaw_angle_rad, options_.max_step_s, false);
+}
+
+StatusOr<ReferenceSummary> SoftTissueModel::SetReferenceWith(const Eigen::VectorXd& weights,
+                                                             double jaw_angle_rad, double dt_s,
+                                                             bool dynamics) {
   Impl& m = *impl_;
   FACEDYN_CHECK(weights.size() == m.k_shapes, "one weight per blendshape");
   FACEDYN_CHECK(dt_s > 0, "dt must be positive");
@@ -539,6 +551,7 @@ StatusOr<ReferenceSummary> SoftTissueModel::SetReference(const Eigen::VectorXd& 
                     options_.fundamental_hz));
   }
   m.has_reference = false;
+  m.has_dynamics = false;
   // The material is calibrated for the step actually taken (see "Material" in the header).
   m.Calibrate(options_, dt_s);
   youngs_modulus_kpa_ = m.youngs;
@@ -566,15 +579,19 @@ StatusOr<ReferenceSummary> SoftTissueModel::SetReference(const Eigen::VectorXd& 
   summary.inverted_elements = m.Assemble(m.x_ref, options_.poisson_ratio);
   m.static_solver->factorize(m.kff);
   if (m.static_solver->info() != Eigen::Success) return InternalError("tissue stiffness is not positive definite");
-  // Newmark average acceleration (beta = 1/4, gamma = 1/2): K_eff = K + 2/dt C + 4/dt^2 M.
-  m.c_k = 1.0 + 2.0 * m.beta / dt_s;
-  m.c_m = 4.0 / (dt_s * dt_s) + 2.0 * m.alpha / dt_s;
-  SparseMatrix effective = m.c_k * m.kff;
-  for (int d = 0; d < effective.rows(); ++d) effective.coeffRef(d, d) += m.c_m * m.mass_dofs[d];
-  m.dynamic_solver->factorize(effective);
-  if (m.dynamic_solver->info() != Eigen::Success) return InternalError("Newmark matrix is not positive definite");
+  if (dynamics) {
+    // Newmark average acceleration (beta = 1/4, gamma = 1/2): K_eff = K + 2/dt C + 4/dt^2 M.
+    m.c_k = 1.0 + 2.0 * m.beta / dt_s;
+    m.c_m = 4.0 / (dt_s * dt_s) + 2.0 * m.alpha / dt_s;
+    SparseMatrix effective = m.c_k * m.kff;
+    for (int d = 0; d < effective.rows(); ++d) effective.coeffRef(d, d) += m.c_m * m.mass_dofs[d];
+    m.dynamic_solver->factorize(effective);
+    if (m.dynamic_solver->info() != Eigen::Success)
+      return InternalError("Newmark matrix is not positive definite");
+  }
   m.BuildFields();
   m.has_reference = true;
+  m.has_dynamics = dynamics;
   const int dofs = 3 * m.nf();
   m.u.setZero(dofs);
   m.v.setZero(dofs);
@@ -612,7 +629,7 @@ Eigen::VectorXd ForceCoefficients(const TissueForcing& forcing, int k_shapes, bo
 
 void SoftTissueModel::Reset(const TissueForcing& forcing) {
   Impl& m = *impl_;
-  FACEDYN_CHECK(m.has_reference, "SetReference before Reset");
+  FACEDYN_CHECK(m.has_dynamics, "SetReference before Reset");
   m.u = m.static_solver->solve(m.fields * ForceCoefficients(forcing, m.k_shapes, false));
   m.v.setZero(3 * m.nf());
   m.ku = m.kff * m.u;
@@ -625,7 +642,7 @@ void SoftTissueModel::Reset(const TissueForcing& forcing) {
 
 void SoftTissueModel::Step(const TissueForcing& forcing) {
   Impl& m = *impl_;
-  FACEDYN_CHECK(m.has_reference, "SetReference before Step");
+  FACEDYN_CHECK(m.has_dynamics, "SetReference before Step");
   const double dt = m.dt;
   Eigen::VectorXd force = m.fields * ForceCoefficients(forcing, m.k_shapes, true);
   const Eigen::Vector3d& w = forcing.kinematics.angular_velocity_in_skull;
@@ -695,7 +712,8 @@ double SoftTissueModel::FleshVolumeMm3(const Eigen::Matrix3Xd& nodes) const {
 }
 
 StatusOr<HeldExpressionSkin> SoftTissueModel::HeldSkinWithJacobian(
-    const Eigen::Vector3d& gravity_change_in_skull, const std::vector<int>& vertices) const {
+    const Eigen::Vector3d& gravity_change_in_skull, const std::vector<int>& vertices,
+    bool with_jacobian) const {
   const Impl& m = *impl_;
   if (!m.has_reference) return FailedPreconditionError("held expression skin: SetReference first");
   if (!gravity_change_in_skull.allFinite())
@@ -716,79 +734,86 @@ StatusOr<HeldExpressionSkin> SoftTissueModel::HeldSkinWithJacobian(
   const Eigen::VectorXd u =
       m.static_solver->solve(m.fields.leftCols<3>() * gravity_change_in_skull);
 
-  // Each parameter's motion of every node's target (Impl::Targets differentiated).
-  std::vector<Eigen::Matrix3Xd> target_rate(params, Eigen::Matrix3Xd::Zero(3, n));
-  const Eigen::Matrix3d jaw_rotation = Eigen::AngleAxisd(m.jaw_ref, m.jaw_axis).toRotationMatrix();
-  for (int node = 0; node < n; ++node) {
-    const int vertex = node % m.vertex_count;
-    const double s = double(node / m.vertex_count) / m.layers;
-    if (s > 0) {
-      for (int k = 0; k < m.k_shapes; ++k) target_rate[k].col(node) = s * m.deltas[k].col(vertex);
-    }
-    if (m.in_jaw[vertex] && s < 1) {
-      target_rate[jaw].col(node) =
-          (1 - s) * m.jaw_axis.cross(jaw_rotation * (m.rest.col(vertex) - m.jaw_pivot));
-    }
-  }
-  // dK/dp u: the elements' rest geometry ...
-  const Eigen::Matrix<double, 6, 6> d = UnitElasticity(options_.poisson_ratio);
-  Eigen::MatrixXd dk_u = Eigen::MatrixXd::Zero(dofs, params);
-  for (int e = 0; e < m.tets.cols(); ++e) {
-    Vector12d u_e = Vector12d::Zero();
-    for (int i = 0; i < 4; ++i) {
-      const int f = m.free_index[m.tets(i, e)];
-      if (f >= 0) u_e.segment<3>(3 * i) = u.segment<3>(3 * f);
-    }
-    if (u_e.isZero(0.0)) continue;
-    Eigen::Matrix3d dm;
-    for (int c = 0; c < 3; ++c)
-      dm.col(c) = m.x_ref.col(m.tets(c + 1, e)) - m.x_ref.col(m.tets(0, e));
-    const double scale = m.youngs * (m.tet_scale.size() == m.tets.cols() ? m.tet_scale[e] : 1.0);
-    const TetLinearisation element(dm, u_e, d);
-    for (int p = 0; p < params; ++p) {
-      Eigen::Matrix3d d_dm;
-      for (int c = 0; c < 3; ++c)
-        d_dm.col(c) = target_rate[p].col(m.tets(c + 1, e)) - target_rate[p].col(m.tets(0, e));
-      if (d_dm.isZero(0.0)) continue;
-      const Vector12d force = scale * element.ForceDerivative(d_dm, u_e, d);
-      for (int i = 0; i < 4; ++i) {
-        const int f = m.free_index[m.tets(i, e)];
-        if (f >= 0) dk_u.block<3, 1>(3 * f, p) += force.segment<3>(3 * i);
+  Eigen::MatrixXd du;  // d(u at the skin)/dp
+  if (with_jacobian) {
+    // Each parameter's motion of every node's target (Impl::Targets differentiated).
+    std::vector<Eigen::Matrix3Xd> target_rate(params, Eigen::Matrix3Xd::Zero(3, n));
+    const Eigen::Matrix3d jaw_rotation =
+        Eigen::AngleAxisd(m.jaw_ref, m.jaw_axis).toRotationMatrix();
+    for (int node = 0; node < n; ++node) {
+      const int vertex = node % m.vertex_count;
+      const double s = double(node / m.vertex_count) / m.layers;
+      if (s > 0) {
+        for (int k = 0; k < m.k_shapes; ++k) target_rate[k].col(node) = s * m.deltas[k].col(vertex);
+      }
+      if (m.in_jaw[vertex] && s < 1) {
+        target_rate[jaw].col(node) =
+            (1 - s) * m.jaw_axis.cross(jaw_rotation * (m.rest.col(vertex) - m.jaw_pivot));
       }
     }
-  }
-  // ... and the muscle springs' activation (see SetReference).
-  const Eigen::Matrix3Xd skin_delta = m.SkinTargets(m.w_ref) - m.rest.rightCols(m.vertex_count);
-  const double muscle_omega = 2 * M_PI * options_.muscle_hz;
-  for (int f = 0; f < m.nf(); ++f) {
-    const int node = m.free_nodes[f];
-    const int vertex = node % m.vertex_count;
-    const double norm = skin_delta.col(vertex).norm();
-    if (norm >= options_.activation_full_mm) continue;  // saturated
-    const double per_activation =
-        m.mass[node] * muscle_omega * muscle_omega / options_.activation_full_mm;
-    for (int k = 0; k < m.k_shapes; ++k) {
-      // d|delta|/dw_k; where the delta is zero, the rate as w_k grows from there.
-      const double rate = norm > 0 ? skin_delta.col(vertex).dot(m.deltas[k].col(vertex)) / norm
-                                   : m.deltas[k].col(vertex).norm();
-      if (rate != 0.0) dk_u.block<3, 1>(3 * f, k) += per_activation * rate * u.segment<3>(3 * f);
+    // dK/dp u: the elements' rest geometry ...
+    const Eigen::Matrix<double, 6, 6> d = UnitElasticity(options_.poisson_ratio);
+    Eigen::MatrixXd dk_u = Eigen::MatrixXd::Zero(dofs, params);
+    for (int e = 0; e < m.tets.cols(); ++e) {
+      Vector12d u_e = Vector12d::Zero();
+      for (int i = 0; i < 4; ++i) {
+        const int f = m.free_index[m.tets(i, e)];
+        if (f >= 0) u_e.segment<3>(3 * i) = u.segment<3>(3 * f);
+      }
+      if (u_e.isZero(0.0)) continue;
+      Eigen::Matrix3d dm;
+      for (int c = 0; c < 3; ++c)
+        dm.col(c) = m.x_ref.col(m.tets(c + 1, e)) - m.x_ref.col(m.tets(0, e));
+      const double scale = m.youngs * (m.tet_scale.size() == m.tets.cols() ? m.tet_scale[e] : 1.0);
+      const TetLinearisation element(dm, u_e, d);
+      for (int p = 0; p < params; ++p) {
+        Eigen::Matrix3d d_dm;
+        for (int c = 0; c < 3; ++c)
+          d_dm.col(c) = target_rate[p].col(m.tets(c + 1, e)) - target_rate[p].col(m.tets(0, e));
+        if (d_dm.isZero(0.0)) continue;
+        const Vector12d force = scale * element.ForceDerivative(d_dm, u_e, d);
+        for (int i = 0; i < 4; ++i) {
+          const int f = m.free_index[m.tets(i, e)];
+          if (f >= 0) dk_u.block<3, 1>(3 * f, p) += force.segment<3>(3 * i);
+        }
+      }
     }
+    // ... and the muscle springs' activation (see SetReference).
+    const Eigen::Matrix3Xd skin_delta = m.SkinTargets(m.w_ref) - m.rest.rightCols(m.vertex_count);
+    const double muscle_omega = 2 * M_PI * options_.muscle_hz;
+    for (int f = 0; f < m.nf(); ++f) {
+      const int node = m.free_nodes[f];
+      const int vertex = node % m.vertex_count;
+      const double norm = skin_delta.col(vertex).norm();
+      if (norm >= options_.activation_full_mm) continue;  // saturated
+      const double per_activation =
+          m.mass[node] * muscle_omega * muscle_omega / options_.activation_full_mm;
+      for (int k = 0; k < m.k_shapes; ++k) {
+        // d|delta|/dw_k; where the delta is zero, the rate as w_k grows from there.
+        const double rate = norm > 0 ? skin_delta.col(vertex).dot(m.deltas[k].col(vertex)) / norm
+                                     : m.deltas[k].col(vertex).norm();
+        if (rate != 0.0) dk_u.block<3, 1>(3 * f, k) += per_activation * rate * u.segment<3>(3 * f);
+      }
+    }
+    du = -m.static_solver->solve(dk_u);
   }
-  const Eigen::MatrixXd du = -m.static_solver->solve(dk_u);
 
   HeldExpressionSkin result;
   const int count = static_cast<int>(skin_vertices.size());
   result.skin_mm.resize(3 * count);
-  result.jacobian.setZero(3 * count, params);
+  if (with_jacobian) result.jacobian.setZero(3 * count, params);
   const Eigen::Matrix3Xd skin_targets = m.SkinTargets(m.w_ref);
   for (int i = 0; i < count; ++i) {
     const int v = skin_vertices[i];
     result.skin_mm.segment<3>(3 * i) = skin_targets.col(v);
-    for (int k = 0; k < m.k_shapes; ++k) result.jacobian.block<3, 1>(3 * i, k) = m.deltas[k].col(v);
+    if (with_jacobian) {
+      for (int k = 0; k < m.k_shapes; ++k)
+        result.jacobian.block<3, 1>(3 * i, k) = m.deltas[k].col(v);
+    }
     const int f = m.free_index[m.layers * m.vertex_count + v];
     if (f < 0) continue;
     result.skin_mm.segment<3>(3 * i) += u.segment<3>(3 * f);
-    result.jacobian.middleRows<3>(3 * i) += du.middleRows<3>(3 * f);
+    if (with_jacobian) result.jacobian.middleRows<3>(3 * i) += du.middleRows<3>(3 * f);
   }
   Eigen::Matrix3Xd nodes = m.x_ref;
   for (int f = 0; f < m.nf(); ++f) nodes.col(m.free_nodes[f]) += u.segment<3>(3 * f);
@@ -826,6 +851,7 @@ Status SoftTissueModel::SetMaterial(const TissueMaterial& material) {
   rayleigh_stiffness_ = m.beta;
   // Back to the neutral face, unstressed by any expression, until SetReference.
   m.has_reference = false;
+  m.has_dynamics = false;
   m.spring.resize(0);
   m.Assemble(m.rest, options_.poisson_ratio);
   m.static_solver->factorize(m.kff);

@@ -207,6 +207,12 @@ class SoftTissueModel {
   StatusOr<ReferenceSummary> SetReference(const Eigen::VectorXd& weights, double jaw_angle_rad,
                                           double dt_s);
 
+  // The same linearisation for the quasistatic parts only (QuasistaticSkin,
+  // HeldSkinWithJacobian, SystemParts): no Newmark factorisation, about half SetReference's time.
+  // Reset and Step then need SetReference.
+  StatusOr<ReferenceSummary> SetStaticReference(const Eigen::VectorXd& weights,
+                                                double jaw_angle_rad);
+
   // Starts at rest in the quasistatic state of `forcing` (zero velocity).
   void Reset(const TissueForcing& forcing);
   // Advances the dynamic state by dt_s to the instant described by `forcing`.
@@ -240,8 +246,10 @@ class SoftTissueModel {
   // Jacobian, about the current reference as the held expression (SetReference(w, jaw, dt)
   // first), under a change of gravity in the skull frame (mm/s^2; GravityInSkull() -
   // kGravityInWorld). See HeldExpressionSkin. Fails on a vertex outside the skin or no reference.
+  // Without `with_jacobian` only the skin and the volume (one solve instead of K + 2).
   StatusOr<HeldExpressionSkin> HeldSkinWithJacobian(const Eigen::Vector3d& gravity_change_in_skull,
-                                                    const std::vector<int>& vertices) const;
+                                                    const std::vector<int>& vertices,
+                                                    bool with_jacobian = true) const;
   // Volume of the flesh (sum of the tetrahedra's |volume|, mm^3) with its nodes at `nodes`
   // (3 x shell().node_count()), e.g. the neutral rest shape or an expression's targets.
   double FleshVolumeMm3(const Eigen::Matrix3Xd& nodes) const;
@@ -259,6 +267,8 @@ class SoftTissueModel {
 
  private:
   SoftTissueModel() = default;
+  StatusOr<ReferenceSummary> SetReferenceWith(const Eigen::VectorXd& weights, double jaw_angle_rad,
+                                              double dt_s, bool dynamics);
   static StatusOr<std::unique_ptr<SoftTissueModel>> CreateWith(const FaceRig& rig,
                                                                const TissueOptions& options,
                                                                const TissueMaterial* material);

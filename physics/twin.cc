@@ -42,8 +42,12 @@ class BlendshapeResidual : public ceres::CostFunction {
   Eigen::VectorXd offset_;  // 3n: observed minus neutral
 };
 
-// The vertex that carries most of each marker's barycentric weight, once each, in marker order.
-std::vector<int> MarkerVertices(const FaceRig& rig) {
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+}  // namespace
+
+std::vector<int> TwinMarkerVertices(const FaceRig& rig) {
   std::vector<int> vertices;
   std::set<int> seen;
   for (const Marker& marker : rig.markers) {
@@ -57,10 +61,33 @@ std::vector<int> MarkerVertices(const FaceRig& rig) {
   return vertices;
 }
 
-double Seconds(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+StatusOr<Eigen::VectorXd> UnitBoxLeastSquares(const Eigen::MatrixXd& a, const Eigen::VectorXd& b,
+                                              const Eigen::VectorXd& start) {
+  if (a.rows() != b.size() || a.cols() != start.size() || a.cols() == 0) {
+    return InvalidArgumentError(
+        fmt::format("bounded least squares: a {}x{} system, {} values and {} unknowns", a.rows(),
+                    a.cols(), b.size(), start.size()));
+  }
+  if (!a.allFinite() || !b.allFinite())
+    return InvalidArgumentError("bounded least squares: non-finite input");
+  Eigen::VectorXd x = start.cwiseMax(0.0).cwiseMin(1.0);
+  ceres::Problem problem;
+  problem.AddResidualBlock(new BlendshapeResidual(a, b), nullptr, x.data());
+  for (int j = 0; j < x.size(); ++j) {
+    problem.SetParameterLowerBound(x.data(), j, 0.0);
+    problem.SetParameterUpperBound(x.data(), j, 1.0);
+  }
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::DENSE_QR;
+  solver_options.max_num_iterations = 100;
+  solver_options.function_tolerance = 1e-12;
+  solver_options.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+  if (!summary.IsSolutionUsable())
+    return InternalError("bounded least squares: " + summary.message);
+  return x;
 }
-}  // namespace
 
 StatusOr<BlendshapeFit> FitBlendshapeWeights(const FaceRig& rig, const std::vector<int>& vertices,
                                              const Eigen::Matrix3Xd& positions_in_skull) {
@@ -85,21 +112,8 @@ StatusOr<BlendshapeFit> FitBlendshapeWeights(const FaceRig& rig, const std::vect
     offset.segment<3>(3 * i) = positions_in_skull.col(i) - rig.neutral.positions_mm.col(v);
   }
   if (!offset.allFinite()) return InvalidArgumentError("blendshape fit: non-finite positions");
-  Eigen::VectorXd weights = Eigen::VectorXd::Zero(k);
-  ceres::Problem problem;
-  problem.AddResidualBlock(new BlendshapeResidual(basis, offset), nullptr, weights.data());
-  for (int j = 0; j < k; ++j) {
-    problem.SetParameterLowerBound(weights.data(), j, 0.0);
-    problem.SetParameterUpperBound(weights.data(), j, 1.0);
-  }
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::DENSE_QR;
-  solver_options.max_num_iterations = 100;
-  solver_options.function_tolerance = 1e-12;
-  solver_options.num_threads = 1;
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &problem, &summary);
-  if (!summary.IsSolutionUsable()) return InternalError("blendshape fit: " + summary.message);
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::VectorXd weights,
+                           UnitBoxLeastSquares(basis, offset, Eigen::VectorXd::Zero(k)));
   BlendshapeFit fit;
   fit.weights = weights;
   fit.rms_mm = std::sqrt((basis * weights - offset).squaredNorm() / n);
@@ -263,7 +277,7 @@ StatusOr<FittedTwin> FitTwin(const FaceRig& rig,
   FACEDYN_ASSIGN_OR_RETURN(twin.prior_cheek_mode, model->CheekMode());
 
   // Observed points: the markers' vertices that the tissue moves (not held by bone).
-  const std::vector<int> observed = MarkerVertices(rig);
+  const std::vector<int> observed = TwinMarkerVertices(rig);
   if (observed.size() < 3)
     return FailedPreconditionError(fmt::format("face rig '{}' has fewer than 3 markers", rig.name));
 

@@ -38,6 +38,15 @@
 
 namespace facedyn::physics {
 
+// The skin vertices the twin observes: per marker the vertex that carries most of its
+// barycentric weight, once each, in marker order.
+std::vector<int> TwinMarkerVertices(const FaceRig& rig);
+
+// argmin |a x - b| over x in [0, 1]^n (Ceres, from `start` clipped to the box): the blendshape
+// fit's solver, shared with the twin's targeting steps. Errors: sizes disagree, non-finite input.
+StatusOr<Eigen::VectorXd> UnitBoxLeastSquares(const Eigen::MatrixXd& a, const Eigen::VectorXd& b,
+                                              const Eigen::VectorXd& start);
+
 // Blendshape weights in [0, 1] whose skin best matches `positions_in_skull` (3 x n, mm) at
 // `vertices` in least squares, and the RMS of what is left (mm). Errors: sizes disagree, a
 // vertex out of range, a rig without blendshapes.

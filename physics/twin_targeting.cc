@@ -1,6 +1,5 @@
 #include "physics/twin_targeting.h"
 
-#include <ceres/ceres.h>
 #include <fmt/format.h>
 
 #include <chrono>
@@ -22,50 +21,34 @@ int JawOpenShape(const FaceRig& rig) {
   return k >= 0 ? k : rig.BlendshapeIndex("jawOpen");
 }
 
-// Residual of the twin fit: the held equilibrium skin at `vertices` minus the observation. Every
-// evaluation re-linearises the flesh about the candidate expression (SetReference), whose jaw
-// follows the jaw-opening weight.
-class HeldSkinResidual : public ceres::CostFunction {
- public:
-  HeldSkinResidual(SoftTissueModel* model, const std::vector<int>* vertices,
-                   Eigen::VectorXd observed, const Eigen::Vector3d& gravity_change, int shapes,
-                   int jaw_open, double jaw_open_rad)
-      : model_(model),
-        vertices_(vertices),
-        observed_(std::move(observed)),
-        gravity_change_(gravity_change),
-        jaw_open_(jaw_open),
-        jaw_open_rad_(jaw_open_rad) {
-    set_num_residuals(static_cast<int>(observed_.size()));
-    mutable_parameter_block_sizes()->assign(1, shapes);
-  }
-
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    const int shapes = parameter_block_sizes()[0];
-    const Eigen::VectorXd w = Eigen::Map<const Eigen::VectorXd>(parameters[0], shapes);
-    const double jaw = jaw_open_ >= 0 ? w[jaw_open_] * jaw_open_rad_ : 0.0;
-    if (!model_->SetReference(w, jaw, model_->options().max_step_s).ok()) return false;
-    auto held = model_->HeldSkinWithJacobian(gravity_change_, *vertices_);
-    if (!held.ok()) return false;
-    Eigen::Map<Eigen::VectorXd>(residuals, observed_.size()) = held->skin_mm - observed_;
-    if (jacobians != nullptr && jacobians[0] != nullptr) {
-      Eigen::MatrixXd jacobian = held->jacobian.leftCols(shapes);
-      if (jaw_open_ >= 0) jacobian.col(jaw_open_) += jaw_open_rad_ * held->jacobian.col(shapes);
-      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
-          jacobians[0], observed_.size(), shapes) = jacobian;
-    }
-    return true;
-  }
-
- private:
-  SoftTissueModel* model_;
-  const std::vector<int>* vertices_;
-  Eigen::VectorXd observed_;
-  Eigen::Vector3d gravity_change_;
-  int jaw_open_;
-  double jaw_open_rad_;
+// The held equilibrium at weights w (the jaw following the jaw-opening weight) against the
+// observation: residual, cost and, with the Jacobian, d residual / dw.
+struct Evaluation {
+  Eigen::VectorXd residual;
+  Eigen::MatrixXd jacobian;  // empty without
+  double cost = 0.0;         // 1/2 |residual|^2
+  double flesh_volume_mm3 = 0.0;
 };
+
+StatusOr<Evaluation> EvaluateHeld(SoftTissueModel& model, const std::vector<int>& vertices,
+                                  const Eigen::VectorXd& observed, const Eigen::Vector3d& dg,
+                                  const Eigen::VectorXd& w, int jaw_open, double jaw_open_rad,
+                                  bool with_jacobian) {
+  const double jaw = jaw_open >= 0 ? w[jaw_open] * jaw_open_rad : 0.0;
+  FACEDYN_RETURN_IF_ERROR(model.SetStaticReference(w, jaw).status());
+  FACEDYN_ASSIGN_OR_RETURN(const HeldExpressionSkin held,
+                           model.HeldSkinWithJacobian(dg, vertices, with_jacobian));
+  Evaluation e;
+  e.residual = held.skin_mm - observed;
+  e.cost = 0.5 * e.residual.squaredNorm();
+  e.flesh_volume_mm3 = held.flesh_volume_mm3;
+  if (with_jacobian) {
+    const int shapes = static_cast<int>(w.size());
+    e.jacobian = held.jacobian.leftCols(shapes);
+    if (jaw_open >= 0) e.jacobian.col(jaw_open) += jaw_open_rad * held.jacobian.col(shapes);
+  }
+  return e;
+}
 
 double RmsDistance(const Eigen::VectorXd& residual) {
   return std::sqrt(residual.squaredNorm() / (residual.size() / 3));
@@ -81,11 +64,11 @@ StatusOr<ExpressionTargeting> TargetHeldExpression(SoftTissueModel& model, const
   if (!gravity_change_in_skull.allFinite()) {
     return InvalidArgumentError("twin targeting: the gravity change is not finite");
   }
-  if (options.max_iterations < 1 || !(options.function_tolerance > 0)) {
-    return InvalidArgumentError(
-        fmt::format("twin targeting: max_iterations must be >= 1 and function_tolerance > 0, got "
-                    "{} and {}",
-                    options.max_iterations, options.function_tolerance));
+  if (options.max_iterations < 1 || !(options.function_tolerance > 0) ||
+      !(options.parameter_tolerance > 0)) {
+    return InvalidArgumentError(fmt::format(
+        "twin targeting: max_iterations must be >= 1 and the tolerances > 0, got {}, {} and {}",
+        options.max_iterations, options.function_tolerance, options.parameter_tolerance));
   }
   const int shapes = static_cast<int>(rig.blendshape_deltas_mm.size());
   if (model.blendshape_count() != shapes || model.skin_vertex_count() != rig.vertex_count()) {
@@ -118,34 +101,59 @@ StatusOr<ExpressionTargeting> TargetHeldExpression(SoftTissueModel& model, const
   start = Clock::now();
   const Eigen::VectorXd observed =
       Eigen::Map<const Eigen::VectorXd>(positions_in_skull.data(), positions_in_skull.size());
+  // Projected Gauss-Newton with backtracking: each step solves the linearised problem within
+  // the weights' box exactly (UnitBoxLeastSquares), and is halved until the cost decreases, so
+  // the cost never rises. The sag depends weakly on the expression, so from the blendshape fit
+  // a few steps suffice.
   Eigen::VectorXd weights = plain.weights;
-  ceres::Problem problem;
-  problem.AddResidualBlock(
-      new HeldSkinResidual(&model, &vertices, observed, gravity_change_in_skull, shapes, jaw_open,
-                           jaw_open_rad),
-      nullptr, weights.data());
-  for (int k = 0; k < shapes; ++k) {
-    problem.SetParameterLowerBound(weights.data(), k, 0.0);
-    problem.SetParameterUpperBound(weights.data(), k, 1.0);
+  FACEDYN_ASSIGN_OR_RETURN(Evaluation current,
+                           EvaluateHeld(model, vertices, observed, gravity_change_in_skull, weights,
+                                        jaw_open, jaw_open_rad, true));
+  result.twin.cost_history.push_back(current.cost);
+  result.twin.termination = "reached max_iterations";
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    FACEDYN_ASSIGN_OR_RETURN(
+        const Eigen::VectorXd target,
+        UnitBoxLeastSquares(current.jacobian, current.jacobian * weights - current.residual,
+                            weights));
+    const Eigen::VectorXd step = target - weights;
+    bool accepted = false;
+    for (double scale = 1.0; scale > 1.0 / 64 && !accepted; scale /= 2) {
+      const Eigen::VectorXd trial = weights + scale * step;
+      FACEDYN_ASSIGN_OR_RETURN(Evaluation candidate,
+                               EvaluateHeld(model, vertices, observed, gravity_change_in_skull,
+                                            trial, jaw_open, jaw_open_rad, true));
+      if (candidate.cost < current.cost) {
+        const double decrease = (current.cost - candidate.cost) / current.cost;
+        weights = trial;
+        current = std::move(candidate);
+        accepted = true;
+        result.twin.cost_history.push_back(current.cost);
+        const double moved = (scale * step).cwiseAbs().maxCoeff();
+        if (decrease < options.function_tolerance || moved < options.parameter_tolerance) {
+          result.twin.termination = fmt::format(
+              "converged: the last step lowered the cost by {:.2e} of itself and moved no weight "
+              "by more than {:.2e}",
+              decrease, moved);
+          iteration = options.max_iterations;
+        }
+      }
+    }
+    if (!accepted) {
+      result.twin.termination =
+          "converged: no step along the Gauss-Newton direction lowers the cost";
+      break;
+    }
   }
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::DENSE_QR;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.function_tolerance = options.function_tolerance;
-  solver_options.num_threads = 1;
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &problem, &summary);
-  if (!summary.IsSolutionUsable()) return InternalError("twin targeting: " + summary.message);
-  // Leave the model at the solution and read its residual and flesh there.
+  result.twin.iterations = static_cast<int>(result.twin.cost_history.size()) - 1;
+  // The model is left at the last evaluation; put it back at the solution.
   result.twin.weights = weights;
   result.twin.jaw_angle_rad = jaw_of(weights);
-  FACEDYN_RETURN_IF_ERROR(
-      model.SetReference(weights, result.twin.jaw_angle_rad, model.options().max_step_s).status());
-  FACEDYN_ASSIGN_OR_RETURN(const HeldExpressionSkin held,
-                           model.HeldSkinWithJacobian(gravity_change_in_skull, vertices));
-  result.twin.rms_mm = RmsDistance(held.skin_mm - observed);
-  result.twin.flesh_volume_change = held.flesh_volume_mm3 / neutral_volume - 1;
-  result.twin.iterations = static_cast<int>(summary.iterations.size());
+  FACEDYN_ASSIGN_OR_RETURN(const Evaluation final_state,
+                           EvaluateHeld(model, vertices, observed, gravity_change_in_skull, weights,
+                                        jaw_open, jaw_open_rad, false));
+  result.twin.rms_mm = RmsDistance(final_state.residual);
+  result.twin.flesh_volume_change = final_state.flesh_volume_mm3 / neutral_volume - 1;
   result.twin.seconds = Seconds(start);
   return result;
 }

@@ -46,6 +46,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -329,9 +330,8 @@ Json RunAugmentation(const facedyn::FaceRig& face, const eval::SimulatedCameraRi
 Json RunTargeting(const facedyn::FaceRig& face, const eval::SimulatedCameraRig& cameras,
                   const Settings& s, uint64_t seed, const std::vector<facedyn::Take>& captured,
                   const std::vector<std::string>& captured_expressions,
-                  const physics::FittedTwin& twin, std::vector<double>* upright_ratios,
-                  std::vector<double>* tilted_ratios,
-                  std::vector<double>* tilted_expression_ratios) {
+                  const physics::FittedTwin& twin,
+                  std::map<std::string, std::vector<double>>* figures) {
   const auto start = Clock::now();
   auto model =
       Check(physics::SoftTissueModel::Create(face, twin.prior, twin.material), "twin model");
@@ -358,39 +358,51 @@ Json RunTargeting(const facedyn::FaceRig& face, const eval::SimulatedCameraRig& 
       gravity += skull_from_world.rotation() * physics::kGravityInWorld / count;
     }
     const Eigen::Vector3d dg = gravity - physics::kGravityInWorld;
-    const physics::ExpressionTargeting fit =
-        Check(physics::TargetHeldExpression(*model, face, vertices, mean, dg), "targeting " + name);
     const Eigen::VectorXd truth = Check(sim::ExpressionWeights(face, expression), "expression");
-    const double plain_expression = expression_error(fit.blendshape.weights, truth);
-    const double twin_expression = expression_error(fit.twin.weights, truth);
-    const double ratio = fit.twin.rms_mm / fit.blendshape.rms_mm;
-    (kind == "upright" ? upright_ratios : tilted_ratios)->push_back(ratio);
-    if (kind != "upright") tilted_expression_ratios->push_back(twin_expression / plain_expression);
-    frames.push_back({{"take", name},
-                      {"kind", kind},
-                      {"held_frames", count},
-                      {"gravity_change_mm_s2", dg.norm()},
-                      {"blendshape",
-                       {{"marker_rms_mm", fit.blendshape.rms_mm},
-                        {"expression_rms_mm", plain_expression},
-                        {"flesh_volume_change", fit.blendshape.flesh_volume_change}}},
-                      {"twin",
-                       {{"marker_rms_mm", fit.twin.rms_mm},
-                        {"expression_rms_mm", twin_expression},
-                        {"flesh_volume_change", fit.twin.flesh_volume_change},
-                        {"iterations", fit.twin.iterations},
-                        {"cost_history", fit.twin.cost_history},
-                        {"termination", fit.twin.termination},
-                        {"seconds", fit.twin.seconds}}},
-                      {"twin_over_blendshape_marker_rms", ratio}});
-    std::fprintf(
-        stderr,
-        "twin_bench: seed %llu targeting %-22s |dg| %6.0f mm/s^2  markers %.3f -> %.3f mm  "
-        "expression %.3f -> %.3f mm  flesh volume %+.4f%% / %+.4f%%  (%.1f s)\n",
-        static_cast<unsigned long long>(seed), name.c_str(), dg.norm(), fit.blendshape.rms_mm,
-        fit.twin.rms_mm, plain_expression, twin_expression,
-        100 * fit.blendshape.flesh_volume_change, 100 * fit.twin.flesh_volume_change,
-        fit.twin.seconds);
+    Json record = {{"take", name},
+                   {"kind", kind},
+                   {"held_frames", count},
+                   {"gravity_change_mm_s2", dg.norm()}};
+    for (const bool align : {false, true}) {
+      physics::TargetingOptions targeting;
+      targeting.align_skull = align;
+      const physics::ExpressionTargeting fit =
+          Check(physics::TargetHeldExpression(*model, face, vertices, mean, dg, targeting),
+                "targeting " + name);
+      const double plain_expression = expression_error(fit.blendshape.weights, truth);
+      const double twin_expression = expression_error(fit.twin.weights, truth);
+      const double ratio = fit.twin.rms_mm / fit.blendshape.rms_mm;
+      const std::string mode = align ? "aligned" : "unaligned";
+      const std::string where = kind == "upright" ? "upright" : "lying_back";
+      (*figures)[mode + "_twin_over_blendshape_marker_rms_" + where].push_back(ratio);
+      (*figures)[mode + "_twin_over_blendshape_expression_rms_" + where].push_back(
+          twin_expression / plain_expression);
+      (*figures)[mode + "_twin_expression_rms_mm_" + where].push_back(twin_expression);
+      (*figures)[mode + "_blendshape_expression_rms_mm_" + where].push_back(plain_expression);
+      auto fit_json = [](const physics::ExpressionTargetingFit& f, double expression_mm) {
+        return Json{{"marker_rms_mm", f.rms_mm},
+                    {"expression_rms_mm", expression_mm},
+                    {"flesh_volume_change", f.flesh_volume_change},
+                    {"skull_rotation_deg", f.skull_rotation_deg},
+                    {"skull_translation_mm", f.skull_translation_mm},
+                    {"iterations", f.iterations},
+                    {"cost_history", f.cost_history},
+                    {"termination", f.termination},
+                    {"seconds", f.seconds}};
+      };
+      record[mode] = {{"blendshape", fit_json(fit.blendshape, plain_expression)},
+                      {"twin", fit_json(fit.twin, twin_expression)},
+                      {"twin_over_blendshape_marker_rms", ratio}};
+      std::fprintf(stderr,
+                   "twin_bench: seed %llu targeting %-22s %-9s |dg| %6.0f mm/s^2  markers %.3f -> "
+                   "%.3f mm  expression %.3f -> %.3f mm  flesh volume %+.4f%% / %+.4f%%  skull "
+                   "%.3f deg %.3f mm  (%.1f s)\n",
+                   static_cast<unsigned long long>(seed), name.c_str(), mode.c_str(), dg.norm(),
+                   fit.blendshape.rms_mm, fit.twin.rms_mm, plain_expression, twin_expression,
+                   100 * fit.blendshape.flesh_volume_change, 100 * fit.twin.flesh_volume_change,
+                   fit.twin.skull_rotation_deg, fit.twin.skull_translation_mm, fit.twin.seconds);
+    }
+    frames.push_back(record);
   };
   for (size_t i = 0; i < captured.size(); ++i) {
     const double hz = captured[i].info.platform_hz.value_or(0.0);
@@ -507,9 +519,9 @@ int main(int argc, char** argv) {
   std::vector<double> clean_hz, clean_damping, rec_hz, rec_damping, fit_seconds;
   std::vector<double> clean_body_hz, clean_body_damping, rec_body_hz, rec_body_damping, rec_pitch;
   std::vector<double> motion_ratios, platform_ratios;  // augmented / captured F, per seed
-  // Targeting, per frame: twin / blendshape marker RMS (upright, lying back), and lying back
-  // the twin's expression error over the blendshape fit's.
-  std::vector<double> upright_ratios, tilted_ratios, tilted_expression_ratios;
+  // Targeting, per frame and mode: twin / blendshape marker and expression RMS, and each fit's
+  // expression RMS (upright, lying back).
+  std::map<std::string, std::vector<double>> targeting_figures;
   for (uint64_t seed : s.seeds) {
     const auto seed_start = Clock::now();
     eval::SimulatedCameraRig cameras;
@@ -589,9 +601,8 @@ int main(int argc, char** argv) {
         std::vector<std::string> captured_expressions;
         for (const std::string& expression : s.expressions)
           captured_expressions.insert(captured_expressions.end(), s.frequencies.size(), expression);
-        run["targeting"] =
-            RunTargeting(face, cameras, s, seed, reconstructed, captured_expressions, rec_twin,
-                         &upright_ratios, &tilted_ratios, &tilted_expression_ratios);
+        run["targeting"] = RunTargeting(face, cameras, s, seed, reconstructed, captured_expressions,
+                                        rec_twin, &targeting_figures);
       }
       if (s.augmentation) {
         run["augmentation"] = RunAugmentation(face, cameras, s, seed, reconstructed, rec_twin,
@@ -628,10 +639,8 @@ int main(int argc, char** argv) {
       summary["reconstructed_pitch_error_percent"] = spread(rec_pitch);
     }
     if (s.targeting) {
-      summary["targeting_twin_over_blendshape_marker_rms_upright"] = spread(upright_ratios);
-      summary["targeting_twin_over_blendshape_marker_rms_lying_back"] = spread(tilted_ratios);
-      summary["targeting_twin_over_blendshape_expression_rms_lying_back"] =
-          spread(tilted_expression_ratios);
+      for (const auto& [name, values] : targeting_figures)
+        summary["targeting_" + name] = spread(values);
     }
     if (s.augmentation) {
       summary["augmented_over_captured_head_motion"] = spread(motion_ratios);

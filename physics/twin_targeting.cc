@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Dense>
+#include <Eigen/Geometry>
 #include <chrono>
 #include <cmath>
 #include <utility>
@@ -21,38 +23,185 @@ int JawOpenShape(const FaceRig& rig) {
   return k >= 0 ? k : rig.BlendshapeIndex("jawOpen");
 }
 
-// The held equilibrium at weights w (the jaw following the jaw-opening weight) against the
-// observation: residual, cost and, with the Jacobian, d residual / dw.
-struct Evaluation {
-  Eigen::VectorXd residual;
-  Eigen::MatrixXd jacobian;  // empty without
-  double cost = 0.0;         // 1/2 |residual|^2
-  double flesh_volume_mm3 = 0.0;
+Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
+// One fit's unknowns: the weights and, with alignment, a rigid correction of the skull frame
+// about the observation's centroid c: a point x of the model is seen at R (x - c) + c + t.
+struct FitState {
+  Eigen::VectorXd weights;
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
 };
 
-StatusOr<Evaluation> EvaluateHeld(SoftTissueModel& model, const std::vector<int>& vertices,
-                                  const Eigen::VectorXd& observed, const Eigen::Vector3d& dg,
-                                  const Eigen::VectorXd& w, int jaw_open, double jaw_open_rad,
-                                  bool with_jacobian) {
-  const double jaw = jaw_open >= 0 ? w[jaw_open] * jaw_open_rad : 0.0;
-  FACEDYN_RETURN_IF_ERROR(model.SetStaticReference(w, jaw).status());
-  FACEDYN_ASSIGN_OR_RETURN(const HeldExpressionSkin held,
-                           model.HeldSkinWithJacobian(dg, vertices, with_jacobian));
-  Evaluation e;
-  e.residual = held.skin_mm - observed;
-  e.cost = 0.5 * e.residual.squaredNorm();
-  e.flesh_volume_mm3 = held.flesh_volume_mm3;
-  if (with_jacobian) {
-    const int shapes = static_cast<int>(w.size());
-    e.jacobian = held.jacobian.leftCols(shapes);
-    if (jaw_open >= 0) e.jacobian.col(jaw_open) += jaw_open_rad * held.jacobian.col(shapes);
-  }
-  return e;
-}
+// The model at a state against the observation: residual, cost and, with the Jacobian,
+// d residual / d(weights) and d residual / d(rotation increment, translation).
+struct Evaluation {
+  Eigen::VectorXd residual;
+  Eigen::MatrixXd jacobian_weights;  // 3n x K, empty without
+  Eigen::MatrixXd jacobian_rigid;    // 3n x 6, empty without
+  double cost = 0.0;                 // 1/2 |residual|^2
+  double flesh_volume_mm3 = 0.0;     // the twin's only
+};
 
-double RmsDistance(const Eigen::VectorXd& residual) {
-  return std::sqrt(residual.squaredNorm() / (residual.size() / 3));
-}
+class Targeter {
+ public:
+  Targeter(SoftTissueModel& model, const FaceRig& rig, const std::vector<int>& vertices,
+           const Eigen::Matrix3Xd& observed, const Eigen::Vector3d& gravity_change)
+      : model_(model),
+        rig_(rig),
+        vertices_(vertices),
+        observed_(observed),
+        centroid_(observed.rowwise().mean()),
+        gravity_change_(gravity_change),
+        jaw_open_(JawOpenShape(rig)),
+        jaw_open_rad_(FittedJawOpenAngleRad(rig)) {}
+
+  double JawOf(const Eigen::VectorXd& w) const {
+    return jaw_open_ >= 0 ? w[jaw_open_] * jaw_open_rad_ : 0.0;
+  }
+
+  // `sag`: the twin's held equilibrium; otherwise the blendshape skin (no model needed).
+  StatusOr<Evaluation> Evaluate(const FitState& state, bool sag, bool with_jacobian) const {
+    const int n = static_cast<int>(vertices_.size());
+    const int shapes = static_cast<int>(state.weights.size());
+    Eigen::VectorXd skin(3 * n);
+    Eigen::MatrixXd jacobian;
+    Evaluation e;
+    if (sag) {
+      FACEDYN_RETURN_IF_ERROR(
+          model_.SetStaticReference(state.weights, JawOf(state.weights)).status());
+      FACEDYN_ASSIGN_OR_RETURN(
+          HeldExpressionSkin held,
+          model_.HeldSkinWithJacobian(gravity_change_, vertices_, with_jacobian));
+      skin = std::move(held.skin_mm);
+      e.flesh_volume_mm3 = held.flesh_volume_mm3;
+      if (with_jacobian) {
+        jacobian = held.jacobian.leftCols(shapes);
+        if (jaw_open_ >= 0) jacobian.col(jaw_open_) += jaw_open_rad_ * held.jacobian.col(shapes);
+      }
+    } else {
+      if (with_jacobian) jacobian.resize(3 * n, shapes);
+      for (int i = 0; i < n; ++i) {
+        const int v = vertices_[i];
+        Eigen::Vector3d x = rig_.neutral.positions_mm.col(v);
+        for (int k = 0; k < shapes; ++k) {
+          x += state.weights[k] * rig_.blendshape_deltas_mm[k].col(v);
+          if (with_jacobian) jacobian.block<3, 1>(3 * i, k) = rig_.blendshape_deltas_mm[k].col(v);
+        }
+        skin.segment<3>(3 * i) = x;
+      }
+    }
+    e.residual.resize(3 * n);
+    if (with_jacobian) {
+      e.jacobian_weights.resize(3 * n, shapes);
+      e.jacobian_rigid.resize(3 * n, 6);
+    }
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3d arm = state.rotation * (skin.segment<3>(3 * i) - centroid_);
+      e.residual.segment<3>(3 * i) = arm + centroid_ + state.translation - observed_.col(i);
+      if (with_jacobian) {
+        e.jacobian_weights.middleRows<3>(3 * i) = state.rotation * jacobian.middleRows<3>(3 * i);
+        e.jacobian_rigid.block<3, 3>(3 * i, 0) = -Skew(arm);  // R <- exp([d]x) R
+        e.jacobian_rigid.block<3, 3>(3 * i, 3).setIdentity();
+      }
+    }
+    e.cost = 0.5 * e.residual.squaredNorm();
+    return e;
+  }
+
+  // Projected Gauss-Newton from `state`: each step solves the linearised problem with the
+  // weights in their box exactly (UnitBoxLeastSquares; with alignment the rigid increment is
+  // eliminated first by projecting onto the complement of its columns, which it enters
+  // unbounded), and is halved until the cost decreases, so the cost never rises.
+  Status Run(FitState* state, bool sag, bool align, const TargetingOptions& options,
+             ExpressionTargetingFit* fit) const {
+    FACEDYN_ASSIGN_OR_RETURN(Evaluation current, Evaluate(*state, sag, true));
+    fit->cost_history = {current.cost};
+    fit->termination = "reached max_iterations";
+    for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+      Eigen::MatrixXd a = current.jacobian_weights;
+      Eigen::VectorXd b = a * state->weights - current.residual;
+      Eigen::HouseholderQR<Eigen::MatrixXd> rigid_qr;
+      Eigen::MatrixXd q;
+      if (align) {
+        rigid_qr.compute(current.jacobian_rigid);
+        q = rigid_qr.householderQ() * Eigen::MatrixXd::Identity(a.rows(), 6);
+        a -= q * (q.transpose() * a);
+        b -= q * (q.transpose() * b);
+      }
+      FACEDYN_ASSIGN_OR_RETURN(const Eigen::VectorXd target,
+                               UnitBoxLeastSquares(a, b, state->weights));
+      const Eigen::VectorXd step = target - state->weights;
+      Eigen::VectorXd rigid_step = Eigen::VectorXd::Zero(6);
+      if (align) {
+        rigid_step =
+            -rigid_qr.solve(Eigen::VectorXd(current.jacobian_weights * step + current.residual));
+      }
+      bool accepted = false;
+      for (double scale = 1.0; scale > 1.0 / 64 && !accepted; scale /= 2) {
+        FitState trial = *state;
+        trial.weights += scale * step;
+        if (align) {
+          const Eigen::Vector3d angle = scale * rigid_step.head<3>();
+          if (angle.norm() > 0)
+            trial.rotation =
+                Eigen::AngleAxisd(angle.norm(), angle.normalized()).toRotationMatrix() *
+                state->rotation;
+          trial.translation += scale * rigid_step.tail<3>();
+        }
+        FACEDYN_ASSIGN_OR_RETURN(Evaluation candidate, Evaluate(trial, sag, true));
+        if (candidate.cost < current.cost) {
+          const double decrease = (current.cost - candidate.cost) / current.cost;
+          const double moved = (scale * step).cwiseAbs().maxCoeff();
+          *state = std::move(trial);
+          current = std::move(candidate);
+          accepted = true;
+          fit->cost_history.push_back(current.cost);
+          if (decrease < options.function_tolerance || moved < options.parameter_tolerance) {
+            fit->termination = fmt::format(
+                "converged: the last step lowered the cost by {:.2e} of itself and moved no "
+                "weight by more than {:.2e}",
+                decrease, moved);
+            iteration = options.max_iterations;
+          }
+        }
+      }
+      if (!accepted) {
+        fit->termination = "converged: no step along the Gauss-Newton direction lowers the cost";
+        break;
+      }
+    }
+    fit->iterations = static_cast<int>(fit->cost_history.size()) - 1;
+    // The model is left at the last evaluation; put it back at the solution.
+    FACEDYN_ASSIGN_OR_RETURN(const Evaluation final_state, Evaluate(*state, sag, false));
+    fit->weights = state->weights;
+    fit->jaw_angle_rad = JawOf(state->weights);
+    fit->rms_mm = std::sqrt(final_state.residual.squaredNorm() / vertices_.size());
+    fit->skull_rotation_deg = Eigen::AngleAxisd(state->rotation).angle() * 180 / M_PI;
+    fit->skull_translation_mm = state->translation.norm();
+    if (sag) fit->flesh_volume_change = final_state.flesh_volume_mm3 / NeutralVolume() - 1;
+    return Status::Ok();
+  }
+
+  double NeutralVolume() const {
+    const int shapes = static_cast<int>(rig_.blendshape_deltas_mm.size());
+    return model_.FleshVolumeMm3(model_.NodeTargets(Eigen::VectorXd::Zero(shapes), 0.0));
+  }
+
+ private:
+  SoftTissueModel& model_;
+  const FaceRig& rig_;
+  const std::vector<int>& vertices_;
+  const Eigen::Matrix3Xd& observed_;
+  const Eigen::Vector3d centroid_;
+  const Eigen::Vector3d gravity_change_;
+  const int jaw_open_;
+  const double jaw_open_rad_;
+};
 
 }  // namespace
 
@@ -77,83 +226,32 @@ StatusOr<ExpressionTargeting> TargetHeldExpression(SoftTissueModel& model, const
         "{} and {}",
         model.blendshape_count(), model.skin_vertex_count(), rig.name, shapes, rig.vertex_count()));
   }
-  // The blendshape fit checks the sizes, the vertices and the positions.
+  // The plain blendshape fit checks the sizes, the vertices and the positions.
   ExpressionTargeting result;
   auto start = Clock::now();
   FACEDYN_ASSIGN_OR_RETURN(const BlendshapeFit plain,
                            FitBlendshapeWeights(rig, vertices, positions_in_skull));
-  const int jaw_open = JawOpenShape(rig);
-  const double jaw_open_rad = FittedJawOpenAngleRad(rig);
-  const auto jaw_of = [&](const Eigen::VectorXd& w) {
-    return jaw_open >= 0 ? w[jaw_open] * jaw_open_rad : 0.0;
-  };
-  const double neutral_volume =
-      model.FleshVolumeMm3(model.NodeTargets(Eigen::VectorXd::Zero(shapes), 0.0));
-  result.blendshape.weights = plain.weights;
-  result.blendshape.jaw_angle_rad = jaw_of(plain.weights);
-  result.blendshape.rms_mm = plain.rms_mm;
+  const Targeter targeter(model, rig, vertices, positions_in_skull, gravity_change_in_skull);
+  FitState state;
+  state.weights = plain.weights;
+  if (options.align_skull) {
+    FACEDYN_RETURN_IF_ERROR(targeter.Run(&state, false, true, options, &result.blendshape));
+  } else {
+    result.blendshape.weights = plain.weights;
+    result.blendshape.jaw_angle_rad = targeter.JawOf(plain.weights);
+    result.blendshape.rms_mm = plain.rms_mm;
+  }
+  // The blendshape fit's flesh is its targets (no sag).
   result.blendshape.flesh_volume_change =
-      model.FleshVolumeMm3(model.NodeTargets(plain.weights, result.blendshape.jaw_angle_rad)) /
-          neutral_volume -
+      model.FleshVolumeMm3(
+          model.NodeTargets(result.blendshape.weights, result.blendshape.jaw_angle_rad)) /
+          targeter.NeutralVolume() -
       1;
   result.blendshape.seconds = Seconds(start);
 
+  // The twin, from the blendshape fit (and its alignment).
   start = Clock::now();
-  const Eigen::VectorXd observed =
-      Eigen::Map<const Eigen::VectorXd>(positions_in_skull.data(), positions_in_skull.size());
-  // Projected Gauss-Newton with backtracking: each step solves the linearised problem within
-  // the weights' box exactly (UnitBoxLeastSquares), and is halved until the cost decreases, so
-  // the cost never rises. The sag depends weakly on the expression, so from the blendshape fit
-  // a few steps suffice.
-  Eigen::VectorXd weights = plain.weights;
-  FACEDYN_ASSIGN_OR_RETURN(Evaluation current,
-                           EvaluateHeld(model, vertices, observed, gravity_change_in_skull, weights,
-                                        jaw_open, jaw_open_rad, true));
-  result.twin.cost_history.push_back(current.cost);
-  result.twin.termination = "reached max_iterations";
-  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
-    FACEDYN_ASSIGN_OR_RETURN(
-        const Eigen::VectorXd target,
-        UnitBoxLeastSquares(current.jacobian, current.jacobian * weights - current.residual,
-                            weights));
-    const Eigen::VectorXd step = target - weights;
-    bool accepted = false;
-    for (double scale = 1.0; scale > 1.0 / 64 && !accepted; scale /= 2) {
-      const Eigen::VectorXd trial = weights + scale * step;
-      FACEDYN_ASSIGN_OR_RETURN(Evaluation candidate,
-                               EvaluateHeld(model, vertices, observed, gravity_change_in_skull,
-                                            trial, jaw_open, jaw_open_rad, true));
-      if (candidate.cost < current.cost) {
-        const double decrease = (current.cost - candidate.cost) / current.cost;
-        weights = trial;
-        current = std::move(candidate);
-        accepted = true;
-        result.twin.cost_history.push_back(current.cost);
-        const double moved = (scale * step).cwiseAbs().maxCoeff();
-        if (decrease < options.function_tolerance || moved < options.parameter_tolerance) {
-          result.twin.termination = fmt::format(
-              "converged: the last step lowered the cost by {:.2e} of itself and moved no weight "
-              "by more than {:.2e}",
-              decrease, moved);
-          iteration = options.max_iterations;
-        }
-      }
-    }
-    if (!accepted) {
-      result.twin.termination =
-          "converged: no step along the Gauss-Newton direction lowers the cost";
-      break;
-    }
-  }
-  result.twin.iterations = static_cast<int>(result.twin.cost_history.size()) - 1;
-  // The model is left at the last evaluation; put it back at the solution.
-  result.twin.weights = weights;
-  result.twin.jaw_angle_rad = jaw_of(weights);
-  FACEDYN_ASSIGN_OR_RETURN(const Evaluation final_state,
-                           EvaluateHeld(model, vertices, observed, gravity_change_in_skull, weights,
-                                        jaw_open, jaw_open_rad, false));
-  result.twin.rms_mm = RmsDistance(final_state.residual);
-  result.twin.flesh_volume_change = final_state.flesh_volume_mm3 / neutral_volume - 1;
+  FACEDYN_RETURN_IF_ERROR(targeter.Run(&state, true, options.align_skull, options, &result.twin));
   result.twin.seconds = Seconds(start);
   return result;
 }

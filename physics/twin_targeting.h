@@ -42,6 +42,11 @@ struct TargetingOptions {
   // blendshape's displacement).
   double function_tolerance = 1e-4;
   double parameter_tolerance = 1e-5;
+  // Both fits also correct the skull frame by a small rigid motion (rotation about the markers'
+  // centroid, translation), fitted with the weights: the estimated skull pose comes from stable
+  // markers that sag too when the head tilts, so the skull-frame markers of a tilted frame are
+  // off by a rigid motion the expression cannot explain.
+  bool align_skull = false;
 };
 
 struct ExpressionTargetingFit {
@@ -49,6 +54,8 @@ struct ExpressionTargetingFit {
   double jaw_angle_rad = 0.0;
   double rms_mm = 0.0;               // marker residual (RMS of the 3D distances)
   double flesh_volume_change = 0.0;  // flesh volume / neutral flesh volume - 1
+  double skull_rotation_deg = 0.0;   // the alignment's rigid correction (0 without)
+  double skull_translation_mm = 0.0;
   int iterations = 0;
   std::vector<double> cost_history;  // the twin fit's cost (1/2 sum of squares, mm^2) per iteration
   std::string termination;           // why the twin fit stopped

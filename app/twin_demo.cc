@@ -18,7 +18,10 @@
 #include "dynamics/removal_model.h"
 #include "eval/metrics.h"
 #include "eval/removal_comparison.h"
+#include "physics/skull_kinematics.h"
 #include "physics/twin.h"
+#include "physics/twin_targeting.h"
+#include "sim/expressions.h"
 #include "sim/performance.h"
 
 namespace facedyn::app {
@@ -42,6 +45,56 @@ sim::MotionOptions HeadMotionOptions(const TwinDemoOptions::HeadMotion& motion, 
   options.head_motion_deg = motion.deg;
   options.seed = seed;
   return options;
+}
+
+// Section 5 (see the header): both fits of `take`'s frames from `from_s` on.
+StatusOr<Json> TargetLyingBack(const FaceRig& subject, const physics::FittedTwin& twin,
+                               const Take& take, double from_s, const TwinDemoOptions& options) {
+  int first = 0;
+  while (first < take.frame_count() && take.time_s[first] < from_s) ++first;
+  if (first >= take.frame_count()) {
+    return FailedPreconditionError(fmt::format(
+        "twin stage: the lying-back take ends at {:.2f} s, before its held window ({:.2f} s)",
+        take.time_s.back(), from_s));
+  }
+  const std::vector<int> vertices = physics::TwinMarkerVertices(subject);
+  FACEDYN_ASSIGN_OR_RETURN(const physics::HeldWindow window,
+                           physics::MeanHeldWindow(take, vertices, first, take.frame_count()));
+  const Eigen::Vector3d& gravity_change = window.gravity_change_in_skull;
+  FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<physics::SoftTissueModel> model,
+                           physics::SoftTissueModel::Create(subject, twin.prior, twin.material));
+  FACEDYN_ASSIGN_OR_RETURN(
+      const physics::ExpressionTargeting fit,
+      physics::TargetHeldExpression(*model, subject, vertices, window.positions_in_skull,
+                                    gravity_change));
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::VectorXd configured,
+                           sim::ExpressionWeights(subject, options.targeting_expression));
+  const double plain_mm = eval::ExpressionSkinRmsMm(subject, fit.blendshape.weights, configured);
+  const double twin_mm = eval::ExpressionSkinRmsMm(subject, fit.twin.weights, configured);
+  std::printf(
+      "\nTargeting subject %s's %s held lying back %g deg (filmed; gravity in the skull frame "
+      "changed by %.0f mm/s^2), %d frames at %zu markers:\n"
+      "  marker RMS: blendshape fit %.3f mm, twin %.3f mm\n"
+      "  expression vs the configured one (RMS over the skin, scoring only): %.3f mm, %.3f mm\n"
+      "  flesh volume change: %+.2f%%, %+.2f%%\n",
+      subject.name.c_str(), options.targeting_expression.c_str(), options.lie_back_deg,
+      gravity_change.norm(), window.frames, vertices.size(), fit.blendshape.rms_mm, fit.twin.rms_mm,
+      plain_mm, twin_mm, 100 * fit.blendshape.flesh_volume_change,
+      100 * fit.twin.flesh_volume_change);
+  std::fflush(stdout);
+  auto fit_json = [](const physics::ExpressionTargetingFit& f, double expression_mm) {
+    return Json{{"marker_rms_mm", eval::Round4(f.rms_mm)},
+                {"expression_rms_mm", eval::Round4(expression_mm)},
+                {"flesh_volume_change", f.flesh_volume_change},
+                {"iterations", f.iterations}};
+  };
+  return Json{{"expression", options.targeting_expression},
+              {"lie_back_deg", options.lie_back_deg},
+              {"frames", window.frames},
+              {"markers", vertices.size()},
+              {"gravity_change_mm_s2", eval::Round4(gravity_change.norm())},
+              {"blendshape", fit_json(fit.blendshape, plain_mm)},
+              {"twin", fit_json(fit.twin, twin_mm)}};
 }
 
 }  // namespace
@@ -95,6 +148,8 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
   const int test_count = static_cast<int>(options.test_motions.size());
   std::vector<std::optional<Take>> test_simulated(test_count);
   std::vector<std::optional<Take>> test_reconstructed(test_count);
+  std::optional<Take> lying_back;  // section 5's take, reconstructed
+  double lie_back_s = 0.0;
   Status filming_status;
   std::atomic<bool> stop_filming{false};
   std::thread filming([&] {
@@ -120,6 +175,30 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
       test_simulated[m] = std::move(*simulated);
       test_reconstructed[m] = std::move(reconstruction->take);
     }
+    if (stop_filming) return;
+    // Section 5's take: the expression held while lying back.
+    sim::PerformanceOptions performance;
+    performance.expression = options.targeting_expression;
+    performance.seconds = options.lie_back_seconds;
+    performance.fps = fps;
+    performance.seed = options.seed + 60;
+    performance.tissue = true_tissue;
+    performance.motion.kind = sim::MotionKind::kLieBack;
+    performance.motion.lie_back_deg = options.lie_back_deg;
+    performance.motion.seed = options.seed * 100 + 88;
+    lie_back_s = performance.motion.lie_back_s;
+    StatusOr<Take> simulated = sim::SimulatePerformance(subject, performance);
+    if (!simulated.ok()) {
+      filming_status = simulated.status();
+      return;
+    }
+    StatusOr<reconstruct::Reconstruction> reconstruction =
+        eval::FilmSimulatedTake(subject, cameras, *simulated, options.seed * 1000 + 690);
+    if (!reconstruction.ok()) {
+      filming_status = reconstruction.status();
+      return;
+    }
+    lying_back = std::move(reconstruction->take);
   });
   // Every return below waits for the filming (told to stop after its current take) first.
   struct JoinOnExit {
@@ -292,6 +371,11 @@ StatusOr<Json> RunTwinDemoStage(const FaceRig& subject, const physics::TissueOpt
   }
   std::printf("  (last column: relative to no removal)\n");
   result["removal"] = removal;
+
+  // 5. Targeting a held frame with the twin: the held window's mean in the skull frame, gravity
+  // from the estimated skull pose; the configured expression only scores.
+  FACEDYN_ASSIGN_OR_RETURN(result["targeting"],
+                           TargetLyingBack(subject, twin, *lying_back, lie_back_s + 1.0, options));
   result["seconds"] = eval::Round4(SecondsSince(start));
   return result;
 }

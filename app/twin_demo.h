@@ -11,7 +11,10 @@
 //      steps as the dynamics stage's F_B took on B's reconstructed takes alone ("captured");
 //   4. films B nodding and shaking at a frequency and amplitude no training take has
 //      (filmed: rendered by the 8 cameras, dots detected, like every demo take) and scores both
-//      networks, and no removal, against B's exact quasistatic.
+//      networks, and no removal, against B's exact quasistatic;
+//   5. films B holding an expression lying back (gravity turned in the skull frame) and fits
+//      the held frames with the blendshapes and with the twin (physics/twin_targeting.h),
+//      scoring each fit's expression against the configured one.
 // bench/twin_bench measures the same over seeds with more takes; this is the demo's one seed.
 #pragma once
 
@@ -45,6 +48,11 @@ struct TwinDemoOptions {
                                           {sim::MotionKind::kNod, 3.0, 20.0},
                                           {sim::MotionKind::kShake, 1.2, 10.0},
                                           {sim::MotionKind::kShake, 2.6, 22.0}};
+  // Section 5: the held expression, the lie-back angle and the take's length (the transition
+  // takes sim::MotionOptions' lie_back_s; the held window starts 1 s after it).
+  std::string targeting_expression = "smile";
+  double lie_back_deg = 45.0;
+  double lie_back_seconds = 3.0;
   double twin_seconds = 1.5;
   double test_seconds = 2.0;
   // One stiffness scale for all the tissue (DefaultStiffnessGroups() when false): the quick

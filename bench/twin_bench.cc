@@ -336,28 +336,15 @@ Json RunTargeting(const facedyn::FaceRig& face, const eval::SimulatedCameraRig& 
   auto model =
       Check(physics::SoftTissueModel::Create(face, twin.prior, twin.material), "twin model");
   const std::vector<int> vertices = physics::TwinMarkerVertices(face);
-  auto expression_error = [&](const Eigen::VectorXd& fitted, const Eigen::VectorXd& truth) {
-    Eigen::Matrix3Xd difference = Eigen::Matrix3Xd::Zero(3, face.vertex_count());
-    for (size_t k = 0; k < face.blendshape_deltas_mm.size(); ++k)
-      difference += (fitted[k] - truth[k]) * face.blendshape_deltas_mm[k];
-    return std::sqrt(difference.colwise().squaredNorm().mean());
-  };
   Json frames = Json::array();
   auto target = [&](const std::string& name, const std::string& kind, const facedyn::Take& take,
                     int first, const std::string& expression) {
     const int count = take.frame_count() - first;
     if (count < 1) Fail("targeting: take " + name + " has no held frames");
-    Eigen::Matrix3Xd mean = Eigen::Matrix3Xd::Zero(3, vertices.size());
-    Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
-    for (int f = first; f < take.frame_count(); ++f) {
-      const facedyn::Rigid3 skull_from_world = take.world_from_skull[f].Inverse();
-      const Eigen::Matrix3Xf frame = take.positions.Frame(f);
-      for (size_t i = 0; i < vertices.size(); ++i)
-        mean.col(i) +=
-            skull_from_world * Eigen::Vector3d(frame.col(vertices[i]).cast<double>()) / count;
-      gravity += skull_from_world.rotation() * physics::kGravityInWorld / count;
-    }
-    const Eigen::Vector3d dg = gravity - physics::kGravityInWorld;
+    const physics::HeldWindow window = Check(
+        physics::MeanHeldWindow(take, vertices, first, take.frame_count()), "held window " + name);
+    const Eigen::Matrix3Xd& mean = window.positions_in_skull;
+    const Eigen::Vector3d& dg = window.gravity_change_in_skull;
     const Eigen::VectorXd truth = Check(sim::ExpressionWeights(face, expression), "expression");
     Json record = {{"take", name},
                    {"kind", kind},
@@ -369,8 +356,9 @@ Json RunTargeting(const facedyn::FaceRig& face, const eval::SimulatedCameraRig& 
       const physics::ExpressionTargeting fit =
           Check(physics::TargetHeldExpression(*model, face, vertices, mean, dg, targeting),
                 "targeting " + name);
-      const double plain_expression = expression_error(fit.blendshape.weights, truth);
-      const double twin_expression = expression_error(fit.twin.weights, truth);
+      const double plain_expression =
+          eval::ExpressionSkinRmsMm(face, fit.blendshape.weights, truth);
+      const double twin_expression = eval::ExpressionSkinRmsMm(face, fit.twin.weights, truth);
       const double ratio = fit.twin.rms_mm / fit.blendshape.rms_mm;
       const std::string mode = align ? "aligned" : "unaligned";
       const std::string where = kind == "upright" ? "upright" : "lying_back";

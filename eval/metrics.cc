@@ -328,6 +328,18 @@ StatusOr<double> JiggleMeanErrorMm(const PointCache& predicted, const Take& simu
   return MeanDistanceOverVertices(predicted, simulated.channels.at("quasistatic"), jiggle, scored);
 }
 
+double ExpressionSkinRmsMm(const FaceRig& rig, const Eigen::VectorXd& weights,
+                           const Eigen::VectorXd& reference) {
+  const size_t shapes = rig.blendshape_deltas_mm.size();
+  FACEDYN_CHECK(static_cast<size_t>(weights.size()) == shapes &&
+                    static_cast<size_t>(reference.size()) == shapes,
+                "one weight per blendshape");
+  Eigen::Matrix3Xd difference = Eigen::Matrix3Xd::Zero(3, rig.vertex_count());
+  for (size_t k = 0; k < shapes; ++k)
+    difference += (weights[k] - reference[k]) * rig.blendshape_deltas_mm[k];
+  return std::sqrt(difference.colwise().squaredNorm().mean());
+}
+
 double Percentile95(std::vector<double> values) {
   if (values.empty()) return 0.0;
   const size_t k = static_cast<size_t>(std::ceil(0.95 * values.size())) - 1;

@@ -99,6 +99,12 @@ StatusOr<double> JiggleMeanErrorMm(const PointCache& predicted, const Take& simu
                                    int window_frames);
 
 // The 95th percentile of `values` (the ceil(0.95 n)-th smallest; 0 when empty).
+// How far a fitted expression is from another, as shapes: the RMS over every skin vertex of the
+// distance between their upright blendshape skins (mm). Scores an expression fit against the
+// simulator's configured expression. Requires one weight per blendshape in both.
+double ExpressionSkinRmsMm(const FaceRig& rig, const Eigen::VectorXd& weights,
+                           const Eigen::VectorXd& reference);
+
 double Percentile95(std::vector<double> values);
 
 // Fine detail's score (detail/, Masquerade): |result - truth| per vertex and frame, the mean and

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <utility>
 
+#include "physics/skull_kinematics.h"
 #include "physics/twin.h"
 
 namespace facedyn::physics {
@@ -254,6 +255,39 @@ StatusOr<ExpressionTargeting> TargetHeldExpression(SoftTissueModel& model, const
   FACEDYN_RETURN_IF_ERROR(targeter.Run(&state, true, options.align_skull, options, &result.twin));
   result.twin.seconds = Seconds(start);
   return result;
+}
+
+StatusOr<HeldWindow> MeanHeldWindow(const Take& take, const std::vector<int>& vertices, int first,
+                                    int end) {
+  if (first < 0 || end > take.frame_count() || first >= end) {
+    return InvalidArgumentError(fmt::format("held window: frames [{}, {}) of a take with {} frames",
+                                            first, end, take.frame_count()));
+  }
+  if (static_cast<int>(take.world_from_skull.size()) != take.frame_count()) {
+    return FailedPreconditionError("held window: the take has no skull pose per frame");
+  }
+  for (int v : vertices) {
+    if (v < 0 || v >= take.vertex_count()) {
+      return InvalidArgumentError(fmt::format(
+          "held window: vertex {} is not on the take's {} vertices", v, take.vertex_count()));
+    }
+  }
+  HeldWindow window;
+  window.frames = end - first;
+  window.positions_in_skull.setZero(3, vertices.size());
+  const double share = 1.0 / window.frames;
+  Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
+  for (int f = first; f < end; ++f) {
+    const Rigid3 skull_from_world = take.world_from_skull[f].Inverse();
+    const auto frame = take.positions.Frame(f);
+    for (size_t i = 0; i < vertices.size(); ++i) {
+      window.positions_in_skull.col(i) +=
+          share * (skull_from_world * Eigen::Vector3d(frame.col(vertices[i]).cast<double>()));
+    }
+    gravity += share * (skull_from_world.rotation() * kGravityInWorld);
+  }
+  window.gravity_change_in_skull = gravity - kGravityInWorld;
+  return window;
 }
 
 }  // namespace facedyn::physics

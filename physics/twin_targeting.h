@@ -29,6 +29,7 @@
 
 #include "core/face_rig.h"
 #include "core/status.h"
+#include "core/take.h"
 #include "physics/soft_tissue.h"
 
 namespace facedyn::physics {
@@ -77,5 +78,17 @@ StatusOr<ExpressionTargeting> TargetHeldExpression(SoftTissueModel& model, const
                                                    const Eigen::Matrix3Xd& positions_in_skull,
                                                    const Eigen::Vector3d& gravity_change_in_skull,
                                                    const TargetingOptions& options = {});
+
+// A take's frames [first, end) reduced to one held frame: the mean of `vertices` in the skull
+// frame (3 x n, through each frame's estimated world_from_skull) and the mean change of gravity
+// there (GravityInSkull() - kGravityInWorld, mm/s^2; the world frame is +Y up). What
+// TargetHeldExpression takes. Errors: an empty or out-of-range window, a vertex off the take.
+struct HeldWindow {
+  Eigen::Matrix3Xd positions_in_skull;
+  Eigen::Vector3d gravity_change_in_skull = Eigen::Vector3d::Zero();
+  int frames = 0;
+};
+StatusOr<HeldWindow> MeanHeldWindow(const Take& take, const std::vector<int>& vertices, int first,
+                                    int end);
 
 }  // namespace facedyn::physics

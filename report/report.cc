@@ -651,7 +651,27 @@ std::string TwinSection(const Json& twin) {
                         Number(Field(methods, "F_captured"), "jiggle_mean_mm"),
                         Number(Field(methods, "F_augmented"), "jiggle_mean_mm"));
   }
-  return html + "</table>";
+  html += "</table>";
+  if (twin.contains("targeting")) {
+    const Json& targeting = twin["targeting"];
+    const Json& plain = Field(targeting, "blendshape");
+    const Json& fitted = Field(targeting, "twin");
+    html += fmt::format(
+        "<p>Targeting a held frame (after Bao et al. 2018): B filmed holding {} lying back by {} "
+        "degrees, so gravity turned in the skull frame ({:.0f} mm/s&sup2;) and the flesh sagged; "
+        "the mean of {} held frames at {} markers fitted by the blendshapes and by the twin (the "
+        "expression whose equilibrium under that gravity matches).</p><table><tr><th></th>"
+        "<th>marker RMS (mm)</th><th>expression vs configured (mm)</th><th>flesh volume change"
+        "</th></tr><tr><td>blendshape fit</td><td>{:.3f}</td><td>{:.3f}</td><td>{:+.2f}%</td></tr>"
+        "<tr><td>twin</td><td>{:.3f}</td><td>{:.3f}</td><td>{:+.2f}%</td></tr></table>",
+        EscapeHtml(Text(targeting, "expression")), EscapeHtml(Text(targeting, "lie_back_deg")),
+        Number(targeting, "gravity_change_mm_s2"), EscapeHtml(Text(targeting, "frames")),
+        EscapeHtml(Text(targeting, "markers")), Number(plain, "marker_rms_mm"),
+        Number(plain, "expression_rms_mm"), 100 * Number(plain, "flesh_volume_change"),
+        Number(fitted, "marker_rms_mm"), Number(fitted, "expression_rms_mm"),
+        100 * Number(fitted, "flesh_volume_change"));
+  }
+  return html;
 }
 
 Status WriteDemoReport(const Json& metrics, const std::string& path, const std::string& files_dir) {

@@ -296,6 +296,18 @@ TEST(TwinCli, TargetsAHeldFrameLyingBack) {
   EXPECT_GT(target["twin_fit"]["weights"]["smile"].get<double>(), 0.9);
   EXPECT_LE(target["twin_fit"]["iterations"].get<int>(), 5);
   EXPECT_TRUE(target["twin_fit"].contains("cost_history"));
+  EXPECT_FALSE(target["align_skull"].get<bool>());
+  // With the skull alignment the fit is at least as close (more freedom), and says so.
+  ASSERT_EQ(RunCommand(Facedyn("--quiet twin target --twin " + dir.Join("twin.json") + " --take " +
+                               dir.Join("lying") + " --from-s 1.5 --max-iterations 4 " +
+                               "--align-skull --out " + dir.Join("aligned.json")),
+                       &out),
+            0)
+      << out;
+  const auto aligned = ReadJson(dir.Join("aligned.json"));
+  EXPECT_TRUE(aligned["align_skull"].get<bool>());
+  EXPECT_LE(aligned["twin_fit"]["marker_rms_mm"].get<double>(), twin * 1.001);
+  EXPECT_GE(aligned["twin_fit"]["skull_rotation_deg"].get<double>(), 0.0);
   // Bad input is named and writes nothing.
   EXPECT_NE(RunCommand(Facedyn("twin target --twin " + dir.Join("twin.json") + " --take " +
                                dir.Join("lying") + " --from-s 5 --out " + dir.Join("t2.json")),

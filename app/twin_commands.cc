@@ -314,6 +314,11 @@ void AddTwinTargetCommand(CLI::App* twin_command, CommandRunner* selected) {
       ->add_option("--max-iterations", options->targeting.max_iterations,
                    "Levenberg-Marquardt iterations of the twin fit (each re-factorises the flesh)")
       ->capture_default_str();
+  target
+      ->add_option("--robust-mm", options->targeting.robust_scale_mm,
+                   "Cauchy loss of this scale (mm) on each marker's distance, so gross marker "
+                   "errors pull less (0: least squares)")
+      ->capture_default_str();
   target->add_flag("--align-skull", options->targeting.align_skull,
                    "Also fit a small rigid correction of the skull pose with the expression (both "
                    "fits); on twin_bench's lying-back frames a tie with the default on "
@@ -375,6 +380,7 @@ void AddTwinTargetCommand(CLI::App* twin_command, CommandRunner* selected) {
                     {"flesh_volume_change", f.flesh_volume_change},
                     {"skull_rotation_deg", f.skull_rotation_deg},
                     {"skull_translation_mm", f.skull_translation_mm},
+                    {"outlier_markers", f.outlier_markers},
                     {"iterations", f.iterations},
                     {"seconds", f.seconds}};
       };
@@ -393,6 +399,7 @@ void AddTwinTargetCommand(CLI::App* twin_command, CommandRunner* selected) {
                         {"window_s", {take.time_s[frames.front()], take.time_s[frames.back()]}},
                         {"markers", vertices.size()},
                         {"align_skull", options->targeting.align_skull},
+                        {"robust_scale_mm", options->targeting.robust_scale_mm},
                         {"gravity_change_in_skull_mm_s2",
                          {gravity_change.x(), gravity_change.y(), gravity_change.z()}},
                         {"blendshape", fit_json(fit.blendshape)},

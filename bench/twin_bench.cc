@@ -38,6 +38,8 @@
 //              [--true-body-damping 0.35] [--true-pitch-per-g 0.013] [--frequencies 6,7,8,9,10]
 //              [--expressions neutral,smile] [--seconds 2.5] [--no-reconstruct] [--no-clean]
 //              [--no-augmentation] [--held-out-hz 11] [--twin-weight 1] [--epochs 40] [--quick]
+//              [--no-targeting] [--lie-back-deg 45] [--robust-mm 0.5]
+//              [--targeting-expressions neutral,smile,jaw_open,cheek_puff]
 //
 // --quick: one seed, frequencies 6,8,10, neutral only, 2 s takes.
 
@@ -102,6 +104,7 @@ struct Settings {
   bool augmentation = true;
   bool targeting = true;
   double lie_back_deg = 45.0;
+  double robust_mm = 0.5;  // Cauchy scale of the targeting's robust modes
   double lie_back_seconds = 3.0;
   std::vector<std::string> targeting_expressions = {"neutral", "smile", "jaw_open", "cheek_puff"};
   double held_out_hz = 11.0;
@@ -324,7 +327,9 @@ Json RunAugmentation(const facedyn::FaceRig& face, const eval::SimulatedCameraRi
 // estimated skull pose) is fitted by the blendshapes and by the twin (physics/twin_targeting.h,
 // the fitted material). Frames: the reconstructed platform takes the twin was fitted to
 // (upright) and the subject filmed lying back by --lie-back-deg holding each of
-// --targeting-expressions (the mean from 1 s after the transition ends). Scored, truth only
+// --targeting-expressions (the mean from 1 s after the transition ends), each in four modes:
+// least squares or a Cauchy loss of scale --robust-mm, without or with the skull alignment
+// (physics::TargetingOptions). Scored, truth only
 // here: each fit's expression (its weights' upright blendshape skin) against the true
 // expression's, RMS over every skin vertex.
 Json RunTargeting(const facedyn::FaceRig& face, const eval::SimulatedCameraRig& cameras,
@@ -350,46 +355,51 @@ Json RunTargeting(const facedyn::FaceRig& face, const eval::SimulatedCameraRig& 
                    {"kind", kind},
                    {"held_frames", count},
                    {"gravity_change_mm_s2", dg.norm()}};
-    for (const bool align : {false, true}) {
-      physics::TargetingOptions targeting;
-      targeting.align_skull = align;
-      const physics::ExpressionTargeting fit =
-          Check(physics::TargetHeldExpression(*model, face, vertices, mean, dg, targeting),
-                "targeting " + name);
-      const double plain_expression =
-          eval::ExpressionSkinRmsMm(face, fit.blendshape.weights, truth);
-      const double twin_expression = eval::ExpressionSkinRmsMm(face, fit.twin.weights, truth);
-      const double ratio = fit.twin.rms_mm / fit.blendshape.rms_mm;
-      const std::string mode = align ? "aligned" : "unaligned";
-      const std::string where = kind == "upright" ? "upright" : "lying_back";
-      (*figures)[mode + "_twin_over_blendshape_marker_rms_" + where].push_back(ratio);
-      (*figures)[mode + "_twin_over_blendshape_expression_rms_" + where].push_back(
-          twin_expression / plain_expression);
-      (*figures)[mode + "_twin_expression_rms_mm_" + where].push_back(twin_expression);
-      (*figures)[mode + "_blendshape_expression_rms_mm_" + where].push_back(plain_expression);
-      auto fit_json = [](const physics::ExpressionTargetingFit& f, double expression_mm) {
-        return Json{{"marker_rms_mm", f.rms_mm},
-                    {"expression_rms_mm", expression_mm},
-                    {"flesh_volume_change", f.flesh_volume_change},
-                    {"skull_rotation_deg", f.skull_rotation_deg},
-                    {"skull_translation_mm", f.skull_translation_mm},
-                    {"iterations", f.iterations},
-                    {"cost_history", f.cost_history},
-                    {"termination", f.termination},
-                    {"seconds", f.seconds}};
-      };
-      record[mode] = {{"blendshape", fit_json(fit.blendshape, plain_expression)},
-                      {"twin", fit_json(fit.twin, twin_expression)},
-                      {"twin_over_blendshape_marker_rms", ratio}};
-      std::fprintf(stderr,
-                   "twin_bench: seed %llu targeting %-22s %-9s |dg| %6.0f mm/s^2  markers %.3f -> "
-                   "%.3f mm  expression %.3f -> %.3f mm  flesh volume %+.4f%% / %+.4f%%  skull "
-                   "%.3f deg %.3f mm  (%.1f s)\n",
-                   static_cast<unsigned long long>(seed), name.c_str(), mode.c_str(), dg.norm(),
-                   fit.blendshape.rms_mm, fit.twin.rms_mm, plain_expression, twin_expression,
-                   100 * fit.blendshape.flesh_volume_change, 100 * fit.twin.flesh_volume_change,
-                   fit.twin.skull_rotation_deg, fit.twin.skull_translation_mm, fit.twin.seconds);
-    }
+    for (const bool robust : {false, true})
+      for (const bool align : {false, true}) {
+        physics::TargetingOptions targeting;
+        targeting.align_skull = align;
+        targeting.robust_scale_mm = robust ? s.robust_mm : 0.0;
+        const physics::ExpressionTargeting fit =
+            Check(physics::TargetHeldExpression(*model, face, vertices, mean, dg, targeting),
+                  "targeting " + name);
+        const double plain_expression =
+            eval::ExpressionSkinRmsMm(face, fit.blendshape.weights, truth);
+        const double twin_expression = eval::ExpressionSkinRmsMm(face, fit.twin.weights, truth);
+        const double ratio = fit.twin.rms_mm / fit.blendshape.rms_mm;
+        const std::string mode =
+            std::string(robust ? "robust_" : "") + (align ? "aligned" : "unaligned");
+        const std::string where = kind == "upright" ? "upright" : "lying_back";
+        (*figures)[mode + "_twin_over_blendshape_marker_rms_" + where].push_back(ratio);
+        (*figures)[mode + "_twin_over_blendshape_expression_rms_" + where].push_back(
+            twin_expression / plain_expression);
+        (*figures)[mode + "_twin_expression_rms_mm_" + where].push_back(twin_expression);
+        (*figures)[mode + "_blendshape_expression_rms_mm_" + where].push_back(plain_expression);
+        auto fit_json = [](const physics::ExpressionTargetingFit& f, double expression_mm) {
+          return Json{{"marker_rms_mm", f.rms_mm},
+                      {"expression_rms_mm", expression_mm},
+                      {"flesh_volume_change", f.flesh_volume_change},
+                      {"skull_rotation_deg", f.skull_rotation_deg},
+                      {"skull_translation_mm", f.skull_translation_mm},
+                      {"outlier_markers", f.outlier_markers},
+                      {"iterations", f.iterations},
+                      {"cost_history", f.cost_history},
+                      {"termination", f.termination},
+                      {"seconds", f.seconds}};
+        };
+        record[mode] = {{"blendshape", fit_json(fit.blendshape, plain_expression)},
+                        {"twin", fit_json(fit.twin, twin_expression)},
+                        {"twin_over_blendshape_marker_rms", ratio}};
+        std::fprintf(
+            stderr,
+            "twin_bench: seed %llu targeting %-22s %-9s |dg| %6.0f mm/s^2  markers %.3f -> "
+            "%.3f mm  expression %.3f -> %.3f mm  flesh volume %+.4f%% / %+.4f%%  skull "
+            "%.3f deg %.3f mm  (%.1f s)\n",
+            static_cast<unsigned long long>(seed), name.c_str(), mode.c_str(), dg.norm(),
+            fit.blendshape.rms_mm, fit.twin.rms_mm, plain_expression, twin_expression,
+            100 * fit.blendshape.flesh_volume_change, 100 * fit.twin.flesh_volume_change,
+            fit.twin.skull_rotation_deg, fit.twin.skull_translation_mm, fit.twin.seconds);
+      }
     frames.push_back(record);
   };
   for (size_t i = 0; i < captured.size(); ++i) {
@@ -477,6 +487,9 @@ int main(int argc, char** argv) {
       s.augmentation = false;
     } else if (arg == "--no-targeting") {
       s.targeting = false;
+    } else if (arg == "--robust-mm") {
+      s.robust_mm = facedyn::bench::FlagNumber("twin_bench", arg, next().c_str());
+      if (!(s.robust_mm > 0)) Fail("--robust-mm must be > 0");
     } else if (arg == "--lie-back-deg") {
       s.lie_back_deg = facedyn::bench::FlagNumber("twin_bench", arg, next().c_str());
     } else if (arg == "--targeting-expressions") {

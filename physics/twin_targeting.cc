@@ -44,14 +44,16 @@ struct Evaluation {
   Eigen::VectorXd residual;
   Eigen::MatrixXd jacobian_weights;  // 3n x K, empty without
   Eigen::MatrixXd jacobian_rigid;    // 3n x 6, empty without
-  double cost = 0.0;                 // 1/2 |residual|^2
+  double cost = 0.0;                 // 1/2 |residual|^2, or the robust cost
+  Eigen::VectorXd row_weight;        // per residual row: sqrt of its marker's IRLS weight
   double flesh_volume_mm3 = 0.0;     // the twin's only
 };
 
 class Targeter {
  public:
   Targeter(SoftTissueModel& model, const FaceRig& rig, const std::vector<int>& vertices,
-           const Eigen::Matrix3Xd& observed, const Eigen::Vector3d& gravity_change)
+           const Eigen::Matrix3Xd& observed, const Eigen::Vector3d& gravity_change,
+           double robust_scale_mm)
       : model_(model),
         rig_(rig),
         vertices_(vertices),
@@ -59,7 +61,8 @@ class Targeter {
         centroid_(observed.rowwise().mean()),
         gravity_change_(gravity_change),
         jaw_open_(JawOpenShape(rig)),
-        jaw_open_rad_(FittedJawOpenAngleRad(rig)) {}
+        jaw_open_rad_(FittedJawOpenAngleRad(rig)),
+        robust_scale_mm_(robust_scale_mm) {}
 
   double JawOf(const Eigen::VectorXd& w) const {
     return jaw_open_ >= 0 ? w[jaw_open_] * jaw_open_rad_ : 0.0;
@@ -110,7 +113,20 @@ class Targeter {
         e.jacobian_rigid.block<3, 3>(3 * i, 3).setIdentity();
       }
     }
-    e.cost = 0.5 * e.residual.squaredNorm();
+    e.cost = 0;
+    e.row_weight.resize(3 * n);
+    for (int i = 0; i < n; ++i) {
+      const double squared = e.residual.segment<3>(3 * i).squaredNorm();
+      if (robust_scale_mm_ > 0) {
+        // Cauchy: rho(s) = c^2/2 ln(1 + s/c^2); its IRLS weight 1 / (1 + s/c^2).
+        const double c2 = robust_scale_mm_ * robust_scale_mm_;
+        e.cost += 0.5 * c2 * std::log1p(squared / c2);
+        e.row_weight.segment<3>(3 * i).setConstant(std::sqrt(1.0 / (1.0 + squared / c2)));
+      } else {
+        e.cost += 0.5 * squared;
+        e.row_weight.segment<3>(3 * i).setOnes();
+      }
+    }
     return e;
   }
 
@@ -124,12 +140,16 @@ class Targeter {
     fit->cost_history = {current.cost};
     fit->termination = "reached max_iterations";
     for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
-      Eigen::MatrixXd a = current.jacobian_weights;
-      Eigen::VectorXd b = a * state->weights - current.residual;
+      // With a robust loss, each marker's rows weighted by its IRLS weight at the current point.
+      const Eigen::VectorXd& sqrt_w = current.row_weight;
+      const Eigen::MatrixXd jacobian_weights = sqrt_w.asDiagonal() * current.jacobian_weights;
+      const Eigen::VectorXd residual = sqrt_w.cwiseProduct(current.residual);
+      Eigen::MatrixXd a = jacobian_weights;
+      Eigen::VectorXd b = a * state->weights - residual;
       Eigen::HouseholderQR<Eigen::MatrixXd> rigid_qr;
       Eigen::MatrixXd q;
       if (align) {
-        rigid_qr.compute(current.jacobian_rigid);
+        rigid_qr.compute(sqrt_w.asDiagonal() * current.jacobian_rigid);
         q = rigid_qr.householderQ() * Eigen::MatrixXd::Identity(a.rows(), 6);
         a -= q * (q.transpose() * a);
         b -= q * (q.transpose() * b);
@@ -139,8 +159,7 @@ class Targeter {
       const Eigen::VectorXd step = target - state->weights;
       Eigen::VectorXd rigid_step = Eigen::VectorXd::Zero(6);
       if (align) {
-        rigid_step =
-            -rigid_qr.solve(Eigen::VectorXd(current.jacobian_weights * step + current.residual));
+        rigid_step = -rigid_qr.solve(Eigen::VectorXd(jacobian_weights * step + residual));
       }
       bool accepted = false;
       for (double scale = 1.0; scale > 1.0 / 64 && !accepted; scale /= 2) {
@@ -182,6 +201,12 @@ class Targeter {
     fit->weights = state->weights;
     fit->jaw_angle_rad = JawOf(state->weights);
     fit->rms_mm = std::sqrt(final_state.residual.squaredNorm() / vertices_.size());
+    fit->outlier_markers = 0;
+    if (robust_scale_mm_ > 0) {
+      for (size_t i = 0; i < vertices_.size(); ++i)
+        fit->outlier_markers +=
+            final_state.residual.segment<3>(3 * i).norm() > 3 * robust_scale_mm_;
+    }
     fit->skull_rotation_deg = Eigen::AngleAxisd(state->rotation).angle() * 180 / M_PI;
     fit->skull_translation_mm = state->translation.norm();
     if (sag) fit->flesh_volume_change = final_state.flesh_volume_mm3 / NeutralVolume() - 1;
@@ -202,6 +227,7 @@ class Targeter {
   const Eigen::Vector3d gravity_change_;
   const int jaw_open_;
   const double jaw_open_rad_;
+  const double robust_scale_mm_;  // 0: least squares
 };
 
 }  // namespace
@@ -213,6 +239,11 @@ StatusOr<ExpressionTargeting> TargetHeldExpression(SoftTissueModel& model, const
                                                    const TargetingOptions& options) {
   if (!gravity_change_in_skull.allFinite()) {
     return InvalidArgumentError("twin targeting: the gravity change is not finite");
+  }
+  if (!(options.robust_scale_mm >= 0) || !std::isfinite(options.robust_scale_mm)) {
+    return InvalidArgumentError(
+        fmt::format("twin targeting: robust_scale_mm must be >= 0 (0: least squares), got {}",
+                    options.robust_scale_mm));
   }
   if (options.max_iterations < 1 || !(options.function_tolerance > 0) ||
       !(options.parameter_tolerance > 0)) {
@@ -232,11 +263,13 @@ StatusOr<ExpressionTargeting> TargetHeldExpression(SoftTissueModel& model, const
   auto start = Clock::now();
   FACEDYN_ASSIGN_OR_RETURN(const BlendshapeFit plain,
                            FitBlendshapeWeights(rig, vertices, positions_in_skull));
-  const Targeter targeter(model, rig, vertices, positions_in_skull, gravity_change_in_skull);
+  const Targeter targeter(model, rig, vertices, positions_in_skull, gravity_change_in_skull,
+                          options.robust_scale_mm);
   FitState state;
   state.weights = plain.weights;
-  if (options.align_skull) {
-    FACEDYN_RETURN_IF_ERROR(targeter.Run(&state, false, true, options, &result.blendshape));
+  if (options.align_skull || options.robust_scale_mm > 0) {
+    FACEDYN_RETURN_IF_ERROR(
+        targeter.Run(&state, false, options.align_skull, options, &result.blendshape));
   } else {
     result.blendshape.weights = plain.weights;
     result.blendshape.jaw_angle_rad = targeter.JawOf(plain.weights);

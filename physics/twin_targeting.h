@@ -48,6 +48,10 @@ struct TargetingOptions {
   // markers that sag too when the head tilts, so the skull-frame markers of a tilted frame are
   // off by a rigid motion the expression cannot explain.
   bool align_skull = false;
+  // Cauchy loss of this scale (mm) on each marker's 3D distance in both fits (iteratively
+  // reweighted), so a gross marker error (a mislabelled or misdetected dot) pulls far less than
+  // its square; 0 = least squares. The reported marker RMS is over every marker either way.
+  double robust_scale_mm = 0.0;
 };
 
 struct ExpressionTargetingFit {
@@ -57,6 +61,7 @@ struct ExpressionTargetingFit {
   double flesh_volume_change = 0.0;  // flesh volume / neutral flesh volume - 1
   double skull_rotation_deg = 0.0;   // the alignment's rigid correction (0 without)
   double skull_translation_mm = 0.0;
+  int outlier_markers = 0;  // with a robust loss: markers more than 3 scales off at the end
   int iterations = 0;
   std::vector<double> cost_history;  // the twin fit's cost (1/2 sum of squares, mm^2) per iteration
   std::string termination;           // why the twin fit stopped

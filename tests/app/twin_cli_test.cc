@@ -325,6 +325,11 @@ TEST(TwinCli, TargetsAHeldFrameLyingBack) {
                  &out),
       0);
   EXPECT_THAT(out, HasSubstr("max_iterations"));
+  EXPECT_NE(RunCommand(Facedyn("twin target --twin " + dir.Join("twin.json") + " --take " +
+                               dir.Join("lying") + " --robust-mm -1 --out " + dir.Join("t2.json")),
+                       &out),
+            0);
+  EXPECT_THAT(out, HasSubstr("robust_scale_mm"));
   EXPECT_FALSE(std::filesystem::exists(dir.Join("t2.json")));
   ASSERT_EQ(RunCommand(Facedyn("twin target --help"), &out), 0);
   EXPECT_THAT(out, ::testing::Not(HasSubstr("truth")));

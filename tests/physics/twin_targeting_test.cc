@@ -113,6 +113,42 @@ TEST(TwinTargeting, AlignmentAbsorbsARigidErrorOfTheSkullPose) {
     EXPECT_LT(with->twin.cost_history[i], with->twin.cost_history[i - 1]);
 }
 
+// Gross marker errors (a mislabelled dot) pull a least-squares fit off the expression; with
+// the Cauchy loss the twin's fit keeps it and counts them.
+TEST(TwinTargeting, RobustLossIgnoresGrossMarkerErrors) {
+  const FaceRig rig = TwoShapeShell();
+  auto created = SoftTissueModel::Create(rig, TissueOptions());
+  ASSERT_TRUE(created.ok());
+  SoftTissueModel& model = **created;
+  const Eigen::VectorXd truth = (Eigen::VectorXd(2) << 0.55, 0.3).finished();
+  const Eigen::Vector3d dg = GravityChangeLyingBack(50);
+  Frame frame = HeldFrame(model, truth, dg, 0.02, rig.vertex_count());
+  // Four markers near the bulge's centre moved by 6 mm.
+  int corrupted = 0;
+  for (size_t i = 0; i < frame.vertices.size() && corrupted < 4; ++i) {
+    const Eigen::Vector3d p = rig.neutral.positions_mm.col(frame.vertices[i]);
+    if (std::hypot(p.x(), p.y()) < 20) {
+      frame.positions.col(i) += Eigen::Vector3d(0, 4, -4.5);
+      ++corrupted;
+    }
+  }
+  ASSERT_EQ(corrupted, 4);
+  TargetingOptions robust;
+  robust.robust_scale_mm = 0.5;
+  auto with = TargetHeldExpression(model, rig, frame.vertices, frame.positions, dg, robust);
+  auto without = TargetHeldExpression(model, rig, frame.vertices, frame.positions, dg);
+  ASSERT_TRUE(with.ok() && without.ok());
+  const double robust_error = (with->twin.weights - truth).cwiseAbs().maxCoeff();
+  EXPECT_LT(robust_error, 0.01);
+  EXPECT_GT((without->twin.weights - truth).cwiseAbs().maxCoeff(), 3 * robust_error);
+  EXPECT_EQ(with->twin.outlier_markers, 4);
+  EXPECT_EQ(without->twin.outlier_markers, 0);  // not counted without a robust loss
+  robust.robust_scale_mm = -1;
+  auto refused = TargetHeldExpression(model, rig, frame.vertices, frame.positions, dg, robust);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("robust_scale_mm"), std::string::npos);
+}
+
 // Upright, the held equilibrium is the blendshape skin exactly: the two fits agree.
 TEST(TwinTargeting, UprightTheTwinFitIsTheBlendshapeFit) {
   const FaceRig rig = TwoShapeShell();

@@ -74,18 +74,28 @@ StatusOr<Json> TargetLyingBack(const FaceRig& subject, const physics::FittedTwin
   std::printf(
       "\nTargeting subject %s's %s held lying back %g deg (filmed; gravity in the skull frame "
       "changed by %.0f mm/s^2), %d frames at %zu markers:\n"
-      "  marker RMS: blendshape fit %.3f mm, twin %.3f mm\n"
+      "  marker RMS: blendshape fit %.3f mm, twin %.3f mm (on the %d markers both hold: %.3f mm, "
+      "%.3f mm)\n"
       "  expression vs the configured one (RMS over the skin, scoring only): %.3f mm, %.3f mm\n"
-      "  flesh volume change: %+.2f%%, %+.2f%%\n",
+      "  flesh volume change: %+.2f%%, %+.2f%%\n"
+      "  (both fits: Cauchy loss of %g mm, skull frame corrected by %.3f deg and %.3f mm for the "
+      "twin; %d outlier markers)\n",
       subject.name.c_str(), options.targeting_expression.c_str(), options.lie_back_deg,
       gravity_change.norm(), window.frames, vertices.size(), fit.blendshape.rms_mm, fit.twin.rms_mm,
-      plain_mm, twin_mm, 100 * fit.blendshape.flesh_volume_change,
-      100 * fit.twin.flesh_volume_change);
+      fit.twin.common_inlier_markers, fit.blendshape.common_inlier_rms_mm,
+      fit.twin.common_inlier_rms_mm, plain_mm, twin_mm, 100 * fit.blendshape.flesh_volume_change,
+      100 * fit.twin.flesh_volume_change, physics::TargetingOptions().robust_scale_mm,
+      fit.twin.skull_rotation_deg, fit.twin.skull_translation_mm, fit.twin.outlier_markers);
   std::fflush(stdout);
   auto fit_json = [](const physics::ExpressionTargetingFit& f, double expression_mm) {
     return Json{{"marker_rms_mm", eval::Round4(f.rms_mm)},
+                {"common_inlier_rms_mm", eval::Round4(f.common_inlier_rms_mm)},
+                {"common_inlier_markers", f.common_inlier_markers},
                 {"expression_rms_mm", eval::Round4(expression_mm)},
                 {"flesh_volume_change", f.flesh_volume_change},
+                {"skull_rotation_deg", eval::Round4(f.skull_rotation_deg)},
+                {"skull_translation_mm", eval::Round4(f.skull_translation_mm)},
+                {"outlier_markers", f.outlier_markers},
                 {"iterations", f.iterations}};
   };
   return Json{{"expression", options.targeting_expression},

@@ -371,12 +371,16 @@ Json RunTargeting(const facedyn::FaceRig& face, const eval::SimulatedCameraRig& 
             std::string(robust ? "robust_" : "") + (align ? "aligned" : "unaligned");
         const std::string where = kind == "upright" ? "upright" : "lying_back";
         (*figures)[mode + "_twin_over_blendshape_marker_rms_" + where].push_back(ratio);
+        (*figures)[mode + "_twin_over_blendshape_common_inlier_rms_" + where].push_back(
+            fit.twin.common_inlier_rms_mm / fit.blendshape.common_inlier_rms_mm);
         (*figures)[mode + "_twin_over_blendshape_expression_rms_" + where].push_back(
             twin_expression / plain_expression);
         (*figures)[mode + "_twin_expression_rms_mm_" + where].push_back(twin_expression);
         (*figures)[mode + "_blendshape_expression_rms_mm_" + where].push_back(plain_expression);
         auto fit_json = [](const physics::ExpressionTargetingFit& f, double expression_mm) {
           return Json{{"marker_rms_mm", f.rms_mm},
+                      {"common_inlier_rms_mm", f.common_inlier_rms_mm},
+                      {"common_inlier_markers", f.common_inlier_markers},
                       {"expression_rms_mm", expression_mm},
                       {"flesh_volume_change", f.flesh_volume_change},
                       {"skull_rotation_deg", f.skull_rotation_deg},

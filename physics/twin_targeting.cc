@@ -4,8 +4,10 @@
 
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 #include "physics/skull_kinematics.h"
@@ -62,7 +64,9 @@ class Targeter {
         gravity_change_(gravity_change),
         jaw_open_(JawOpenShape(rig)),
         jaw_open_rad_(FittedJawOpenAngleRad(rig)),
-        robust_scale_mm_(robust_scale_mm) {}
+        robust_scale_mm_(robust_scale_mm),
+        neutral_volume_mm3_(model.FleshVolumeMm3(model.NodeTargets(
+            Eigen::VectorXd::Zero(static_cast<int>(rig.blendshape_deltas_mm.size())), 0.0))) {}
 
   double JawOf(const Eigen::VectorXd& w) const {
     return jaw_open_ >= 0 ? w[jaw_open_] * jaw_open_rad_ : 0.0;
@@ -201,6 +205,7 @@ class Targeter {
     fit->weights = state->weights;
     fit->jaw_angle_rad = JawOf(state->weights);
     fit->rms_mm = std::sqrt(final_state.residual.squaredNorm() / vertices_.size());
+    fit->marker_distance_mm = MarkerDistances(final_state.residual);
     fit->outlier_markers = 0;
     if (robust_scale_mm_ > 0) {
       for (size_t i = 0; i < vertices_.size(); ++i)
@@ -213,10 +218,15 @@ class Targeter {
     return Status::Ok();
   }
 
-  double NeutralVolume() const {
-    const int shapes = static_cast<int>(rig_.blendshape_deltas_mm.size());
-    return model_.FleshVolumeMm3(model_.NodeTargets(Eigen::VectorXd::Zero(shapes), 0.0));
+  static Eigen::VectorXd MarkerDistances(const Eigen::VectorXd& residual) {
+    Eigen::VectorXd distance(residual.size() / 3);
+    for (Eigen::Index i = 0; i < distance.size(); ++i)
+      distance[i] = residual.segment<3>(3 * i).norm();
+    return distance;
   }
+
+  // The flesh volume of the neutral's targets, against which both fits' change is reported.
+  double NeutralVolume() const { return neutral_volume_mm3_; }
 
  private:
   SoftTissueModel& model_;
@@ -228,6 +238,7 @@ class Targeter {
   const int jaw_open_;
   const double jaw_open_rad_;
   const double robust_scale_mm_;  // 0: least squares
+  const double neutral_volume_mm3_;
 };
 
 }  // namespace
@@ -274,6 +285,8 @@ StatusOr<ExpressionTargeting> TargetHeldExpression(SoftTissueModel& model, const
     result.blendshape.weights = plain.weights;
     result.blendshape.jaw_angle_rad = targeter.JawOf(plain.weights);
     result.blendshape.rms_mm = plain.rms_mm;
+    FACEDYN_ASSIGN_OR_RETURN(const Evaluation at_plain, targeter.Evaluate(state, false, false));
+    result.blendshape.marker_distance_mm = Targeter::MarkerDistances(at_plain.residual);
   }
   // The blendshape fit's flesh is its targets (no sag).
   result.blendshape.flesh_volume_change =
@@ -287,6 +300,26 @@ StatusOr<ExpressionTargeting> TargetHeldExpression(SoftTissueModel& model, const
   start = Clock::now();
   FACEDYN_RETURN_IF_ERROR(targeter.Run(&state, true, options.align_skull, options, &result.twin));
   result.twin.seconds = Seconds(start);
+
+  // Both fits' residual on the markers neither treats as a gross error.
+  const Eigen::Index n = result.twin.marker_distance_mm.size();
+  const double inlier_mm = options.robust_scale_mm > 0 ? 3 * options.robust_scale_mm
+                                                       : std::numeric_limits<double>::infinity();
+  double plain_sq = 0.0, twin_sq = 0.0;
+  int inliers = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double a = result.blendshape.marker_distance_mm[i];
+    const double b = result.twin.marker_distance_mm[i];
+    if (a > inlier_mm || b > inlier_mm) continue;
+    plain_sq += a * a;
+    twin_sq += b * b;
+    ++inliers;
+  }
+  for (ExpressionTargetingFit* fit : {&result.blendshape, &result.twin}) {
+    fit->common_inlier_markers = inliers;
+    fit->common_inlier_rms_mm =
+        std::sqrt((fit == &result.twin ? twin_sq : plain_sq) / std::max(inliers, 1));
+  }
   return result;
 }
 

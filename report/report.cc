@@ -660,16 +660,21 @@ std::string TwinSection(const Json& twin) {
         "<p>Targeting a held frame (after Bao et al. 2018): B filmed holding {} lying back by {} "
         "degrees, so gravity turned in the skull frame ({:.0f} mm/s&sup2;) and the flesh sagged; "
         "the mean of {} held frames at {} markers fitted by the blendshapes and by the twin (the "
-        "expression whose equilibrium under that gravity matches).</p><table><tr><th></th>"
-        "<th>marker RMS (mm)</th><th>expression vs configured (mm)</th><th>flesh volume change"
-        "</th></tr><tr><td>blendshape fit</td><td>{:.3f}</td><td>{:.3f}</td><td>{:+.2f}%</td></tr>"
-        "<tr><td>twin</td><td>{:.3f}</td><td>{:.3f}</td><td>{:+.2f}%</td></tr></table>",
+        "expression whose equilibrium under that gravity matches). Both fits use a Cauchy loss "
+        "on each marker and correct the skull frame by a small rigid motion; the marker RMS on "
+        "the {} markers neither fit treats as a gross error compares them on the same markers."
+        "</p><table><tr><th></th>"
+        "<th>marker RMS, all (mm)</th><th>marker RMS, common inliers (mm)</th><th>expression vs "
+        "configured (mm)</th><th>flesh volume change"
+        "</th></tr><tr><td>blendshape fit</td><td>{:.3f}</td><td>{:.3f}</td><td>{:.3f}</td><td>{:+.2f}%</td></tr>"
+        "<tr><td>twin</td><td>{:.3f}</td><td>{:.3f}</td><td>{:.3f}</td><td>{:+.2f}%</td></tr></table>",
         EscapeHtml(Text(targeting, "expression")), EscapeHtml(Text(targeting, "lie_back_deg")),
         Number(targeting, "gravity_change_mm_s2"), EscapeHtml(Text(targeting, "frames")),
-        EscapeHtml(Text(targeting, "markers")), Number(plain, "marker_rms_mm"),
+        EscapeHtml(Text(targeting, "markers")), EscapeHtml(Text(fitted, "common_inlier_markers")),
+        Number(plain, "marker_rms_mm"), Number(plain, "common_inlier_rms_mm"),
         Number(plain, "expression_rms_mm"), 100 * Number(plain, "flesh_volume_change"),
-        Number(fitted, "marker_rms_mm"), Number(fitted, "expression_rms_mm"),
-        100 * Number(fitted, "flesh_volume_change"));
+        Number(fitted, "marker_rms_mm"), Number(fitted, "common_inlier_rms_mm"),
+        Number(fitted, "expression_rms_mm"), 100 * Number(fitted, "flesh_volume_change"));
   }
   return html;
 }

@@ -342,8 +342,11 @@ TEST(Cli, DemoFitsTheTwinAndTrainsWithItsTakes) {
   const auto& targeting = metrics["twin"]["targeting"];
   EXPECT_NEAR(targeting["gravity_change_mm_s2"].get<double>(), 7508, 150);
   EXPECT_GT(targeting["frames"].get<int>(), 0);
-  EXPECT_LT(targeting["twin"]["marker_rms_mm"].get<double>(),
-            1.1 * targeting["blendshape"]["marker_rms_mm"].get<double>());
+  // Issue 23's "within 10%" on the markers both (robust) fits hold; each fit's RMS over every
+  // marker includes the gross errors it chose to ignore, different ones for each.
+  EXPECT_LT(targeting["twin"]["common_inlier_rms_mm"].get<double>(),
+            1.1 * targeting["blendshape"]["common_inlier_rms_mm"].get<double>());
+  EXPECT_GT(targeting["twin"]["common_inlier_markers"].get<int>(), 100);  // of 150
   EXPECT_THAT(ReadBytes(DemoDir().Join("demo/report.html")), HasSubstr("Targeting a held frame"));
 }
 

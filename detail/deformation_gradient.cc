@@ -49,25 +49,28 @@ DeformationGradients::DeformationGradients(const Mesh& neutral) : triangles_(neu
   }
 }
 
+Eigen::Matrix3d DeformationGradients::GradientOf(const Eigen::Matrix3Xd& positions_mm,
+                                                 int t) const {
+  const Eigen::Matrix3d frame =
+      TriangleFrame(positions_mm.col(triangles_(0, t)), positions_mm.col(triangles_(1, t)),
+                    positions_mm.col(triangles_(2, t)));
+  return frame * Eigen::Map<const Eigen::Matrix3d>(rest_inverse_.col(t).data());
+}
+
 void DeformationGradients::Compute(const Eigen::Matrix3Xd& positions_mm,
                                    Eigen::Matrix<double, 9, Eigen::Dynamic>* f) const {
-  std::vector<int> all(triangles_.cols());
-  std::iota(all.begin(), all.end(), 0);
-  Compute(positions_mm, all, f);
+  f->resize(9, triangles_.cols());
+  for (int t = 0; t < triangles_.cols(); ++t)
+    Eigen::Map<Eigen::Matrix3d>(f->col(t).data()) = GradientOf(positions_mm, t);
 }
 
 void DeformationGradients::Compute(const Eigen::Matrix3Xd& positions_mm,
                                    const std::vector<int>& subset,
                                    Eigen::Matrix<double, 9, Eigen::Dynamic>* f) const {
   f->resize(9, static_cast<int>(subset.size()));
-  for (size_t k = 0; k < subset.size(); ++k) {
-    const int t = subset[k];
-    const Eigen::Matrix3d frame =
-        TriangleFrame(positions_mm.col(triangles_(0, t)), positions_mm.col(triangles_(1, t)),
-                      positions_mm.col(triangles_(2, t)));
+  for (size_t k = 0; k < subset.size(); ++k)
     Eigen::Map<Eigen::Matrix3d>(f->col(static_cast<int>(k)).data()) =
-        frame * Eigen::Map<const Eigen::Matrix3d>(rest_inverse_.col(t).data());
-  }
+        GradientOf(positions_mm, subset[k]);
 }
 
 std::vector<int> PatchRepresentatives(const Eigen::Matrix3Xd& rest_mm,

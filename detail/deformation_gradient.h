@@ -38,6 +38,8 @@ class DeformationGradients {
                Eigen::Matrix<double, 9, Eigen::Dynamic>* f) const;
 
  private:
+  Eigen::Matrix3d GradientOf(const Eigen::Matrix3Xd& positions_mm, int t) const;
+
   Eigen::Matrix3Xi triangles_;
   Eigen::Matrix<double, 9, Eigen::Dynamic> rest_inverse_;
 };

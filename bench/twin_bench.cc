@@ -159,6 +159,33 @@ Json FitJson(const physics::FittedTwin& twin, const Settings& s) {
   return json;
 }
 
+// The subject (its true tissue, which only the simulation and the scoring see) performing
+// `expression` for `seconds`; the motion is the caller's.
+sim::PerformanceOptions SubjectPerformance(const Settings& s, const std::string& expression,
+                                           double seconds, uint64_t seed) {
+  sim::PerformanceOptions options;
+  options.expression = expression;
+  options.seconds = seconds;
+  options.seed = seed;
+  options.tissue.fundamental_hz = s.true_hz;
+  options.tissue.damping_ratio = s.true_damping;
+  options.tissue.max_step_s = s.sim_step_s;
+  return options;
+}
+
+// The platform at `hz` under the subject's true body (between platform and skull).
+sim::MotionOptions SubjectOnPlatform(const Settings& s, double hz, uint64_t motion_seed) {
+  sim::MotionOptions motion;
+  motion.kind = sim::MotionKind::kPlatform;
+  motion.platform_hz = hz;
+  motion.seed = motion_seed;
+  motion.amplitude_mm = s.platform_amplitude_mm;
+  motion.body_resonance_hz = s.true_body_hz;
+  motion.body_damping_ratio = s.true_body_damping;
+  motion.pitch_rad_per_g = s.true_pitch_per_g;
+  return motion;
+}
+
 const char* MotionName(sim::MotionKind kind) {
   return kind == sim::MotionKind::kNod ? "nod" : "shake";
 }
@@ -193,13 +220,7 @@ Json RunAugmentation(const facedyn::FaceRig& face, const eval::SimulatedCameraRi
     tests.push_back(std::move(test));
   };
   for (const std::string& expression : s.expressions) {
-    sim::PerformanceOptions options;
-    options.expression = expression;
-    options.seconds = s.test_seconds;
-    options.seed = seed + 50;
-    options.tissue.fundamental_hz = s.true_hz;
-    options.tissue.damping_ratio = s.true_damping;
-    options.tissue.max_step_s = s.sim_step_s;
+    sim::PerformanceOptions options = SubjectPerformance(s, expression, s.test_seconds, seed + 50);
     for (const Settings::HeadMotion& motion : s.test_motions) {
       options.motion = sim::MotionOptions();
       options.motion.kind = motion.kind;
@@ -208,14 +229,7 @@ Json RunAugmentation(const facedyn::FaceRig& face, const eval::SimulatedCameraRi
       options.motion.seed = seed * 100 + 77;
       film(expression + " " + MotionName(motion.kind), "held-out head motion", options);
     }
-    options.motion = sim::MotionOptions();
-    options.motion.kind = sim::MotionKind::kPlatform;
-    options.motion.platform_hz = s.held_out_hz;
-    options.motion.seed = seed * 100 + 99;
-    options.motion.amplitude_mm = s.platform_amplitude_mm;
-    options.motion.body_resonance_hz = s.true_body_hz;
-    options.motion.body_damping_ratio = s.true_body_damping;
-    options.motion.pitch_rad_per_g = s.true_pitch_per_g;
+    options.motion = SubjectOnPlatform(s, s.held_out_hz, seed * 100 + 99);
     film(expression + "@" + std::to_string(s.held_out_hz) + "Hz", "held-out platform frequency",
          options);
   }
@@ -413,13 +427,8 @@ Json RunTargeting(const facedyn::FaceRig& face, const eval::SimulatedCameraRig& 
   }
   uint64_t reconstruction_seed = seed * 1000 + 700;
   for (const std::string& expression : s.targeting_expressions) {
-    sim::PerformanceOptions options;
-    options.expression = expression;
-    options.seconds = s.lie_back_seconds;
-    options.seed = seed + 60;
-    options.tissue.fundamental_hz = s.true_hz;
-    options.tissue.damping_ratio = s.true_damping;
-    options.tissue.max_step_s = s.sim_step_s;
+    sim::PerformanceOptions options =
+        SubjectPerformance(s, expression, s.lie_back_seconds, seed + 60);
     options.motion.kind = sim::MotionKind::kLieBack;
     options.motion.lie_back_deg = s.lie_back_deg;
     options.motion.seed = seed * 100 + 88;
@@ -536,20 +545,8 @@ int main(int argc, char** argv) {
     double simulate_s = 0, reconstruct_s = 0;
     for (const std::string& expression : s.expressions) {
       for (double hz : s.frequencies) {
-        sim::PerformanceOptions options;
-        options.expression = expression;
-        options.motion.kind = sim::MotionKind::kPlatform;
-        options.motion.platform_hz = hz;
-        options.motion.seed = seed * 100 + static_cast<uint64_t>(hz);
-        options.motion.amplitude_mm = s.platform_amplitude_mm;
-        options.motion.body_resonance_hz = s.true_body_hz;
-        options.motion.body_damping_ratio = s.true_body_damping;
-        options.motion.pitch_rad_per_g = s.true_pitch_per_g;
-        options.seconds = s.seconds;
-        options.seed = seed;
-        options.tissue.fundamental_hz = s.true_hz;
-        options.tissue.damping_ratio = s.true_damping;
-        options.tissue.max_step_s = s.sim_step_s;
+        sim::PerformanceOptions options = SubjectPerformance(s, expression, s.seconds, seed);
+        options.motion = SubjectOnPlatform(s, hz, seed * 100 + static_cast<uint64_t>(hz));
         auto t0 = Clock::now();
         facedyn::Take take = Check(sim::SimulatePerformance(face, options), "simulate");
         simulate_s += Seconds(t0);

@@ -53,6 +53,8 @@ struct DemoOptions {
   // initialisation) under <out>/replicates/seed-N, and the report compares methods by mean and
   // spread over all of them (eval/replicates.h).
   std::vector<uint64_t> seeds = {1};
+  // The modal models' ridge rule (dynamics::ParseRidgeRule).
+  std::string modal_ridge_rule = "minimum";
 };
 
 // Distinct seeds, at least one. Names the flag.
@@ -240,6 +242,8 @@ Status RunDemo(const DemoOptions& options) {
   Json dynamics_metrics;
   DemoDynamicsOptions dynamics_options = DemoDynamicsOptions::ForDemo(options.quick);
   dynamics_options.removal_targets = removal_targets;
+  FACEDYN_ASSIGN_OR_RETURN(dynamics_options.modal_ridge_rule,
+                           dynamics::ParseRidgeRule(options.modal_ridge_rule));
   dynamics_options.seed = options.seeds.front();
   FACEDYN_RETURN_IF_ERROR(RunDemoDynamicsStage(
       face, cameras, simulated, reconstructed, dynamics_options, options.out_dir,
@@ -344,6 +348,13 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected) {
                    "methods by mean and spread over all of them (a difference inside the spread "
                    "is a tie)")
       ->delimiter(',')
+      ->capture_default_str();
+  command
+      ->add_option("--modal-ridge-rule", options->modal_ridge_rule,
+                   "How the modal models choose their ridge from the leave-one-take-out errors: "
+                   "minimum (the least error) or one-standard-error (the largest ridge within "
+                   "one standard error of it)")
+      ->check(CLI::IsMember({"minimum", "one-standard-error"}))
       ->capture_default_str();
   command->callback([options, selected] { *selected = [options] { return RunDemo(*options); }; });
 }

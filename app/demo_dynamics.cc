@@ -294,6 +294,7 @@ StatusOr<dynamics::SynthesisModel> TrainH(const std::vector<Take>& decomposed, c
 // each decomposed by its held mean (quasistatic.h): no network and no ground truth.
 StatusOr<dynamics::ModalSynthesisModel> TrainModal(const std::vector<Take>& reconstructed,
                                                    const FaceRig& face, uint64_t seed,
+                                                   dynamics::RidgeRule ridge_rule,
                                                    const std::string& label, Json* fit_json) {
   dynamics::QuasistaticOptions held;
   held.method = dynamics::QuasistaticMethod::kHeldMean;
@@ -306,13 +307,15 @@ StatusOr<dynamics::ModalSynthesisModel> TrainModal(const std::vector<Take>& reco
   for (const Take& take : decomposed) training.push_back({&take, &face});
   dynamics::ModalSynthesisOptions options;
   options.seed = seed;
+  options.ridge_rule = ridge_rule;
   dynamics::ModalSynthesisFit fit;
   FACEDYN_ASSIGN_OR_RETURN(dynamics::ModalSynthesisModel model,
                            dynamics::ModalSynthesisModel::Train(training, options, &fit));
   spdlog::info(
-      "{}: modal synthesis on {} held takes, ridge {:g} chosen on {} validation frames "
+      "{}: modal synthesis on {} held takes, ridge {:g} chosen ({}) on {} validation frames "
       "(expected residual {:.3f} of a new motion's offsets)",
-      label, reconstructed.size(), fit.chosen_ridge, fit.validation_frames,
+      label, reconstructed.size(), fit.chosen_ridge, dynamics::RidgeRuleName(ridge_rule),
+      fit.validation_frames,
       model.validation_residual());
   *fit_json = {{"decomposition", "held mean (quasistatic.h), reconstructed takes"},
                {"takes", reconstructed.size()},
@@ -322,6 +325,8 @@ StatusOr<dynamics::ModalSynthesisModel> TrainModal(const std::vector<Take>& reco
                {"ridge_tried", options.ridge},
                {"validation_rms_mm", fit.validation_rms_mm},
                {"validation_relative", fit.validation_relative},
+               {"validation_standard_error", fit.validation_standard_error},
+               {"ridge_rule", dynamics::RidgeRuleName(ridge_rule)},
                {"chosen_ridge", fit.chosen_ridge},
                {"validation_residual", model.validation_residual()},
                {"training_frames", fit.training_frames},
@@ -569,7 +574,8 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
     b_models.shape = dynamics::MeanShapeInSkull(decomposed_b.front(), skip);
     decomposed_b.clear();
     FACEDYN_ASSIGN_OR_RETURN(b_models.modal, TrainModal(b.reconstructed, face_b, options.seed,
-                                                        "modal_B", &b_models.modal_fit));
+                                                        options.modal_ridge_rule, "modal_B",
+                                                        &b_models.modal_fit));
     spdlog::info("simulating subject B walking subject A's walk ({:.1f} s) for the truth",
                  options.walk_seconds);
     FACEDYN_ASSIGN_OR_RETURN(b_models.walk_truth,
@@ -625,7 +631,8 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   auto score_test_take = [&]() -> Status {
     FACEDYN_ASSIGN_OR_RETURN(
         modal_trained,
-        TrainModal(a.reconstructed, face, options.seed, "modal_A", &training["modal_A"]));
+        TrainModal(a.reconstructed, face, options.seed, options.modal_ridge_rule, "modal_A",
+                   &training["modal_A"]));
     double cutoff_hz = 0.0;
     FACEDYN_ASSIGN_OR_RETURN(const std::vector<eval::NamedRemoval> others,
                              modal_removals(test_reconstructed, &modal_storage, &cutoff_hz));

@@ -39,6 +39,7 @@
 #include "core/json_io.h"
 #include "core/status.h"
 #include "core/take.h"
+#include "dynamics/modal_synthesis.h"
 #include "dynamics/removal_model.h"
 #include "physics/soft_tissue.h"
 
@@ -80,6 +81,8 @@ struct DemoDynamicsOptions {
   int second_subject_removal_epochs = 10;
   // Paper Fig. 5: F also trained on the first 1 .. n-1 training frequencies (0: skip).
   int subset_epochs = 3;
+  // How both subjects' modal models choose their ridge (dynamics/modal_synthesis.h).
+  dynamics::RidgeRule modal_ridge_rule = dynamics::RidgeRule::kMinimum;
   uint64_t seed = 1;
   // Subject B: procedural face scaled by this per axis (skull frame, x = width, y = height,
   // z = depth), tissue with this fundamental and damping (physics/soft_tissue.h TissueOptions).

@@ -492,6 +492,7 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
     std::vector<std::string> takes;
     std::string face = "procedural", out;
     std::string decomposition = "held-mean";
+    std::string ridge_rule = "minimum";
     dynamics::ModalSynthesisOptions options;
     bool json = false;
   };
@@ -524,9 +525,18 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       ->add_option("--seed", train_modal->options.seed,
                    "Seed of the validation blocks (used with a single take)")
       ->capture_default_str();
+  train_modal_cmd
+      ->add_option("--ridge-rule", train_modal->ridge_rule,
+                   "How the ridge is chosen from the validation errors: minimum, or "
+                   "one-standard-error (the largest ridge within one standard error of the least; "
+                   "several takes needed, else the minimum)")
+      ->check(CLI::IsMember({"minimum", "one-standard-error"}))
+      ->capture_default_str();
   train_modal_cmd->add_flag("--json", train_modal->json, "Print the fit's summary as JSON");
   train_modal_cmd->callback([train_modal, selected] {
     *selected = [train_modal]() -> Status {
+      FACEDYN_ASSIGN_OR_RETURN(train_modal->options.ridge_rule,
+                               dynamics::ParseRidgeRule(train_modal->ridge_rule));
       if (Status status = train_modal->options.Check(); !status.ok()) {
         return InvalidArgumentError("train-modal: " + status.message());
       }
@@ -557,6 +567,8 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
                            {"validation_frames", fit.validation_frames},
                            {"ridge_tried", train_modal->options.ridge},
                            {"validation_relative", fit.validation_relative},
+                           {"validation_standard_error", fit.validation_standard_error},
+                           {"ridge_rule", dynamics::RidgeRuleName(fit.ridge_rule)},
                            {"chosen_ridge", fit.chosen_ridge},
                            {"validation_residual", model->validation_residual()}};
         std::printf("%s\n", json.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());

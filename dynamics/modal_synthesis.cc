@@ -89,6 +89,24 @@ Status ModalSynthesisOptions::Check() const {
   return Status::Ok();
 }
 
+const char* RidgeRuleName(RidgeRule rule) {
+  switch (rule) {
+    case RidgeRule::kMinimum:
+      return "minimum";
+    case RidgeRule::kOneStandardError:
+      return "one-standard-error";
+  }
+  return "unknown";
+}
+
+StatusOr<RidgeRule> ParseRidgeRule(const std::string& name) {
+  for (RidgeRule rule : {RidgeRule::kMinimum, RidgeRule::kOneStandardError}) {
+    if (name == RidgeRuleName(rule)) return rule;
+  }
+  return InvalidArgumentError(
+      fmt::format("ridge rule '{}' is not one of: minimum, one-standard-error", name));
+}
+
 StatusOr<Eigen::MatrixXd> SkullInertialInputs(const std::vector<Rigid3>& world_from_skull,
                                               double fps) {
   if (!(fps > 0)) return InvalidArgumentError("skull inertial inputs: fps must be > 0");
@@ -291,8 +309,9 @@ StatusOr<ModalSynthesisModel> ModalSynthesisModel::Train(
     return Eigen::MatrixXd(a.ldlt().solve(cross));
   };
   result.training_frames = usable;
-  double best = std::numeric_limits<double>::infinity();
+  result.ridge_rule = options.ridge_rule;
   result.chosen_ridge = options.ridge.front();
+  std::vector<double> mean_relative;  // per ridge, the mean over folds of squared error / energy
   // Each fold needs frames outside it to fit on: two folds or more, or blocks of one take.
   if (folds >= 2 || (folds == 1 && result.validation_frames < usable)) {
     for (double ridge : options.ridge) {
@@ -300,6 +319,7 @@ StatusOr<ModalSynthesisModel> ModalSynthesisModel::Train(
       // every held-out motion counts the same whatever its amplitude (a walk's offsets are a
       // fifth of a platform take's).
       double sq = 0.0, relative = 0.0;
+      std::vector<double> fold_relative;
       for (int fold = 0; fold < folds; ++fold) {
         const Eigen::MatrixXd w =
             solve(gram_all - gram_fold[fold], cross_all - cross_fold[fold], ridge);
@@ -312,17 +332,29 @@ StatusOr<ModalSynthesisModel> ModalSynthesisModel::Train(
           }
         }
         sq += fold_sq;
-        relative += fold_sq / std::max(fold_energy, 1e-12) / folds;
+        fold_relative.push_back(fold_sq / std::max(fold_energy, 1e-12));
+        relative += fold_relative.back() / folds;
       }
+      double variance = 0.0;
+      for (double r : fold_relative) variance += (r - relative) * (r - relative);
+      result.validation_standard_error.push_back(
+          folds >= 2 ? std::sqrt(variance / (folds - 1) / folds) : 0.0);
+      mean_relative.push_back(relative);
       result.validation_rms_mm.push_back(
           std::sqrt(sq / (static_cast<double>(result.validation_frames) * model.sample_count_)));
       result.validation_relative.push_back(std::sqrt(relative));
-      if (relative < best) {
-        best = relative;
-        result.chosen_ridge = ridge;
-        model.validation_residual_ = std::sqrt(relative);
-      }
     }
+    size_t best = 0;
+    for (size_t r = 1; r < mean_relative.size(); ++r)
+      if (mean_relative[r] < mean_relative[best]) best = r;
+    size_t chosen = best;
+    if (options.ridge_rule == RidgeRule::kOneStandardError && folds >= 2) {
+      const double bound = mean_relative[best] + result.validation_standard_error[best];
+      for (size_t r = 0; r < mean_relative.size(); ++r)
+        if (mean_relative[r] <= bound && options.ridge[r] > options.ridge[chosen]) chosen = r;
+    }
+    result.chosen_ridge = options.ridge[chosen];
+    model.validation_residual_ = std::sqrt(mean_relative[chosen]);
   }
   model.weights_ = solve(gram_all, cross_all, result.chosen_ridge);
   if (!model.weights_.allFinite()) {

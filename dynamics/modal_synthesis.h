@@ -55,6 +55,20 @@
 
 namespace facedyn::dynamics {
 
+// How the ridge is chosen from the validation errors of the grid (ModalSynthesisOptions::ridge).
+enum class RidgeRule {
+  kMinimum,  // the ridge with the least validation error
+  // The largest ridge whose validation error is within one standard error (over the folds) of
+  // the least (Hastie, Tibshirani and Friedman, The Elements of Statistical Learning, 2nd ed.,
+  // section 7.10.1): with few folds the minimum is a noisy choice, and of the errors it cannot
+  // tell apart the simplest model is preferred. Needs two folds or more (several takes); with
+  // the blocks of a single take it is the minimum.
+  kOneStandardError,
+};
+// "minimum", "one-standard-error"; and back (InvalidArgument listing them).
+const char* RidgeRuleName(RidgeRule rule);
+StatusOr<RidgeRule> ParseRidgeRule(const std::string& name);
+
 struct ModalSynthesisOptions {
   // Resonator natural frequencies (Hz), and their damping ratio. The defaults span 2-19 Hz in
   // log steps of 1.25x (faces ring at 5-15 Hz; the bank must also reach below the slowest mode
@@ -65,9 +79,10 @@ struct ModalSynthesisOptions {
   std::vector<double> resonator_hz = {2.0,   2.5,   3.125, 3.906, 4.883, 6.104,
                                       7.629, 9.537, 11.92, 14.90, 18.63};
   double resonator_damping = 0.3;
-  // Ridge weights tried, relative to the mean diagonal of X^T X; the lowest validation error
-  // wins.
+  // Ridge weights tried, relative to the mean diagonal of X^T X; ridge_rule picks one by the
+  // validation errors.
   std::vector<double> ridge = {1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0, 10.0};
+  RidgeRule ridge_rule = RidgeRule::kMinimum;
   // With a single training take: the fraction of its usable frames validated, in blocks
   // (training_frames.h).
   double validation_fraction = 0.2;
@@ -96,8 +111,12 @@ struct ModalSynthesisFit {
   std::string validation;                 // "leave one take out" or "blocks of the one take"
   std::vector<double> validation_rms_mm;  // per ridge tried: RMS sample offset error
   // per ridge tried: sqrt of the mean over folds of (squared error / offsets' energy); the
-  // ridge with the least is chosen
+  // ridge rule reads these
   std::vector<double> validation_relative;
+  // per ridge tried: the standard error of that mean over the folds (before the sqrt: of the
+  // folds' squared error / energy), 0 with fewer than two folds
+  std::vector<double> validation_standard_error;
+  RidgeRule ridge_rule = RidgeRule::kMinimum;  // the rule that chose
   long training_frames = 0;    // usable frames (the final fit uses all of them)
   long validation_frames = 0;  // frames held out in some fold
 };

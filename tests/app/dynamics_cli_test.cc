@@ -119,6 +119,24 @@ TEST(DynamicsCli, ModalTrainRemoveSynthesizeRetarget) {
   EXPECT_GT(fit["training_frames"].get<long>(), 0);
   const double residual = fit["validation_residual"].get<double>();
   EXPECT_GT(residual, 0.0);
+  EXPECT_EQ(fit["ridge_rule"], "minimum");
+  // The one-standard-error rule never picks a smaller ridge; an unknown rule is refused by name.
+  ASSERT_EQ(RunCommand(Facedyn("dynamics train-modal --takes " + takes.Join("p7") + " " +
+                               takes.Join("p9") + " --ridge-rule one-standard-error --out " +
+                               dir.Join("modal_se.bin") + " --json"),
+                       &out),
+            0)
+      << out;
+  const auto fit_se = nlohmann::json::parse(out.substr(out.find('{')));
+  EXPECT_EQ(fit_se["ridge_rule"], "one-standard-error");
+  EXPECT_GE(fit_se["chosen_ridge"].get<double>(), fit["chosen_ridge"].get<double>());
+  EXPECT_EQ(fit_se["validation_standard_error"].size(), fit_se["ridge_tried"].size());
+  EXPECT_NE(RunCommand(Facedyn("dynamics train-modal --takes " + takes.Join("p7") +
+                               " --ridge-rule median --out " + dir.Join("m3.bin")),
+                       &out),
+            0);
+  EXPECT_THAT(out, HasSubstr("median"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("m3.bin")));
 
   ASSERT_EQ(RunCommand(Facedyn("dynamics remove --take " + takes.Join("p8") + " --model " +
                                dir.Join("modal.bin") + " --out " + dir.Join("removed")),

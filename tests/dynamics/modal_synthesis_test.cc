@@ -7,6 +7,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -193,6 +194,66 @@ TEST(ModalSynthesis, ReproducesADampedOscillatorOnAHeadMotionItNeverSaw) {
   const Eigen::Matrix3Xf expected =
       synthesised->channels.at("quasistatic").Frame(100) + offsets.Frame(100);
   EXPECT_LT((synthesised->positions.Frame(100) - expected).cwiseAbs().maxCoeff(), 1e-4f);
+}
+
+// The ridge rules on three takes (leave one take out, three folds) whose offsets carry
+// measurement noise: the minimum picks the least mean validation error; one standard error picks
+// the largest ridge within one standard error of it, so never a smaller one.
+TEST(ModalSynthesis, OneStandardErrorRulePicksTheLargestRidgeWithinOneErrorOfTheLeast) {
+  const int frames = 256;
+  std::vector<Take> takes;
+  std::mt19937 rng(5);
+  std::normal_distribution<float> noise(0.0f, 0.05f);
+  for (unsigned seed : {3u, 4u, 6u}) {
+    takes.push_back(OscillatorTake(Broadband(1.0 + 0.25 * (seed % 2), seed), frames));
+    PointCache& offsets = takes.back().channels.at("dynamic_offset");
+    for (Eigen::Index i = 0; i < offsets.positions.size(); ++i)
+      offsets.positions.data()[i] += noise(rng);
+  }
+  std::vector<TrainingTake> training;
+  for (const Take& take : takes) training.push_back({&take, &Face()});
+  ModalSynthesisOptions options;
+  ModalSynthesisFit minimum, one_se;
+  ASSERT_TRUE(ModalSynthesisModel::Train(training, options, &minimum).ok());
+  options.ridge_rule = RidgeRule::kOneStandardError;
+  const auto model = ModalSynthesisModel::Train(training, options, &one_se);
+  ASSERT_TRUE(model.ok()) << model.status().message();
+  EXPECT_EQ(one_se.validation, "leave one take out");
+  ASSERT_EQ(one_se.validation_standard_error.size(), options.ridge.size());
+  ASSERT_EQ(one_se.validation_relative, minimum.validation_relative);
+  // The minimum's choice, from the reported errors.
+  size_t best = 0;
+  for (size_t r = 0; r < options.ridge.size(); ++r) {
+    EXPECT_GT(one_se.validation_standard_error[r], 0.0);
+    if (one_se.validation_relative[r] < one_se.validation_relative[best]) best = r;
+  }
+  EXPECT_EQ(minimum.chosen_ridge, options.ridge[best]);
+  // One standard error: the largest ridge whose mean squared relative error is within the bound.
+  const double bound =
+      std::pow(one_se.validation_relative[best], 2) + one_se.validation_standard_error[best];
+  double expected = options.ridge[best];
+  for (size_t r = 0; r < options.ridge.size(); ++r)
+    if (std::pow(one_se.validation_relative[r], 2) <= bound)
+      expected = std::max(expected, options.ridge[r]);
+  EXPECT_EQ(one_se.chosen_ridge, expected);
+  // With this much noise the two differ (measured: minimum 0.01, one standard error 0.1).
+  EXPECT_GT(one_se.chosen_ridge, minimum.chosen_ridge);
+  EXPECT_EQ(one_se.ridge_rule, RidgeRule::kOneStandardError);
+  // The model's expected residual is the chosen ridge's.
+  const size_t chosen = std::find(options.ridge.begin(), options.ridge.end(), one_se.chosen_ridge) -
+                        options.ridge.begin();
+  EXPECT_NEAR(model->validation_residual(), one_se.validation_relative[chosen], 1e-12);
+  // With a single take (validation blocks, one fold) the rule falls back to the minimum.
+  ModalSynthesisFit single_min, single_se;
+  options.ridge_rule = RidgeRule::kMinimum;
+  ASSERT_TRUE(ModalSynthesisModel::Train({training[0]}, options, &single_min).ok());
+  options.ridge_rule = RidgeRule::kOneStandardError;
+  ASSERT_TRUE(ModalSynthesisModel::Train({training[0]}, options, &single_se).ok());
+  EXPECT_EQ(single_se.chosen_ridge, single_min.chosen_ridge);
+  // Names round-trip; an unknown one is refused by name.
+  EXPECT_EQ(ParseRidgeRule("one-standard-error").value(), RidgeRule::kOneStandardError);
+  EXPECT_EQ(ParseRidgeRule(RidgeRuleName(RidgeRule::kMinimum)).value(), RidgeRule::kMinimum);
+  EXPECT_THAT(ParseRidgeRule("median").status().message(), HasSubstr("median"));
 }
 
 TEST(ModalSynthesis, ErrorsNameTheProblem) {

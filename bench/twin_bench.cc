@@ -37,7 +37,7 @@
 //   twin_bench [--seeds 1,2,3] [--true-hz 9.0] [--true-damping 0.28] [--true-body-hz 5]
 //              [--true-body-damping 0.35] [--true-pitch-per-g 0.013] [--frequencies 6,7,8,9,10]
 //              [--expressions neutral,smile] [--seconds 2.5] [--no-reconstruct] [--no-clean]
-//              [--no-augmentation] [--held-out-hz 11] [--twin-weight 1] [--epochs 40] [--quick]
+//              [--no-augmentation] [--held-out-hz 11] [--twin-weight 0.25] [--epochs 40] [--quick]
 //              [--no-targeting] [--lie-back-deg 45] [--robust-mm 0.5]
 //              [--targeting-expressions neutral,smile,jaw_open,cheek_puff]
 //
@@ -109,7 +109,13 @@ struct Settings {
   std::vector<std::string> targeting_expressions = {"neutral", "smile", "jaw_open", "cheek_puff"};
   double held_out_hz = 11.0;
   double test_seconds = 3.0;
-  double twin_weight = 1.0;
+  // Each twin take's weight (dynamics::TrainingTake::weight). 0.25, so the 16 twin takes are
+  // about 31% of the rows the augmented F is drawn from: tried on validation seeds 11-13 (the
+  // only value tried there), where the held-out platform frequency was a tie with the captured F
+  // (augmented / captured 0.98, 1.05, 1.05) and the held-out head motions 0.099 +- 0.018 of it.
+  // At 1, on the test seeds before, the twin rows were two thirds and the platform frequency
+  // was worse on every seed (README).
+  double twin_weight = 0.25;
   int epochs = 40;
   // The held-out head motions of the subject (kind, Hz, degrees peak) and the twin's training
   // motions: every twin motion differs from every test motion in frequency and amplitude.

@@ -12,8 +12,8 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -24,10 +24,7 @@
 #include "app/command.h"
 #include "app/demo_dynamics.h"
 #include "app/detail_demo.h"
-#include "eval/dynamics_study.h"
-#include "eval/replicates.h"
 #include "app/reconstruct_demo.h"
-#include "report/report.h"
 #include "app/rig_demo.h"
 #include "app/solve_demo.h"
 #include "app/twin_demo.h"
@@ -35,8 +32,12 @@
 #include "core/json_io.h"
 #include "core/mesh_primitives.h"
 #include "core/take.h"
-#include "export/take_export.h"
 #include "core/take_summary.h"
+#include "dynamics/modal_synthesis.h"
+#include "eval/dynamics_study.h"
+#include "eval/replicates.h"
+#include "export/take_export.h"
+#include "report/report.h"
 #include "sim/performance.h"
 #include "sim/procedural_face.h"
 
@@ -354,7 +355,7 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected) {
                    "How the modal models choose their ridge from the leave-one-take-out errors: "
                    "minimum (the least error) or one-standard-error (the largest ridge within "
                    "one standard error of it)")
-      ->check(CLI::IsMember({"minimum", "one-standard-error"}))
+      ->check(CLI::IsMember(dynamics::RidgeRuleNames()))
       ->capture_default_str();
   command->callback([options, selected] { *selected = [options] { return RunDemo(*options); }; });
 }

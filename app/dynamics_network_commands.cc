@@ -530,7 +530,7 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
                    "How the ridge is chosen from the validation errors: minimum, or "
                    "one-standard-error (the largest ridge within one standard error of the least; "
                    "several takes needed, else the minimum)")
-      ->check(CLI::IsMember({"minimum", "one-standard-error"}))
+      ->check(CLI::IsMember(dynamics::RidgeRuleNames()))
       ->capture_default_str();
   train_modal_cmd->add_flag("--json", train_modal->json, "Print the fit's summary as JSON");
   train_modal_cmd->callback([train_modal, selected] {

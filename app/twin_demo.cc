@@ -63,10 +63,12 @@ StatusOr<Json> TargetLyingBack(const FaceRig& subject, const physics::FittedTwin
   const Eigen::Vector3d& gravity_change = window.gravity_change_in_skull;
   FACEDYN_ASSIGN_OR_RETURN(std::unique_ptr<physics::SoftTissueModel> model,
                            physics::SoftTissueModel::Create(subject, twin.prior, twin.material));
+  // The defaults (robust loss, skull alignment) were chosen on validation seeds (README).
+  const physics::TargetingOptions targeting;
   FACEDYN_ASSIGN_OR_RETURN(
       const physics::ExpressionTargeting fit,
       physics::TargetHeldExpression(*model, subject, vertices, window.positions_in_skull,
-                                    gravity_change));
+                                    gravity_change, targeting));
   FACEDYN_ASSIGN_OR_RETURN(const Eigen::VectorXd configured,
                            sim::ExpressionWeights(subject, options.targeting_expression));
   const double plain_mm = eval::ExpressionSkinRmsMm(subject, fit.blendshape.weights, configured);
@@ -84,8 +86,8 @@ StatusOr<Json> TargetLyingBack(const FaceRig& subject, const physics::FittedTwin
       gravity_change.norm(), window.frames, vertices.size(), fit.blendshape.rms_mm, fit.twin.rms_mm,
       fit.twin.common_inlier_markers, fit.blendshape.common_inlier_rms_mm,
       fit.twin.common_inlier_rms_mm, plain_mm, twin_mm, 100 * fit.blendshape.flesh_volume_change,
-      100 * fit.twin.flesh_volume_change, physics::TargetingOptions().robust_scale_mm,
-      fit.twin.skull_rotation_deg, fit.twin.skull_translation_mm, fit.twin.outlier_markers);
+      100 * fit.twin.flesh_volume_change, targeting.robust_scale_mm, fit.twin.skull_rotation_deg,
+      fit.twin.skull_translation_mm, fit.twin.outlier_markers);
   std::fflush(stdout);
   auto fit_json = [](const physics::ExpressionTargetingFit& f, double expression_mm) {
     return Json{{"marker_rms_mm", eval::Round4(f.rms_mm)},

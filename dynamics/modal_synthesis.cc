@@ -1,6 +1,7 @@
 #include "dynamics/modal_synthesis.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
@@ -99,12 +100,22 @@ const char* RidgeRuleName(RidgeRule rule) {
   return "unknown";
 }
 
+namespace {
+constexpr RidgeRule kRidgeRules[] = {RidgeRule::kMinimum, RidgeRule::kOneStandardError};
+}  // namespace
+
+std::vector<std::string> RidgeRuleNames() {
+  std::vector<std::string> names;
+  for (RidgeRule rule : kRidgeRules) names.emplace_back(RidgeRuleName(rule));
+  return names;
+}
+
 StatusOr<RidgeRule> ParseRidgeRule(const std::string& name) {
-  for (RidgeRule rule : {RidgeRule::kMinimum, RidgeRule::kOneStandardError}) {
+  for (RidgeRule rule : kRidgeRules) {
     if (name == RidgeRuleName(rule)) return rule;
   }
   return InvalidArgumentError(
-      fmt::format("ridge rule '{}' is not one of: minimum, one-standard-error", name));
+      fmt::format("ridge rule '{}' is not one of: {}", name, fmt::join(RidgeRuleNames(), ", ")));
 }
 
 StatusOr<Eigen::MatrixXd> SkullInertialInputs(const std::vector<Rigid3>& world_from_skull,

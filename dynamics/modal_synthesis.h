@@ -65,8 +65,10 @@ enum class RidgeRule {
   // the blocks of a single take it is the minimum.
   kOneStandardError,
 };
-// "minimum", "one-standard-error"; and back (InvalidArgument listing them).
+// "minimum", "one-standard-error"; and back (InvalidArgument listing them). RidgeRuleNames()
+// lists every rule's name, for command-line validators.
 const char* RidgeRuleName(RidgeRule rule);
+std::vector<std::string> RidgeRuleNames();
 StatusOr<RidgeRule> ParseRidgeRule(const std::string& name);
 
 struct ModalSynthesisOptions {

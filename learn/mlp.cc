@@ -1,6 +1,7 @@
 #include "learn/mlp.h"
 
 #include <ATen/CPUGeneratorImpl.h>
+#include <fmt/format.h>
 #include <torch/torch.h>
 
 #include <algorithm>
@@ -550,6 +551,222 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
   local.train_s = SecondsSince(start);
   local.rows_per_s =
       local.train_s > 0 ? static_cast<double>(rows_trained) / local.train_s : 0.0;
+  if (summary != nullptr) *summary = std::move(local);
+  return Status::Ok();
+}
+
+Status MlpPairTrainOptions::Check() const {
+  if (steps < 1) return InvalidArgumentError("steps must be >= 1");
+  if (steps_per_report < 1) return InvalidArgumentError("steps_per_report must be >= 1");
+  if (!(learning_rate > 0)) return InvalidArgumentError("learning_rate must be > 0");
+  if (first_batch < 1) return InvalidArgumentError("first_batch must be >= 1");
+  if (second_batch < 1) return InvalidArgumentError("second_batch must be >= 1");
+  if (pair_batch < 1) return InvalidArgumentError("pair_batch must be >= 1");
+  if (!(std::isfinite(pair_weight) && pair_weight >= 0)) {
+    return InvalidArgumentError("pair_weight must be finite and >= 0");
+  }
+  if (num_threads < 0) return InvalidArgumentError("num_threads must be >= 0");
+  return Status::Ok();
+}
+
+namespace {
+
+// Shuffled passes over a row set, one batch at a time (reshuffled at the end of each pass).
+class RowCycler {
+ public:
+  RowCycler(const std::vector<long>& rows, uint64_t seed) : order_(rows), rng_(seed) {
+    std::shuffle(order_.begin(), order_.end(), rng_);
+  }
+  // The next min(n, size) rows, in *out.
+  void Next(long n, std::vector<long>* out) {
+    out->clear();
+    n = std::min<long>(n, static_cast<long>(order_.size()));
+    while (static_cast<long>(out->size()) < n) {
+      if (next_ == order_.size()) {
+        std::shuffle(order_.begin(), order_.end(), rng_);
+        next_ = 0;
+      }
+      out->push_back(order_[next_++]);
+    }
+  }
+
+ private:
+  std::vector<long> order_;
+  std::mt19937_64 rng_;
+  size_t next_ = 0;
+};
+
+// The mean of output_std^2: the squared error in output units divided by it is TrainMlp's
+// loss in output units (loss_in_output_units), so fine-tuning keeps the step scale.
+double MeanOutputVariance(Net& net) { return net->output_std.square().mean().item<double>(); }
+
+}  // namespace
+
+Status TrainMlpPair(const MlpDataset& first_data, const std::vector<long>& first_rows,
+                    const std::vector<long>& first_validation_rows, const MlpDataset& second_data,
+                    const std::vector<long>& second_rows, const MlpPairDataset& pair_data,
+                    const std::vector<long>& pair_rows,
+                    const std::vector<long>& pair_validation_rows,
+                    const MlpPairTrainOptions& options, Mlp* first, Mlp* second,
+                    MlpPairTrainSummary* summary) {
+  FACEDYN_RETURN_IF_ERROR(options.Check());
+  FACEDYN_CHECK(first != nullptr && first->valid() && second != nullptr && second->valid(),
+                "TrainMlpPair: no model");
+  const MlpShape& f_shape = first->shape();
+  const MlpShape& h_shape = second->shape();
+  auto mismatch = [](const std::string& what, int model, int data) {
+    return InvalidArgumentError(
+        fmt::format("TrainMlpPair: {}: the model has {}, the data {}", what, model, data));
+  };
+  if (f_shape.input_size != first_data.input_size()) {
+    return mismatch("first inputs", f_shape.input_size, first_data.input_size());
+  }
+  if (f_shape.output_size != first_data.output_size()) {
+    return mismatch("first outputs", f_shape.output_size, first_data.output_size());
+  }
+  if (h_shape.input_size != second_data.input_size()) {
+    return mismatch("second inputs", h_shape.input_size, second_data.input_size());
+  }
+  if (h_shape.output_size != second_data.output_size()) {
+    return mismatch("second outputs", h_shape.output_size, second_data.output_size());
+  }
+  if (f_shape.input_size != pair_data.first_input_size()) {
+    return mismatch("consistency rows' first inputs", f_shape.input_size,
+                    pair_data.first_input_size());
+  }
+  if (h_shape.input_size != pair_data.second_input_size()) {
+    return mismatch("consistency rows' second inputs", h_shape.input_size,
+                    pair_data.second_input_size());
+  }
+  if (h_shape.output_size != pair_data.group_size() * f_shape.output_size) {
+    return mismatch("second outputs for a group", h_shape.output_size,
+                    pair_data.group_size() * f_shape.output_size);
+  }
+  if (first_rows.empty()) return FailedPreconditionError("TrainMlpPair: no first training rows");
+  if (second_rows.empty()) {
+    return FailedPreconditionError("TrainMlpPair: no second training rows");
+  }
+  if (pair_rows.empty()) return FailedPreconditionError("TrainMlpPair: no consistency rows");
+  if (options.num_threads > 0) torch::set_num_threads(options.num_threads);
+
+  Net& f = MlpTrainer::NetOf(*first);
+  Net& h = MlpTrainer::NetOf(*second);
+  const double f_scale = MeanOutputVariance(f);
+  const double h_scale = MeanOutputVariance(h);
+  const int group = pair_data.group_size();
+  const long f_outputs = f_shape.output_size;
+
+  // The second network always trains on its own supervised loss; pair_trains_second only
+  // keeps the consistency term's gradient from reaching it (below).
+  std::vector<torch::Tensor> parameters = f->parameters();
+  for (const torch::Tensor& p : h->parameters()) parameters.push_back(p);
+  torch::optim::Adam optimizer(parameters, torch::optim::AdamOptions(options.learning_rate));
+  f->train();
+  h->train();
+  f->dropout_generator = at::detail::createCPUGenerator(options.seed ^ 0x9e3779b97f4a7c15ULL);
+  h->dropout_generator = at::detail::createCPUGenerator(options.seed ^ 0x7f4a7c159e3779b9ULL);
+
+  RowCycler f_cycler(first_rows, options.seed);
+  RowCycler h_cycler(second_rows, options.seed + 1);
+  RowCycler pair_cycler(pair_rows, options.seed + 2);
+  std::vector<long> batch_rows;
+  Eigen::MatrixXf inputs, targets, pair_first, pair_second;
+
+  auto supervised = [](Net& net, const Eigen::MatrixXf& x, const Eigen::MatrixXf& y, double scale) {
+    return (net->Forward(AsRowMajorTensor(x)) - AsRowMajorTensor(y)).square().mean() / scale;
+  };
+  auto consistency = [&](const Eigen::MatrixXf& x_first, const Eigen::MatrixXf& x_second,
+                         bool second_gradient) {
+    const torch::Tensor f_out = f->Forward(AsRowMajorTensor(x_first));  // (n * group) x m
+    torch::Tensor h_out;
+    if (second_gradient) {
+      h_out = h->Forward(AsRowMajorTensor(x_second));
+    } else {
+      torch::NoGradGuard no_grad;
+      h_out = h->Forward(AsRowMajorTensor(x_second));
+    }
+    // n x (group * m), row-major: member i's outputs are columns [i * m, (i + 1) * m).
+    const torch::Tensor h_by_member = h_out.reshape({-1, f_outputs});
+    return (f_out - h_by_member).square().mean() / f_scale;
+  };
+
+  MlpPairTrainSummary local;
+  const long reports = (options.steps + options.steps_per_report - 1) / options.steps_per_report;
+  Progress progress(options.progress_label, reports,
+                    options.show_progress ? ProgressMode::kAuto : ProgressMode::kSilent);
+  const auto start = std::chrono::steady_clock::now();
+  for (long report = 0; report < reports; ++report) {
+    double f_sum = 0.0, h_sum = 0.0, pair_sum = 0.0;
+    long steps = 0;
+    for (; steps < options.steps_per_report && local.steps < options.steps; ++steps) {
+      optimizer.zero_grad();
+      f_cycler.Next(options.first_batch, &batch_rows);
+      first_data.Gather(batch_rows.data(), static_cast<long>(batch_rows.size()), &inputs, &targets);
+      const torch::Tensor f_loss = supervised(f, inputs, targets, f_scale);
+      h_cycler.Next(options.second_batch, &batch_rows);
+      second_data.Gather(batch_rows.data(), static_cast<long>(batch_rows.size()), &inputs,
+                         &targets);
+      const torch::Tensor h_loss = supervised(h, inputs, targets, h_scale);
+      pair_cycler.Next(options.pair_batch, &batch_rows);
+      pair_data.Gather(batch_rows.data(), static_cast<long>(batch_rows.size()), &pair_first,
+                       &pair_second);
+      const torch::Tensor pair_loss =
+          consistency(pair_first, pair_second, options.pair_trains_second);
+      const torch::Tensor loss = f_loss + h_loss + options.pair_weight * pair_loss;
+      loss.backward();
+      optimizer.step();
+      ++local.steps;
+      f_sum += f_loss.item<double>();
+      h_sum += h_loss.item<double>();
+      pair_sum += pair_loss.item<double>();
+    }
+    local.first_loss.push_back(f_scale * f_sum / static_cast<double>(steps));
+    local.second_loss.push_back(h_scale * h_sum / static_cast<double>(steps));
+    local.pair_loss.push_back(f_scale * pair_sum / static_cast<double>(steps));
+    std::string status = fmt::format("F {:.4g} H {:.4g} cycle {:.4g}", local.first_loss.back(),
+                                     local.second_loss.back(), local.pair_loss.back());
+    if (!first_validation_rows.empty() || !pair_validation_rows.empty()) {
+      torch::NoGradGuard no_grad;
+      f->eval();
+      h->eval();
+      constexpr long kEvalBatch = 4096;
+      if (!first_validation_rows.empty()) {
+        double sum = 0.0;
+        for (size_t begin = 0; begin < first_validation_rows.size(); begin += kEvalBatch) {
+          const long n = static_cast<long>(
+              std::min(first_validation_rows.size() - begin, static_cast<size_t>(kEvalBatch)));
+          first_data.Gather(first_validation_rows.data() + begin, n, &inputs, &targets);
+          sum += supervised(f, inputs, targets, 1.0).item<double>() * static_cast<double>(n);
+        }
+        local.first_validation_loss.push_back(sum /
+                                              static_cast<double>(first_validation_rows.size()));
+        status += fmt::format(" val F {:.4g}", local.first_validation_loss.back());
+      }
+      if (!pair_validation_rows.empty()) {
+        const long eval_groups = std::max<long>(1, kEvalBatch / std::max(1, group));
+        double sum = 0.0;
+        for (size_t begin = 0; begin < pair_validation_rows.size(); begin += eval_groups) {
+          const long n = static_cast<long>(
+              std::min(pair_validation_rows.size() - begin, static_cast<size_t>(eval_groups)));
+          pair_data.Gather(pair_validation_rows.data() + begin, n, &pair_first, &pair_second);
+          sum += consistency(pair_first, pair_second, false).item<double>() * f_scale *
+                 static_cast<double>(n);
+        }
+        local.pair_validation_loss.push_back(sum /
+                                             static_cast<double>(pair_validation_rows.size()));
+        status += fmt::format(" val cycle {:.4g}", local.pair_validation_loss.back());
+      }
+      f->train();
+      h->train();
+    }
+    progress.Update(report + 1, status);
+  }
+  progress.Finish();
+  f->eval();
+  h->eval();
+  f->dropout_generator.reset();
+  h->dropout_generator.reset();
+  local.train_s = SecondsSince(start);
   if (summary != nullptr) *summary = std::move(local);
   return Status::Ok();
 }

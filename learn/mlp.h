@@ -188,6 +188,80 @@ Status TrainMlp(const MlpDataset& data, const std::vector<long>& train_rows,
                 const std::vector<long>& validation_rows, const MlpTrainOptions& options,
                 Mlp* model, MlpTrainSummary* summary);
 
+// --- Two networks trained together with a consistency term ---
+//
+// Zoss et al. 2020 (section 8.1) propose chaining the removal network F and the synthesis
+// network H: F removes a performance's dynamics, H resynthesises them from F's quasistatic and
+// the head motion, and the reconstruction of the captured take is a loss that needs no target.
+// The reconstruction x - F + H equals x exactly when H's offsets equal F's, so the cycle's loss
+// is the disagreement of the two networks' offsets. TrainMlpPair minimises
+//
+//   L = L_first + L_second + pair_weight * L_pair
+//
+// L_first, L_second: each network's own supervised loss (its TrainMlp loss, in output units);
+// L_pair: the mean squared difference, in the first network's output units, between the first
+// network's outputs over a group of rows and the second network's one output for that group
+// (e.g. F over the S samples of a frame, 3 outputs each, and H's 3S outputs for the frame).
+// Both networks must be trained already: their normalisations are kept, and this fine-tunes.
+
+// The consistency rows: each row is a group of `group_size()` rows of the first network and
+// one row of the second, whose output_size is group_size() * first output_size (the first
+// network's outputs of group member i are the second's outputs [i * m, (i + 1) * m)).
+class MlpPairDataset {
+ public:
+  virtual ~MlpPairDataset() = default;
+  virtual int first_input_size() const = 0;
+  virtual int second_input_size() const = 0;
+  virtual int group_size() const = 0;
+  // Raw inputs of rows[0..n): the first network's (first_input_size x n * group_size, column
+  // r * group_size + i for member i of row r) and the second's (second_input_size x n).
+  virtual void Gather(const long* rows, long n, Eigen::MatrixXf* first_inputs,
+                      Eigen::MatrixXf* second_inputs) const = 0;
+};
+
+struct MlpPairTrainOptions {
+  // Adam steps; each takes one batch of each supervised set and one of consistency rows.
+  long steps = 1000;
+  // Progress and the losses are reported every this many steps (an "epoch" of the report).
+  long steps_per_report = 100;
+  double learning_rate = 1e-4;  // fine-tuning: below the 1e-3 the networks were trained at
+  long first_batch = 10000;     // supervised rows of the first network per step
+  long second_batch = 50;       // supervised rows of the second network per step
+  long pair_batch = 16;         // consistency rows (groups) per step
+  double pair_weight = 1.0;
+  // Whether the consistency term also trains the second network; false keeps its parameters
+  // fixed (it is then a teacher of the first on the consistency rows).
+  bool pair_trains_second = true;
+  uint64_t seed = 1;
+  int num_threads = 0;
+  bool show_progress = true;
+  std::string progress_label = "train-joint";
+  // steps, steps_per_report and batches >= 1, learning_rate > 0, pair_weight >= 0 and finite,
+  // num_threads >= 0. Names the field.
+  Status Check() const;
+};
+
+struct MlpPairTrainSummary {
+  // Per report interval, the mean over its steps: each supervised loss (mean squared error per
+  // output dimension, its network's output units squared) and the consistency term (the first
+  // network's output units squared).
+  std::vector<double> first_loss, second_loss, pair_loss;
+  // Per report interval, on the validation rows passed (empty without them).
+  std::vector<double> first_validation_loss, pair_validation_loss;
+  long steps = 0;
+  double train_s = 0.0;
+};
+
+// Errors: a model without its trained normalisation is not checked (the caller trains first);
+// sizes that disagree with the datasets, an empty supervised or consistency row set.
+Status TrainMlpPair(const MlpDataset& first_data, const std::vector<long>& first_rows,
+                    const std::vector<long>& first_validation_rows, const MlpDataset& second_data,
+                    const std::vector<long>& second_rows, const MlpPairDataset& pair_data,
+                    const std::vector<long>& pair_rows,
+                    const std::vector<long>& pair_validation_rows,
+                    const MlpPairTrainOptions& options, Mlp* first, Mlp* second,
+                    MlpPairTrainSummary* summary);
+
 // Sustained single-precision GEMM rate of this machine through LibTorch (the library the
 // networks run on): C = A B with A m x k and B k x n, repeated for at least `min_seconds`;
 // returns the median of the repetitions in multiply-adds per second. For throughput ratios.

@@ -1,4 +1,4 @@
-// `facedyn dynamics train-removal | remove | train-synthesis | synthesize | retarget |
+// `facedyn dynamics train-removal | train | remove | train-synthesis | synthesize | retarget |
 // train-modal`: the networks of Zoss et al. 2020 on Take folders (dynamics/removal_model.h,
 // synthesis_model.h) and the modal model (dynamics/modal_synthesis.h), which `remove`,
 // `synthesize` and `retarget` take under the same --model (told apart by the file's magic).
@@ -17,6 +17,7 @@
 #include "core/face_rig.h"
 #include "core/json_io.h"
 #include "core/take.h"
+#include "dynamics/joint_training.h"
 #include "dynamics/modal_synthesis.h"
 #include "dynamics/propagation.h"
 #include "dynamics/quasistatic.h"
@@ -276,6 +277,147 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
                                   {"frames_per_s", summary.frames_per_s}})
                                 .dump(2, ' ', false, kJsonReplaceInvalidUtf8)
                                 .c_str());
+      }
+      return Status::Ok();
+    };
+  });
+
+  // --- train: F and H together (dynamics/joint_training.h) ---
+  struct TrainJointCommand {
+    std::vector<std::string> takes;
+    std::vector<std::string> performances;
+    std::vector<std::string> twin_takes;
+    double twin_weight = 1.0;
+    std::string face = "procedural";
+    std::string out_removal, out_synthesis;
+    std::string targets = "platform-synchronous-where-known";
+    dynamics::JointTrainOptions options;
+    bool json = false;
+  };
+  auto train_joint = std::make_shared<TrainJointCommand>();
+  auto* train_joint_cmd = dynamics->add_subcommand(
+      "train",
+      "Train F and H together (Zoss et al. 2020, sec. 8.1): F on held-expression takes, H on "
+      "F's decomposition of them, then both fine-tuned with the cycle loss on performances "
+      "(takes with no target: talking, walking), beside each network's own loss");
+  train_joint_cmd
+      ->add_option("--takes", train_joint->takes,
+                   "Held-expression take folders (F's targets are estimated from them)")
+      ->required()
+      ->expected(1, -1);
+  train_joint_cmd
+      ->add_option("--performances", train_joint->performances,
+                   "Performance take folders: only their positions and head motion are read")
+      ->required()
+      ->expected(1, -1);
+  train_joint_cmd
+      ->add_option("--twin-takes", train_joint->twin_takes,
+                   "Takes of the subject's fitted twin (`facedyn twin perform`), held takes on "
+                   "the twin's own exact quasistatic, as train-removal's")
+      ->expected(1, -1);
+  train_joint_cmd
+      ->add_option("--twin-weight", train_joint->twin_weight,
+                   "How much each twin take's frames count against a captured take's")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  train_joint_cmd->add_option("--face", train_joint->face, "FaceRig folder, or 'procedural'")
+      ->capture_default_str();
+  train_joint_cmd->add_option("--out-removal", train_joint->out_removal, "F's file (e.g. F.pt)")
+      ->required();
+  train_joint_cmd->add_option("--out-synthesis", train_joint->out_synthesis, "H's file (e.g. H.pt)")
+      ->required();
+  train_joint_cmd
+      ->add_option("--targets", train_joint->targets,
+                   "F's targets on the held takes: moving-average, platform-synchronous or "
+                   "platform-synchronous-where-known (never the simulator's exact ones here)")
+      ->check(CLI::IsMember(
+          {"moving-average", "platform-synchronous", "platform-synchronous-where-known"}))
+      ->capture_default_str();
+  train_joint_cmd->add_option("--epochs", train_joint->options.removal.train.epochs, "F's epochs")
+      ->capture_default_str();
+  train_joint_cmd
+      ->add_option("--synthesis-epochs", train_joint->options.synthesis.train.epochs, "H's epochs")
+      ->capture_default_str();
+  train_joint_cmd
+      ->add_option("--joint-steps", train_joint->options.joint.steps,
+                   "Adam steps of the joint phase (each: a batch of F's rows, of H's, and of "
+                   "performance frames)")
+      ->capture_default_str();
+  train_joint_cmd
+      ->add_option("--cycle-weight", train_joint->options.joint.pair_weight,
+                   "Weight of the cycle loss against the supervised ones")
+      ->capture_default_str();
+  train_joint_cmd
+      ->add_option("--joint-lr", train_joint->options.joint.learning_rate,
+                   "Learning rate of the joint phase")
+      ->capture_default_str();
+  train_joint_cmd->add_flag_callback(
+      "--cycle-trains-f-only",
+      [train_joint] { train_joint->options.joint.pair_trains_second = false; },
+      "Keep the cycle's gradient from H (H then trains on its own loss only)");
+  train_joint_cmd->add_option("--seed", train_joint->options.removal.train.seed)
+      ->capture_default_str();
+  train_joint_cmd
+      ->add_option("--threads", train_joint->options.removal.train.num_threads,
+                   "LibTorch threads (0: default); the same count gives the same models")
+      ->capture_default_str();
+  train_joint_cmd->add_flag("--json", train_joint->json, "Print the training summary as JSON");
+  train_joint_cmd->callback([train_joint, selected] {
+    *selected = [train_joint]() -> Status {
+      dynamics::JointTrainOptions& options = train_joint->options;
+      FACEDYN_ASSIGN_OR_RETURN(options.removal.targets,
+                               dynamics::ParseRemovalTargets(train_joint->targets));
+      // One seed and thread count for the three phases.
+      options.synthesis.train.seed = options.removal.train.seed;
+      options.joint.seed = options.removal.train.seed;
+      options.synthesis.train.num_threads = options.removal.train.num_threads;
+      options.joint.num_threads = options.removal.train.num_threads;
+      if (Status status = options.Check(); !status.ok()) {
+        return InvalidArgumentError("train: " + status.message());
+      }
+      FACEDYN_ASSIGN_OR_RETURN(const FaceRig rig, LoadFace(train_joint->face));
+      FACEDYN_ASSIGN_OR_RETURN(const std::vector<Take> takes, LoadTakes(train_joint->takes));
+      FACEDYN_ASSIGN_OR_RETURN(const std::vector<Take> performances,
+                               LoadTakes(train_joint->performances));
+      FACEDYN_ASSIGN_OR_RETURN(const std::vector<Take> twin_takes,
+                               LoadTakes(train_joint->twin_takes));
+      std::vector<dynamics::TrainingTake> held = AsTraining(takes, rig);
+      for (size_t k = 0; k < twin_takes.size(); ++k) {
+        if (twin_takes[k].info.source != "twin perform") {
+          return InvalidArgumentError(fmt::format(
+              "train: --twin-takes {} is not a twin take (its source is \"{}\", not \"twin "
+              "perform\")",
+              train_joint->twin_takes[k], twin_takes[k].info.source));
+        }
+        held.push_back(
+            {&twin_takes[k], &rig, dynamics::RemovalTargets::kExact, train_joint->twin_weight});
+      }
+      dynamics::JointTrainSummary summary;
+      FACEDYN_ASSIGN_OR_RETURN(
+          const dynamics::JointModels models,
+          dynamics::TrainJoint(held, AsTraining(performances, rig), options, &summary));
+      FACEDYN_RETURN_IF_ERROR(models.removal.Save(train_joint->out_removal));
+      FACEDYN_RETURN_IF_ERROR(models.synthesis.Save(train_joint->out_synthesis));
+      const learn::MlpPairTrainSummary& joint = summary.joint;
+      spdlog::info("wrote {} and {} (cycle loss {:.4g} mm^2 on {} performance frames)",
+                   train_joint->out_removal, train_joint->out_synthesis,
+                   joint.pair_loss.empty() ? 0.0 : joint.pair_loss.back(),
+                   summary.performance_frames);
+      if (train_joint->json) {
+        const Json out = {
+            {"removal", SummaryJson(summary.removal)},
+            {"synthesis", SummaryJson(summary.synthesis)},
+            {"joint",
+             {{"steps", joint.steps},
+              {"performance_frames", summary.performance_frames},
+              {"performance_validation_frames", summary.performance_validation_frames},
+              {"removal_loss_mm2", joint.first_loss},
+              {"synthesis_loss_mm2", joint.second_loss},
+              {"cycle_loss_mm2", joint.pair_loss},
+              {"removal_validation_loss_mm2", joint.first_validation_loss},
+              {"cycle_validation_loss_mm2", joint.pair_validation_loss},
+              {"train_s", joint.train_s}}}};
+        std::printf("%s\n", out.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());
       }
       return Status::Ok();
     };

@@ -17,7 +17,8 @@
 //                  [--test-hz F] [--test-amplitude A] [--hidden-units N] [--weight-decay W]
 //                  [--input-noise S] [--no-linear-skip] [--seed N] [--seeds 1,2,3]
 //                  [--held-out-expressions a,b|none] [--held-out-expression-hz F]
-//                  [--held-out-motions walk,run,jump|none]
+//                  [--held-out-motions walk,run,jump|none] [--joint] [--joint-steps N]
+//                  [--cycle-weight W] [--joint-lr LR]
 //
 // Test takes, one protocol each ("protocol" in every removal entry): every training expression
 // at --test-hz (held-out frequency, paper Fig. 5), speech at --speech-hz (held-out performance),
@@ -35,6 +36,10 @@
 // expression and amplitude. --test-hz with --hz lets a setting be chosen on a frequency held
 // out of the training set (e.g. --hz 6,7,8,9 --test-hz 10) without looking at the 11 Hz test.
 //
+// --joint: also F_joint, F and H trained together with the cycle on the training speech takes,
+// which it reads without their targets (eval/dynamics_study.h DynamicsStudyOptions::joint);
+// F_platform_targets is the same F without the performances. --joint-steps, --cycle-weight and
+// --joint-lr set the joint phase.
 // --no-moving-average / --no-platform-targets skip F trained on the paper's moving-average
 // targets / on platform-synchronous targets (each is one more training run).
 // --laplacian-removal / --laplacian-synthesis propagate that network's samples with the rig's
@@ -241,6 +246,14 @@ int main(int argc, char** argv) {
       options.removal_linear_skip = false;
     } else if (arg == "--seconds") {
       options.seconds = Number(next(), arg);
+    } else if (arg == "--joint") {
+      options.joint = true;
+    } else if (arg == "--joint-steps") {
+      options.joint_steps = Integer(next(), arg);
+    } else if (arg == "--cycle-weight") {
+      options.joint_cycle_weight = Number(next(), arg);
+    } else if (arg == "--joint-lr") {
+      options.joint_learning_rate = Number(next(), arg);
     } else {
       std::fprintf(
           stderr,
@@ -252,7 +265,8 @@ int main(int argc, char** argv) {
           "[--test-hz F] [--test-amplitude A] [--hidden-units N] [--weight-decay W] "
           "[--input-noise S] [--no-linear-skip] [--seed N] [--seeds 1,2,3] "
           "[--held-out-expressions a,b|none] [--held-out-expression-hz F] "
-          "[--held-out-motions walk,run,jump|none]\n");
+          "[--held-out-motions walk,run,jump|none] [--joint] [--joint-steps N] "
+          "[--cycle-weight W] [--joint-lr LR]\n");
       return 2;
     }
   }

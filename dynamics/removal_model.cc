@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <optional>
 #include <random>
 #include <utility>
@@ -37,21 +38,6 @@ Eigen::MatrixXf SampleCache(const PointCache& cache, const std::vector<SurfacePo
   return out;
 }
 
-// Features of one take in float: B (DB x F) and X (DX x F*S).
-struct TakeFeatures {
-  Eigen::MatrixXf skull;
-  Eigen::MatrixXf skin;
-};
-
-StatusOr<TakeFeatures> ComputeTakeFeatures(const Take& take, const FaceRig& rig,
-                                           const FeatureConfig& config) {
-  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd skull,
-                           SkullDescriptors(take.world_from_skull, rig.skull_landmarks, config));
-  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd skin,
-                           SkinDescriptors(take, rig.skin_samples, config));
-  return TakeFeatures{skull.cast<float>(), skin.cast<float>()};
-}
-
 // Rows are (take, frame, sample) packed into a long: ((take * F_max) + frame) * S + sample.
 class RemovalDataset final : public learn::MlpDataset {
  public:
@@ -61,7 +47,7 @@ class RemovalDataset final : public learn::MlpDataset {
         sample_count_(sample_count),
         max_frames_(max_frames) {}
 
-  void Add(TakeFeatures features, Eigen::MatrixXf targets) {
+  void Add(RemovalTakeFeatures features, Eigen::MatrixXf targets) {
     features_.push_back(std::move(features));
     targets_.push_back(std::move(targets));
   }
@@ -89,11 +75,20 @@ class RemovalDataset final : public learn::MlpDataset {
 
  private:
   int skull_size_, skin_size_, sample_count_, max_frames_;
-  std::vector<TakeFeatures> features_;
+  std::vector<RemovalTakeFeatures> features_;
   std::vector<Eigen::MatrixXf> targets_;  // 3 x F*S per take
 };
 
 }  // namespace
+
+StatusOr<RemovalTakeFeatures> ComputeRemovalFeatures(const Take& take, const FaceRig& rig,
+                                                     const FeatureConfig& config) {
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd skull,
+                           SkullDescriptors(take.world_from_skull, rig.skull_landmarks, config));
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXd skin,
+                           SkinDescriptors(take, rig.skin_samples, config));
+  return RemovalTakeFeatures{skull.cast<float>(), skin.cast<float>()};
+}
 
 const char* RemovalTargetsName(RemovalTargets targets) {
   switch (targets) {
@@ -197,8 +192,8 @@ Status CheckNoTargetsOrWeights(const std::vector<TrainingTake>& takes, const std
   return Status::Ok();
 }
 
-StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
-                                    const RemovalTrainOptions& options, learn::MlpTrainSummary* summary) {
+StatusOr<RemovalTrainingData> BuildRemovalTrainingData(const std::vector<TrainingTake>& takes,
+                                                       const RemovalTrainOptions& options) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (takes.empty()) return InvalidArgumentError("train-removal: no training takes");
   for (size_t k = 0; k < takes.size(); ++k) {
@@ -215,14 +210,16 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
   config.features.window_s = options.window_s;
   config.hidden_units = options.hidden_units;
   config.linear_skip = options.linear_skip;
-  FACEDYN_ASSIGN_OR_RETURN(RemovalModel model, RemovalModel::Create(config, options.train.seed));
+  FACEDYN_RETURN_IF_ERROR(config.Check());
 
   int max_frames = 0;
   for (const TrainingTake& training : takes) {
     max_frames = std::max(max_frames, training.take->frame_count());
   }
-  RemovalDataset data(config.skull_descriptor_size(), config.features.SkinDescriptorSize(),
-                      config.sample_count, max_frames);
+  auto owned_data = std::make_unique<RemovalDataset>(config.skull_descriptor_size(),
+                                                     config.features.SkinDescriptorSize(),
+                                                     config.sample_count, max_frames);
+  RemovalDataset& data = *owned_data;
   const int window = config.features.window_frames();
   std::optional<PropagationLearner> learner;
   if (options.learn_propagation) {
@@ -237,10 +234,10 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
     const std::string context =
         "training take " + std::to_string(k) +
         (take.info.expression.empty() ? "" : " (" + take.info.expression + ")");
-    if (Status status = model.CheckCompatible(take, rig); !status.ok()) {
+    if (Status status = config.CheckCompatible(take, rig); !status.ok()) {
       return status.WithContext(context);
     }
-    StatusOr<TakeFeatures> features = ComputeTakeFeatures(take, rig, config.features);
+    StatusOr<RemovalTakeFeatures> features = ComputeRemovalFeatures(take, rig, config.features);
     if (!features.ok()) return features.status().WithContext(context);
     // The targets, and the half-window (frames) over which they were estimated: frames nearer
     // the ends than that have edge-clamped estimates (for the platform-synchronous fit, whose
@@ -308,10 +305,26 @@ StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
       }
     }
   }
-  FACEDYN_RETURN_IF_ERROR(
-      learn::TrainMlp(data, train_rows, validation_rows, options.train, model.mutable_mlp(), summary));
-  if (learner) {
-    FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, learner->Fit());
+  RemovalTrainingData result;
+  result.config = config;
+  result.data = std::move(owned_data);
+  result.train_rows = std::move(train_rows);
+  result.validation_rows = std::move(validation_rows);
+  result.learner = std::move(learner);
+  return result;
+}
+
+StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
+                                    const RemovalTrainOptions& options,
+                                    learn::MlpTrainSummary* summary) {
+  FACEDYN_ASSIGN_OR_RETURN(RemovalTrainingData training, BuildRemovalTrainingData(takes, options));
+  FACEDYN_ASSIGN_OR_RETURN(RemovalModel model,
+                           RemovalModel::Create(training.config, options.train.seed));
+  FACEDYN_RETURN_IF_ERROR(learn::TrainMlp(*training.data, training.train_rows,
+                                          training.validation_rows, options.train,
+                                          model.mutable_mlp(), summary));
+  if (training.learner) {
+    FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, training.learner->Fit());
     model.set_propagation(std::move(learned));
   }
   return model;
@@ -339,8 +352,8 @@ StatusOr<Eigen::MatrixXf> PredictSampleOffsets(const RemovalModel& model, const 
                                                const FaceRig& rig) {
   FACEDYN_RETURN_IF_ERROR(model.CheckCompatible(take, rig));
   const RemovalConfig& config = model.config();
-  FACEDYN_ASSIGN_OR_RETURN(const TakeFeatures features,
-                           ComputeTakeFeatures(take, rig, config.features));
+  FACEDYN_ASSIGN_OR_RETURN(const RemovalTakeFeatures features,
+                           ComputeRemovalFeatures(take, rig, config.features));
   const int frame_count = take.frame_count();
   const int sample_count = config.sample_count;
   const int skull_size = static_cast<int>(features.skull.rows());

@@ -16,6 +16,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -24,8 +25,8 @@
 #include "core/status.h"
 #include "core/take.h"
 #include "dynamics/feature_spec.h"
-#include "learn/mlp.h"
 #include "dynamics/propagation.h"
+#include "learn/mlp.h"
 
 namespace facedyn::dynamics {
 
@@ -174,6 +175,29 @@ struct RemovalTrainOptions {
 StatusOr<RemovalModel> TrainRemoval(const std::vector<TrainingTake>& takes,
                                     const RemovalTrainOptions& options,
                                     learn::MlpTrainSummary* summary = nullptr);
+
+// The features of F for a whole take, in float: B(t) (skull_descriptor_size x F) and X_i(t)
+// (SkinDescriptorSize x F * S, column t * S + i). Errors: a landmark or sample off the take.
+struct RemovalTakeFeatures {
+  Eigen::MatrixXf skull;
+  Eigen::MatrixXf skin;
+};
+StatusOr<RemovalTakeFeatures> ComputeRemovalFeatures(const Take& take, const FaceRig& rig,
+                                                     const FeatureConfig& config);
+
+// What TrainRemoval trains F on, for trainers that add losses of their own (joint_training.h):
+// F's config for the takes, the rows (input [B; X_i], target dx_i, 3, skull frame, mm), the
+// training rows with the takes' weights applied, the validation rows, and the propagation
+// learner already fed with the training targets (empty unless options.learn_propagation).
+// The same rules and errors as TrainRemoval.
+struct RemovalTrainingData {
+  RemovalConfig config;
+  std::unique_ptr<learn::MlpDataset> data;
+  std::vector<long> train_rows, validation_rows;
+  std::optional<PropagationLearner> learner;
+};
+StatusOr<RemovalTrainingData> BuildRemovalTrainingData(const std::vector<TrainingTake>& takes,
+                                                       const RemovalTrainOptions& options);
 
 struct RemovalSummary {
   double predict_s = 0.0;    // features + network

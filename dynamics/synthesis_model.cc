@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <random>
 #include <utility>
@@ -144,6 +145,11 @@ Eigen::MatrixXf SynthesisModel::Predict(const Eigen::MatrixXf& features) const {
   if (stretch_range_.size() == 0 || features.rows() != config_.input_size()) {
     return mlp_.Predict(features);  // a wrong size is the network's to report
   }
+  return mlp_.Predict(ClampStretch(features));
+}
+
+Eigen::MatrixXf SynthesisModel::ClampStretch(const Eigen::MatrixXf& features) const {
+  if (stretch_range_.size() == 0 || features.rows() != config_.input_size()) return features;
   Eigen::MatrixXf clamped = features;
   const int first = config_.skull_descriptor_size();
   const int count = static_cast<int>(stretch_range_.cols());
@@ -151,7 +157,7 @@ Eigen::MatrixXf SynthesisModel::Predict(const Eigen::MatrixXf& features) const {
       clamped.middleRows(first, count)
           .cwiseMax(stretch_range_.row(0).transpose().replicate(1, clamped.cols()))
           .cwiseMin(stretch_range_.row(1).transpose().replicate(1, clamped.cols()));
-  return mlp_.Predict(clamped);
+  return clamped;
 }
 
 Status SynthesisModel::set_stretch_range(Eigen::MatrixXf range) {
@@ -252,9 +258,8 @@ Status CheckDecomposed(const Take& take, const std::string& context) {
   return Status::Ok();
 }
 
-StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decomposed,
-                                        const SynthesisTrainOptions& options,
-                                        learn::MlpTrainSummary* summary) {
+StatusOr<SynthesisTrainingData> BuildSynthesisTrainingData(
+    const std::vector<TrainingTake>& decomposed, const SynthesisTrainOptions& options) {
   FACEDYN_RETURN_IF_ERROR(options.Check());
   if (decomposed.empty()) return InvalidArgumentError("train-synthesis: no training takes");
   FACEDYN_RETURN_IF_ERROR(CheckNoTargetsOrWeights(decomposed, "train-synthesis"));
@@ -268,8 +273,7 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   config.features.stretch_step_mm = options.stretch_step_mm;
   config.hidden_units = options.hidden_units;
   config.linear_skip = options.linear_skip;
-  FACEDYN_ASSIGN_OR_RETURN(SynthesisModel model,
-                           SynthesisModel::Create(config, options.train.seed));
+  FACEDYN_RETURN_IF_ERROR(config.Check());
   FACEDYN_ASSIGN_OR_RETURN(const StretchStencil stencil,
                            BuildStretchStencil(*decomposed[0].rig, decomposed[0].rig->skin_samples,
                                                options.stretch_step_mm));
@@ -278,7 +282,8 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   for (const TrainingTake& training : decomposed) {
     max_frames = std::max(max_frames, training.take->frame_count());
   }
-  SynthesisDataset data(max_frames);
+  auto owned_data = std::make_unique<SynthesisDataset>(max_frames);
+  SynthesisDataset& data = *owned_data;
   const int window = config.features.window_frames();
   std::optional<PropagationLearner> learner;
   if (options.learn_propagation) {
@@ -297,7 +302,7 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
     const std::string context =
         "training take " + std::to_string(k) +
         (take.info.expression.empty() ? "" : " (" + take.info.expression + ")");
-    if (Status status = model.CheckCompatible(take, rig); !status.ok()) {
+    if (Status status = config.CheckCompatible(take, rig); !status.ok()) {
       return status.WithContext(context);
     }
     FACEDYN_RETURN_IF_ERROR(CheckDecomposed(take, context));
@@ -339,14 +344,50 @@ StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decompo
   for (const TakeFrame& frame : split.validation) {
     validation_rows.push_back(data.RowOf(frame.first, frame.second));
   }
-  FACEDYN_RETURN_IF_ERROR(
-      learn::TrainMlp(data, train_rows, validation_rows, options.train, model.mutable_mlp(), summary));
-  FACEDYN_RETURN_IF_ERROR(model.set_stretch_range(std::move(stretch_range)));
-  if (learner) {
-    FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, learner->Fit());
+  SynthesisTrainingData result;
+  result.config = config;
+  result.data = std::move(owned_data);
+  result.train_rows = std::move(train_rows);
+  result.validation_rows = std::move(validation_rows);
+  result.learner = std::move(learner);
+  result.stretch_range = std::move(stretch_range);
+  return result;
+}
+
+StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decomposed,
+                                        const SynthesisTrainOptions& options,
+                                        learn::MlpTrainSummary* summary) {
+  FACEDYN_ASSIGN_OR_RETURN(SynthesisTrainingData training,
+                           BuildSynthesisTrainingData(decomposed, options));
+  FACEDYN_ASSIGN_OR_RETURN(SynthesisModel model,
+                           SynthesisModel::Create(training.config, options.train.seed));
+  FACEDYN_RETURN_IF_ERROR(learn::TrainMlp(*training.data, training.train_rows,
+                                          training.validation_rows, options.train,
+                                          model.mutable_mlp(), summary));
+  FACEDYN_RETURN_IF_ERROR(model.set_stretch_range(std::move(training.stretch_range)));
+  if (training.learner) {
+    FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, training.learner->Fit());
     model.set_propagation(std::move(learned));
   }
   return model;
+}
+
+StatusOr<Eigen::MatrixXf> SynthesisInputs(const SynthesisModel& model, const Take& quasistatic,
+                                          const std::vector<Rigid3>& world_from_skull,
+                                          const FaceRig& rig) {
+  FACEDYN_RETURN_IF_ERROR(model.CheckCompatible(quasistatic, rig));
+  if (static_cast<int>(world_from_skull.size()) != quasistatic.frame_count()) {
+    return InvalidArgumentError(
+        "synthesis inputs: the head motion has " + std::to_string(world_from_skull.size()) +
+        " poses, the quasistatic take " + std::to_string(quasistatic.frame_count()) + " frames");
+  }
+  const SynthesisConfig& config = model.config();
+  FACEDYN_ASSIGN_OR_RETURN(
+      const StretchStencil stencil,
+      BuildStretchStencil(rig, rig.skin_samples, config.features.stretch_step_mm));
+  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXf features,
+                           SynthesisFeatures(quasistatic, world_from_skull, rig, config, stencil));
+  return model.ClampStretch(features);
 }
 
 StatusOr<Take> SynthesizeDynamics(const SynthesisModel& model, const Take& quasistatic,

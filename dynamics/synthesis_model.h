@@ -20,6 +20,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -29,9 +30,9 @@
 #include "core/status.h"
 #include "core/take.h"
 #include "dynamics/feature_spec.h"
-#include "learn/mlp.h"
 #include "dynamics/propagation.h"
 #include "dynamics/removal_model.h"
+#include "learn/mlp.h"
 
 namespace facedyn::dynamics {
 
@@ -58,6 +59,8 @@ class SynthesisModel {
   // Raw features (input_size x F, columns = [B(t); S(t)]) -> dY (3S x F, skull frame, mm), with
   // the stretch rows S(t) clamped to stretch_range() when the model has one.
   Eigen::MatrixXf Predict(const Eigen::MatrixXf& features) const;
+  // The features with their stretch rows clamped as Predict does (unchanged without a range).
+  Eigen::MatrixXf ClampStretch(const Eigen::MatrixXf& features) const;
 
   // Per stretch feature (2 x 2S: row 0 the minimum, row 1 the maximum) the range over the
   // training takes' usable frames, kept by TrainSynthesis; empty for a model without one (made
@@ -130,6 +133,27 @@ Status CheckDecomposed(const Take& take, const std::string& context);
 StatusOr<SynthesisModel> TrainSynthesis(const std::vector<TrainingTake>& decomposed,
                                         const SynthesisTrainOptions& options,
                                         learn::MlpTrainSummary* summary = nullptr);
+
+// What TrainSynthesis trains H on, for trainers that add losses of their own
+// (joint_training.h): H's config, the rows (input [B; S], target dY, 3S, skull frame, mm; one
+// per frame), the training and validation rows, the propagation learner fed with the training
+// offsets (empty unless options.learn_propagation), and the training frames' stretch range
+// (SynthesisModel::stretch_range). The same rules and errors as TrainSynthesis.
+struct SynthesisTrainingData {
+  SynthesisConfig config;
+  std::unique_ptr<learn::MlpDataset> data;
+  std::vector<long> train_rows, validation_rows;
+  std::optional<PropagationLearner> learner;
+  Eigen::MatrixXf stretch_range;
+};
+StatusOr<SynthesisTrainingData> BuildSynthesisTrainingData(
+    const std::vector<TrainingTake>& decomposed, const SynthesisTrainOptions& options);
+
+// H's inputs [B(t); S(t)] for a quasistatic take under a head motion (one pose per frame),
+// input_size x F, the stretch clamped as Predict clamps it. Errors as SynthesizeDynamics.
+StatusOr<Eigen::MatrixXf> SynthesisInputs(const SynthesisModel& model, const Take& quasistatic,
+                                          const std::vector<Rigid3>& world_from_skull,
+                                          const FaceRig& rig);
 
 struct SynthesisSummary {
   double predict_s = 0.0;

@@ -14,6 +14,7 @@
 
 #include "core/parallel_for.h"
 #include "dynamics/baselines.h"
+#include "dynamics/joint_training.h"
 #include "dynamics/propagation.h"
 #include "dynamics/quasistatic.h"
 #include "dynamics/removal_model.h"
@@ -94,6 +95,14 @@ Status DynamicsStudyOptions::Check() const {
       return InvalidArgumentError("train_hz: " + std::to_string(hz) + " not in 0.5..30");
   }
   if (!hz_ok(test_hz)) return InvalidArgumentError("test_hz must be in 0.5..30");
+  if (joint && !train_speech) {
+    return InvalidArgumentError("joint: needs the training speech takes (train_speech)");
+  }
+  if (joint && !(joint_steps >= 1 && std::isfinite(joint_cycle_weight) && joint_cycle_weight >= 0 &&
+                 joint_learning_rate > 0)) {
+    return InvalidArgumentError(
+        "joint: joint_steps >= 1, joint_cycle_weight >= 0 and joint_learning_rate > 0");
+  }
   auto amplitude_ok = [](double mm) { return mm > 0 && mm <= 50; };
   if (train_amplitudes_mm.empty())
     return InvalidArgumentError("train_amplitudes_mm: at least one amplitude");
@@ -159,6 +168,20 @@ dynamics::RemovalTrainOptions RemovalOptionsFor(const DynamicsStudyOptions& opti
   train_options.learn_propagation = options.removal_learned_propagation;
   train_options.propagation.prior_weight = options.propagation_prior_weight;
   return train_options;
+}
+
+dynamics::SynthesisTrainOptions SynthesisOptionsFor(const DynamicsStudyOptions& options) {
+  dynamics::SynthesisTrainOptions synthesis_options;
+  synthesis_options.train.epochs = options.synthesis_epochs;
+  synthesis_options.train.batch_size = options.synthesis_batch;
+  synthesis_options.train.seed = options.seed;
+  synthesis_options.train.num_threads = options.threads;
+  synthesis_options.train.show_progress = options.show_progress;
+  synthesis_options.window_s = options.window_s;
+  synthesis_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
+  synthesis_options.learn_propagation = options.synthesis_learned_propagation;
+  synthesis_options.propagation.prior_weight = options.propagation_prior_weight;
+  return synthesis_options;
 }
 
 }  // namespace
@@ -316,6 +339,42 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
   if (options.platform_targets) {
     FACEDYN_RETURN_IF_ERROR(train_removal(
         "F_platform_targets", dynamics::RemovalTargets::kPlatformSynchronous, held_training));
+  }
+  Json joint_json;
+  if (options.joint) {
+    dynamics::JointTrainOptions joint_options;
+    joint_options.removal = RemovalOptionsFor(
+        options, dynamics::RemovalTargets::kPlatformSynchronous, options.removal_epochs);
+    joint_options.synthesis = SynthesisOptionsFor(options);
+    joint_options.joint.steps = options.joint_steps;
+    joint_options.joint.pair_weight = options.joint_cycle_weight;
+    joint_options.joint.learning_rate = options.joint_learning_rate;
+    joint_options.joint.first_batch = options.removal_batch;
+    joint_options.joint.second_batch = options.synthesis_batch;
+    joint_options.joint.seed = options.seed;
+    joint_options.joint.num_threads = options.threads;
+    joint_options.joint.show_progress = options.show_progress;
+    std::vector<dynamics::TrainingTake> performances;
+    for (const SimTake& t : train_speech) performances.push_back({&t.take, &rig});
+    spdlog::info(
+        "training F and H together (F_joint: {} held takes, {} performances, {} joint "
+        "steps)",
+        held_training.size(), performances.size(), options.joint_steps);
+    dynamics::JointTrainSummary joint_summary;
+    FACEDYN_ASSIGN_OR_RETURN(
+        dynamics::JointModels joint,
+        dynamics::TrainJoint(held_training, performances, joint_options, &joint_summary));
+    const learn::MlpPairTrainSummary& pair = joint_summary.joint;
+    joint_json = {{"performance_frames", joint_summary.performance_frames},
+                  {"performance_validation_frames", joint_summary.performance_validation_frames},
+                  {"steps", pair.steps},
+                  {"train_s", Round4(pair.train_s)},
+                  {"removal_loss_mm2", pair.first_loss},
+                  {"synthesis_loss_mm2", pair.second_loss},
+                  {"cycle_loss_mm2", pair.pair_loss},
+                  {"removal_validation_loss_mm2", pair.first_validation_loss},
+                  {"cycle_validation_loss_mm2", pair.pair_validation_loss}};
+    models.push_back({"F_joint", std::move(joint.removal), std::move(joint_summary.removal)});
   }
 
   // --- removal evaluation against the exact quasistatic ---
@@ -547,6 +606,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
         {"forward_multiply_adds_per_row", trained.model.mlp().shape().ForwardMultiplyAdds()}};
   }
   result["training"] = training_json;
+  if (options.joint) result["joint_training"] = joint_json;
 
   // --- synthesis: H trained on F's decomposition of the training takes (as in the paper),
   //     then remove-and-resynthesise the unseen test takes with their own head motion. ---
@@ -561,16 +621,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
         }));
     std::vector<dynamics::TrainingTake> synthesis_training;
     for (const Take& take : decomposed) synthesis_training.push_back({&take, &rig});
-    dynamics::SynthesisTrainOptions synthesis_options;
-    synthesis_options.train.epochs = options.synthesis_epochs;
-    synthesis_options.train.batch_size = options.synthesis_batch;
-    synthesis_options.train.seed = options.seed;
-    synthesis_options.train.num_threads = options.threads;
-    synthesis_options.train.show_progress = options.show_progress;
-    synthesis_options.window_s = options.window_s;
-    synthesis_options.train.final_learning_rate_fraction = options.final_learning_rate_fraction;
-    synthesis_options.learn_propagation = options.synthesis_learned_propagation;
-    synthesis_options.propagation.prior_weight = options.propagation_prior_weight;
+    const dynamics::SynthesisTrainOptions synthesis_options = SynthesisOptionsFor(options);
     spdlog::info("training synthesis network ({} takes, {} epochs)", decomposed.size(),
                  synthesis_options.train.epochs);
     learn::MlpTrainSummary synthesis_summary;

@@ -72,6 +72,15 @@ struct DynamicsStudyOptions {
   // moving average), and report that filter itself as a method beside the baselines.
   bool platform_targets = true;
   bool synthesis = true;
+  // Also train F and H together (dynamics/joint_training.h), "F_joint": F on the held takes'
+  // platform-synchronous targets (as F_platform_targets, the same seed), H on its
+  // decomposition, then the cycle on the training speech takes, which give their positions and
+  // poses only (train_speech must be on). What a capture session can do with performances it
+  // has no target for; F_platform_targets is the same F without them.
+  bool joint = false;
+  long joint_steps = 2000;          // learn::MlpPairTrainOptions::steps
+  double joint_cycle_weight = 1.0;  // learn::MlpPairTrainOptions::pair_weight
+  double joint_learning_rate = 1e-4;
   // Propagation of each network: learned from its training offsets (propagation.h) or the
   // rig's Laplacian.
   bool removal_learned_propagation = true;

@@ -1,5 +1,5 @@
-// `facedyn dynamics train-removal | remove | train-synthesis | synthesize | retarget | eval |
-// train-modal` end to end on small simulated takes: exit codes, files, JSON, and bad input.
+// `facedyn dynamics train-removal | train | remove | train-synthesis | synthesize | retarget | eval
+// | train-modal` end to end on small simulated takes: exit codes, files, JSON, and bad input.
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -100,6 +100,56 @@ TEST(DynamicsCli, TrainRemoveSynthesizeRetargetEvaluate) {
                        &out),
             1);
   EXPECT_THAT(out, HasSubstr("is a synthesis model, expected a removal model"));
+}
+
+// F and H trained together: held takes with estimated targets, a talking take with none.
+TEST(DynamicsCli, TrainJointWritesBothModelsAndReportsTheCycle) {
+  const TempDir& takes = Takes();
+  TempDir dir;
+  std::string out;
+  ASSERT_EQ(RunCommand(Facedyn("sim perform --expression speech --motion platform --seconds 1 "
+                               "--hz 8 --seed 4 --out " +
+                               dir.Join("speech")),
+                       &out),
+            0)
+      << out;
+  const std::string common = "dynamics train --takes " + takes.Join("p7") + " " + takes.Join("p9") +
+                             " --performances " + dir.Join("speech") +
+                             " --epochs 2 --synthesis-epochs 2 --joint-steps 20 --out-removal " +
+                             dir.Join("F.pt") + " --out-synthesis " + dir.Join("H.pt");
+  ASSERT_EQ(RunCommand(Facedyn(common + " --json"), &out), 0) << out;
+  const auto summary = nlohmann::json::parse(out.substr(out.find('{')));
+  EXPECT_EQ(summary["joint"]["steps"], 20);
+  EXPECT_GT(summary["joint"]["performance_frames"].get<long>(), 0);
+  // One report per 100 steps (the last one short): losses of F, H and the cycle.
+  EXPECT_EQ(summary["joint"]["cycle_loss_mm2"].size(), 1u);
+  EXPECT_GT(summary["joint"]["cycle_loss_mm2"][0].get<double>(), 0.0);
+  EXPECT_EQ(summary["removal"]["epochs"], 2);
+  EXPECT_EQ(summary["synthesis"]["epochs"], 2);
+  // Both files are the ordinary models the other commands take.
+  ASSERT_EQ(RunCommand(Facedyn("dynamics remove --take " + takes.Join("p8") + " --model " +
+                               dir.Join("F.pt") + " --out " + dir.Join("removed")),
+                       &out),
+            0)
+      << out;
+  ASSERT_EQ(RunCommand(Facedyn("dynamics synthesize --take " + dir.Join("removed") + " --motion " +
+                               takes.Join("p9") + " --model " + dir.Join("H.pt") + " --out " +
+                               dir.Join("synth")),
+                       &out),
+            0)
+      << out;
+
+  // The simulator's exact targets are not a capture's: refused by name.
+  EXPECT_NE(RunCommand(Facedyn(common + " --targets exact"), &out), 0);
+  EXPECT_THAT(out, HasSubstr("--targets"));
+  // A performance folder that is not there is named.
+  EXPECT_EQ(RunCommand(Facedyn("dynamics train --takes " + takes.Join("p7") + " --performances " +
+                               dir.Join("nowhere") + " --out-removal " + dir.Join("F2.pt") +
+                               " --out-synthesis " + dir.Join("H2.pt")),
+                       &out),
+            1);
+  EXPECT_THAT(out, HasSubstr("nowhere"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("F2.pt")));
 }
 
 // The modal model through the CLI: trained on captured held takes (held-mean decomposition, no

@@ -377,9 +377,9 @@ StatusOr<Eigen::MatrixXf> SynthesisInputs(const SynthesisModel& model, const Tak
                                           const FaceRig& rig) {
   FACEDYN_RETURN_IF_ERROR(model.CheckCompatible(quasistatic, rig));
   if (static_cast<int>(world_from_skull.size()) != quasistatic.frame_count()) {
-    return InvalidArgumentError(
-        "synthesis inputs: the head motion has " + std::to_string(world_from_skull.size()) +
-        " poses, the quasistatic take " + std::to_string(quasistatic.frame_count()) + " frames");
+    return InvalidArgumentError("the head motion has " + std::to_string(world_from_skull.size()) +
+                                " poses, the quasistatic take " +
+                                std::to_string(quasistatic.frame_count()) + " frames");
   }
   const SynthesisConfig& config = model.config();
   FACEDYN_ASSIGN_OR_RETURN(
@@ -394,20 +394,11 @@ StatusOr<Take> SynthesizeDynamics(const SynthesisModel& model, const Take& quasi
                                   const std::vector<Rigid3>& world_from_skull,
                                   const std::string& motion_name, const FaceRig& rig,
                                   const SamplePropagation* propagation, SynthesisSummary* summary) {
-  FACEDYN_RETURN_IF_ERROR(model.CheckCompatible(quasistatic, rig));
-  if (static_cast<int>(world_from_skull.size()) != quasistatic.frame_count()) {
-    return InvalidArgumentError(
-        "synthesize: the head motion has " + std::to_string(world_from_skull.size()) +
-        " poses, the quasistatic take " + std::to_string(quasistatic.frame_count()) + " frames");
-  }
   const auto start = std::chrono::steady_clock::now();
-  const SynthesisConfig& config = model.config();
-  FACEDYN_ASSIGN_OR_RETURN(
-      const StretchStencil stencil,
-      BuildStretchStencil(rig, rig.skin_samples, config.features.stretch_step_mm));
-  FACEDYN_ASSIGN_OR_RETURN(const Eigen::MatrixXf features,
-                           SynthesisFeatures(quasistatic, world_from_skull, rig, config, stencil));
-  const Eigen::MatrixXf by_frame = model.Predict(features);  // 3S x F
+  StatusOr<Eigen::MatrixXf> features = SynthesisInputs(model, quasistatic, world_from_skull, rig);
+  if (!features.ok()) return features.status().WithContext("synthesize");
+  // Already clamped, so the network is asked directly.
+  const Eigen::MatrixXf by_frame = model.mlp().Predict(*features);  // 3S x F
   const double predict_s = SecondsSince(start);
 
   const auto propagate_start = std::chrono::steady_clock::now();

@@ -76,6 +76,7 @@ class SynthesisModel {
   Status set_stretch_range(Eigen::MatrixXf range);
   std::vector<float> FlatParameters() const { return mlp_.FlatParameters(); }
   learn::Mlp* mutable_mlp() { return &mlp_; }
+  const learn::Mlp& mlp() const { return mlp_; }
 
   // The propagation learned from the training offsets (propagation.h), or null.
   const SamplePropagation* propagation() const {

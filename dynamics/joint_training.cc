@@ -55,71 +55,14 @@ class CycleDataset final : public learn::MlpPairDataset {
   std::vector<Eigen::MatrixXf> synthesis_;
 };
 
-}  // namespace
-
-Status JointTrainOptions::Check() const {
-  if (Status status = removal.Check(); !status.ok()) return status.WithContext("removal");
-  if (Status status = synthesis.Check(); !status.ok()) return status.WithContext("synthesis");
-  if (Status status = joint.Check(); !status.ok()) return status.WithContext("joint");
-  if (!(performance_validation_fraction >= 0 && performance_validation_fraction <= 0.9)) {
-    return InvalidArgumentError("performance_validation_fraction must be in [0, 0.9]");
-  }
-  return Status::Ok();
-}
-
-StatusOr<JointModels> TrainJoint(const std::vector<TrainingTake>& held,
-                                 const std::vector<TrainingTake>& performances,
-                                 const JointTrainOptions& options, JointTrainSummary* summary) {
-  FACEDYN_RETURN_IF_ERROR(options.Check());
-  if (held.empty()) return InvalidArgumentError("train-joint: no held-expression takes");
-  if (performances.empty()) return InvalidArgumentError("train-joint: no performance takes");
-  FACEDYN_RETURN_IF_ERROR(CheckNoTargetsOrWeights(performances, "train-joint's performances"));
-  for (const TrainingTake& take : performances) {
-    FACEDYN_CHECK(take.take != nullptr && take.rig != nullptr,
-                  "TrainJoint: performance without take or rig");
-  }
-  JointTrainSummary local;
-
-  // 1. F on the held takes.
-  spdlog::info("train-joint: 1/3, F on {} held takes", held.size());
-  FACEDYN_ASSIGN_OR_RETURN(RemovalTrainingData f_data,
-                           BuildRemovalTrainingData(held, options.removal));
-  FACEDYN_ASSIGN_OR_RETURN(RemovalModel f,
-                           RemovalModel::Create(f_data.config, options.removal.train.seed));
-  FACEDYN_RETURN_IF_ERROR(learn::TrainMlp(*f_data.data, f_data.train_rows, f_data.validation_rows,
-                                          options.removal.train, f.mutable_mlp(), &local.removal));
-  if (f_data.learner) {
-    FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, f_data.learner->Fit());
-    f.set_propagation(std::move(learned));
-  }
-
-  // 2. H on the held takes decomposed by F.
-  spdlog::info("train-joint: 2/3, H on the held takes decomposed by F");
-  std::vector<Take> decomposed;
-  decomposed.reserve(held.size());
-  for (size_t k = 0; k < held.size(); ++k) {
-    StatusOr<Take> removed = RemoveDynamics(f, *held[k].take, *held[k].rig);
-    if (!removed.ok()) {
-      return removed.status().WithContext(fmt::format("held take {}", k));
-    }
-    decomposed.push_back(std::move(removed).value());
-  }
-  std::vector<TrainingTake> h_takes;
-  for (size_t k = 0; k < held.size(); ++k) h_takes.push_back({&decomposed[k], held[k].rig});
-  FACEDYN_ASSIGN_OR_RETURN(SynthesisTrainingData h_data,
-                           BuildSynthesisTrainingData(h_takes, options.synthesis));
-  FACEDYN_ASSIGN_OR_RETURN(SynthesisModel h,
-                           SynthesisModel::Create(h_data.config, options.synthesis.train.seed));
-  FACEDYN_RETURN_IF_ERROR(learn::TrainMlp(*h_data.data, h_data.train_rows, h_data.validation_rows,
-                                          options.synthesis.train, h.mutable_mlp(),
-                                          &local.synthesis));
-  FACEDYN_RETURN_IF_ERROR(h.set_stretch_range(std::move(h_data.stretch_range)));
-  if (h_data.learner) {
-    FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, h_data.learner->Fit());
-    h.set_propagation(std::move(learned));
-  }
-
-  // 3. The cycle on the performances, beside each network's own loss.
+// Step 3 on networks trained by steps 1-2 (or given): the cycle on the performances, beside
+// each network's own supervised loss on its held rows.
+Status FineTuneOnCycle(const RemovalTrainingData& f_data, const SynthesisTrainingData& h_data,
+                       const std::vector<TrainingTake>& performances,
+                       const JointTrainOptions& options, RemovalModel* f_model,
+                       SynthesisModel* h_model, JointTrainSummary* local) {
+  RemovalModel& f = *f_model;
+  SynthesisModel& h = *h_model;
   int max_frames = 0;
   for (const TrainingTake& take : performances) {
     max_frames = std::max(max_frames, take.take->frame_count());
@@ -166,16 +109,138 @@ StatusOr<JointModels> TrainJoint(const std::vector<TrainingTake>& held,
   for (const TakeFrame& frame : split.validation) {
     cycle_validation_rows.push_back(cycle.RowOf(frame.first, frame.second));
   }
-  local.performance_frames = static_cast<long>(cycle_rows.size());
-  local.performance_validation_frames = static_cast<long>(cycle_validation_rows.size());
+  local->performance_frames = static_cast<long>(cycle_rows.size());
+  local->performance_validation_frames = static_cast<long>(cycle_validation_rows.size());
   spdlog::info(
       "train-joint: 3/3, F and H together, the cycle on {} performance frames ({} held "
       "out)",
-      local.performance_frames, local.performance_validation_frames);
+      local->performance_frames, local->performance_validation_frames);
   FACEDYN_RETURN_IF_ERROR(
       learn::TrainMlpPair(*f_data.data, f_data.train_rows, f_data.validation_rows, *h_data.data,
                           h_data.train_rows, cycle, cycle_rows, cycle_validation_rows,
-                          options.joint, f.mutable_mlp(), h.mutable_mlp(), &local.joint));
+                          options.joint, f.mutable_mlp(), h.mutable_mlp(), &local->joint));
+  return Status::Ok();
+}
+
+// The performances: non-empty, each with a take and a rig, no targets or weights.
+Status CheckPerformances(const std::vector<TrainingTake>& performances) {
+  if (performances.empty()) return InvalidArgumentError("train-joint: no performance takes");
+  FACEDYN_RETURN_IF_ERROR(CheckNoTargetsOrWeights(performances, "train-joint's performances"));
+  for (const TrainingTake& take : performances) {
+    FACEDYN_CHECK(take.take != nullptr && take.rig != nullptr,
+                  "TrainJoint: performance without take or rig");
+  }
+  return Status::Ok();
+}
+
+// H's rows: the held takes decomposed by F (RemoveDynamics), kept in *decomposed.
+StatusOr<SynthesisTrainingData> SynthesisRowsOfDecomposition(const RemovalModel& f,
+                                                             const std::vector<TrainingTake>& held,
+                                                             const SynthesisTrainOptions& options,
+                                                             std::vector<Take>* decomposed) {
+  decomposed->clear();
+  decomposed->reserve(held.size());
+  for (size_t k = 0; k < held.size(); ++k) {
+    StatusOr<Take> removed = RemoveDynamics(f, *held[k].take, *held[k].rig);
+    if (!removed.ok()) {
+      return removed.status().WithContext(fmt::format("held take {}", k));
+    }
+    decomposed->push_back(std::move(removed).value());
+  }
+  std::vector<TrainingTake> h_takes;
+  for (size_t k = 0; k < held.size(); ++k) h_takes.push_back({&(*decomposed)[k], held[k].rig});
+  return BuildSynthesisTrainingData(h_takes, options);
+}
+
+}  // namespace
+
+Status JointTrainOptions::Check() const {
+  if (Status status = removal.Check(); !status.ok()) return status.WithContext("removal");
+  if (Status status = synthesis.Check(); !status.ok()) return status.WithContext("synthesis");
+  if (Status status = joint.Check(); !status.ok()) return status.WithContext("joint");
+  if (!(performance_validation_fraction >= 0 && performance_validation_fraction <= 0.9)) {
+    return InvalidArgumentError("performance_validation_fraction must be in [0, 0.9]");
+  }
+  return Status::Ok();
+}
+
+StatusOr<JointModels> TrainJoint(const std::vector<TrainingTake>& held,
+                                 const std::vector<TrainingTake>& performances,
+                                 const JointTrainOptions& options, JointTrainSummary* summary) {
+  FACEDYN_RETURN_IF_ERROR(options.Check());
+  if (held.empty()) return InvalidArgumentError("train-joint: no held-expression takes");
+  FACEDYN_RETURN_IF_ERROR(CheckPerformances(performances));
+  JointTrainSummary local;
+
+  // 1. F on the held takes.
+  spdlog::info("train-joint: 1/3, F on {} held takes", held.size());
+  FACEDYN_ASSIGN_OR_RETURN(RemovalTrainingData f_data,
+                           BuildRemovalTrainingData(held, options.removal));
+  FACEDYN_ASSIGN_OR_RETURN(RemovalModel f,
+                           RemovalModel::Create(f_data.config, options.removal.train.seed));
+  FACEDYN_RETURN_IF_ERROR(learn::TrainMlp(*f_data.data, f_data.train_rows, f_data.validation_rows,
+                                          options.removal.train, f.mutable_mlp(), &local.removal));
+  if (f_data.learner) {
+    FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, f_data.learner->Fit());
+    f.set_propagation(std::move(learned));
+  }
+
+  // 2. H on the held takes decomposed by F.
+  spdlog::info("train-joint: 2/3, H on the held takes decomposed by F");
+  std::vector<Take> decomposed;  // H's rows may refer to these takes: kept to the end
+  FACEDYN_ASSIGN_OR_RETURN(SynthesisTrainingData h_data,
+                           SynthesisRowsOfDecomposition(f, held, options.synthesis, &decomposed));
+  FACEDYN_ASSIGN_OR_RETURN(SynthesisModel h,
+                           SynthesisModel::Create(h_data.config, options.synthesis.train.seed));
+  FACEDYN_RETURN_IF_ERROR(learn::TrainMlp(*h_data.data, h_data.train_rows, h_data.validation_rows,
+                                          options.synthesis.train, h.mutable_mlp(),
+                                          &local.synthesis));
+  FACEDYN_RETURN_IF_ERROR(h.set_stretch_range(std::move(h_data.stretch_range)));
+  if (h_data.learner) {
+    FACEDYN_ASSIGN_OR_RETURN(SamplePropagation learned, h_data.learner->Fit());
+    h.set_propagation(std::move(learned));
+  }
+
+  FACEDYN_RETURN_IF_ERROR(FineTuneOnCycle(f_data, h_data, performances, options, &f, &h, &local));
+  if (summary != nullptr) *summary = std::move(local);
+  return JointModels{std::move(f), std::move(h)};
+}
+
+StatusOr<JointModels> FineTuneJoint(const std::vector<TrainingTake>& held,
+                                    const std::vector<TrainingTake>& performances, RemovalModel f,
+                                    SynthesisModel h, const JointTrainOptions& options,
+                                    JointTrainSummary* summary) {
+  FACEDYN_RETURN_IF_ERROR(options.Check());
+  if (held.empty()) return InvalidArgumentError("train-joint: no held-expression takes");
+  FACEDYN_RETURN_IF_ERROR(CheckPerformances(performances));
+  JointTrainSummary local;
+  spdlog::info("train-joint: F's and H's rows of {} held takes (the networks are given)",
+               held.size());
+  FACEDYN_ASSIGN_OR_RETURN(RemovalTrainingData f_data,
+                           BuildRemovalTrainingData(held, options.removal));
+  // The rows are raw features (each network normalises its own inputs), so what must agree is
+  // their layout: the network given and the one options.removal would make.
+  auto layout = [](const FeatureSpec& spec, int input_size) {
+    return fmt::format("{} inputs, {} samples, window {} frames at {:g} fps", input_size,
+                       spec.sample_count, spec.features.window_frames(), spec.features.fps);
+  };
+  const std::string f_given = layout(f.config(), f.config().input_size());
+  const std::string f_rows = layout(f_data.config, f_data.config.input_size());
+  if (f_given != f_rows) {
+    return InvalidArgumentError(fmt::format(
+        "train-joint: the given F has {}, its rows from the held takes {}", f_given, f_rows));
+  }
+  std::vector<Take> decomposed;  // H's rows may refer to these takes: kept to the end
+  FACEDYN_ASSIGN_OR_RETURN(SynthesisTrainingData h_data,
+                           SynthesisRowsOfDecomposition(f, held, options.synthesis, &decomposed));
+  const std::string h_given = layout(h.config(), h.config().input_size());
+  const std::string h_rows = layout(h_data.config, h_data.config.input_size());
+  if (h_given != h_rows) {
+    return InvalidArgumentError(
+        fmt::format("train-joint: the given H has {}, its rows from the decomposed held takes {}",
+                    h_given, h_rows));
+  }
+  FACEDYN_RETURN_IF_ERROR(FineTuneOnCycle(f_data, h_data, performances, options, &f, &h, &local));
   if (summary != nullptr) *summary = std::move(local);
   return JointModels{std::move(f), std::move(h)};
 }

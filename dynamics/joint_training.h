@@ -82,4 +82,17 @@ StatusOr<JointModels> TrainJoint(const std::vector<TrainingTake>& held,
                                  const JointTrainOptions& options,
                                  JointTrainSummary* summary = nullptr);
 
+// Step 3 alone, on an F and an H already trained as steps 1-2 would train them (e.g. by
+// TrainRemoval and TrainSynthesis on F's decomposition of `held`, as the demo does), so a
+// caller that keeps the separately trained pair for comparison does not train it twice. The
+// held takes and options.removal / options.synthesis give each network's supervised rows,
+// exactly as TrainJoint's; options.removal.train and options.synthesis.train are not used to
+// train. summary->removal and summary->synthesis stay empty. Errors: as TrainJoint, and
+// InvalidArgument when a given network's input layout (inputs, samples, window, fps) is not
+// that of the rows its options make.
+StatusOr<JointModels> FineTuneJoint(const std::vector<TrainingTake>& held,
+                                    const std::vector<TrainingTake>& performances, RemovalModel f,
+                                    SynthesisModel h, const JointTrainOptions& options,
+                                    JointTrainSummary* summary = nullptr);
+
 }  // namespace facedyn::dynamics

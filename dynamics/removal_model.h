@@ -62,6 +62,14 @@ class RemovalModel {
   std::vector<float> FlatParameters() const { return mlp_.FlatParameters(); }
   learn::Mlp* mutable_mlp() { return &mlp_; }
   const learn::Mlp& mlp() const { return mlp_; }
+  // A deep copy (network, propagation), to fine-tune while keeping this one.
+  RemovalModel Clone() const {
+    RemovalModel copy;
+    copy.config_ = config_;
+    copy.mlp_ = mlp_.Clone();
+    copy.propagation_ = propagation_;
+    return copy;
+  }
 
   // The learned propagation trained with the network, or null.
   const SamplePropagation* propagation() const { return propagation_ ? &*propagation_ : nullptr; }

@@ -77,6 +77,15 @@ class SynthesisModel {
   std::vector<float> FlatParameters() const { return mlp_.FlatParameters(); }
   learn::Mlp* mutable_mlp() { return &mlp_; }
   const learn::Mlp& mlp() const { return mlp_; }
+  // A deep copy (network, propagation, stretch range), to fine-tune while keeping this one.
+  SynthesisModel Clone() const {
+    SynthesisModel copy;
+    copy.config_ = config_;
+    copy.mlp_ = mlp_.Clone();
+    copy.propagation_ = propagation_;
+    copy.stretch_range_ = stretch_range_;
+    return copy;
+  }
 
   // The propagation learned from the training offsets (propagation.h), or null.
   const SamplePropagation* propagation() const {

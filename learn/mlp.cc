@@ -145,6 +145,16 @@ double MlpShape::ForwardMultiplyAdds() const {
   return total;
 }
 
+namespace {
+
+// Guards LibTorch's process-wide generator, which initialises every new network's weights.
+std::mutex& GlobalGeneratorMutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
+}  // namespace
+
 struct Mlp::Impl {
   MlpShape shape;
   Net net{nullptr};
@@ -164,13 +174,36 @@ StatusOr<Mlp> Mlp::Create(const MlpShape& shape, uint64_t seed) {
     // The initial weights come from LibTorch's process-wide generator: seeding it and drawing
     // them must not interleave with another thread's, or networks created at once (the demo
     // trains independent ones side by side) would depend on the threads' timing.
-    static std::mutex global_generator_mutex;
-    std::lock_guard<std::mutex> lock(global_generator_mutex);
+    std::lock_guard<std::mutex> lock(GlobalGeneratorMutex());
     torch::manual_seed(seed);
     model.impl_->net = Net(shape);
   }
   model.impl_->net->eval();
   return model;
+}
+
+Mlp Mlp::Clone() const {
+  FACEDYN_CHECK(valid(), "Clone() on an empty Mlp");
+  Mlp copy;
+  copy.impl_ = std::make_unique<Impl>();
+  copy.impl_->shape = impl_->shape;
+  {
+    // Constructing draws initial weights from the global generator (overwritten below): under
+    // the same lock as Create, so a clone never shifts a concurrent Create's draws.
+    std::lock_guard<std::mutex> lock(GlobalGeneratorMutex());
+    copy.impl_->net = Net(impl_->shape);
+  }
+  torch::NoGradGuard no_grad;
+  auto source_parameters = impl_->net->named_parameters(/*recurse=*/true);
+  for (auto& entry : copy.impl_->net->named_parameters(/*recurse=*/true)) {
+    entry.value().copy_(source_parameters[entry.key()]);
+  }
+  auto source_buffers = impl_->net->named_buffers(/*recurse=*/true);
+  for (auto& entry : copy.impl_->net->named_buffers(/*recurse=*/true)) {
+    entry.value().copy_(source_buffers[entry.key()]);
+  }
+  copy.impl_->net->eval();
+  return copy;
 }
 
 const MlpShape& Mlp::shape() const {

@@ -98,6 +98,8 @@ class Mlp {
 
   bool valid() const { return impl_ != nullptr; }
   const MlpShape& shape() const;
+  // A deep copy (weights, normalisation), to train on while keeping the original.
+  Mlp Clone() const;
 
   // Raw inputs (input_size x N, column per row) -> raw outputs (output_size x N).
   // Precondition: inputs.rows() == shape().input_size.

@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -146,6 +147,38 @@ TEST(TrainJoint, TheCycleOnPerformancesTeachesFToIgnoreTheExpressionsMotion) {
   EXPECT_GT(summary.performance_frames, 0);
   EXPECT_GT(summary.performance_validation_frames, 0);
   EXPECT_EQ(summary.joint.pair_validation_loss.size(), 3u);
+
+  // Step 3 alone on the pair trained separately (TrainRemoval, then TrainSynthesis on its
+  // decomposition) is TrainJoint: the same networks at the end.
+  std::vector<Take> decomposed;
+  for (const TrainingTake& take : held) {
+    decomposed.push_back(RemoveDynamics(alone, *take.take, rig).value());
+  }
+  const SynthesisModel h_alone =
+      TrainSynthesis({{&decomposed[0], &rig}, {&decomposed[1], &rig}}, options.synthesis).value();
+  JointTrainSummary tuned_summary;
+  const StatusOr<JointModels> tuned = FineTuneJoint(held, {{&performance, &rig}}, alone.Clone(),
+                                                    h_alone.Clone(), options, &tuned_summary);
+  ASSERT_TRUE(tuned.ok()) << tuned.status().message();
+  const std::vector<float> joint_f = joint->removal.FlatParameters();
+  const std::vector<float> tuned_f = tuned->removal.FlatParameters();
+  ASSERT_EQ(joint_f.size(), tuned_f.size());
+  double largest = 0;
+  for (size_t k = 0; k < joint_f.size(); ++k) {
+    largest = std::max(largest, static_cast<double>(std::abs(joint_f[k] - tuned_f[k])));
+  }
+  EXPECT_LT(largest, 1e-6);
+  EXPECT_EQ(tuned_summary.performance_frames, summary.performance_frames);
+  EXPECT_TRUE(tuned_summary.removal.train_loss.empty());
+
+  // A given F whose inputs are not the rows' layout is refused, naming both.
+  RemovalConfig narrow = alone.config();
+  narrow.features.window_s = 0.04;
+  const RemovalModel other = RemovalModel::Create(narrow, 1).value();
+  EXPECT_THAT(FineTuneJoint(held, {{&performance, &rig}}, other.Clone(), h_alone.Clone(), options)
+                  .status()
+                  .message(),
+              HasSubstr("the given F has"));
 }
 
 TEST(TrainJoint, RefusesMissingTakesAndPerformancesWithTargetsOrWeights) {

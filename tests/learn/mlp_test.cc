@@ -317,6 +317,24 @@ TEST(Mlp, LinearSkipStartsAsThePlainNetworkAndRoundTrips) {
   EXPECT_NE(skip.Predict(inputs), plain.Predict(inputs));  // training changed it
 }
 
+TEST(Mlp, CloneIsADeepCopy) {
+  MlpShape shape = SmallShape();
+  shape.linear_skip = true;
+  Mlp original = Mlp::Create(shape, 7).value();
+  const LinearDataset data(500);
+  ASSERT_TRUE(TrainMlp(data, AllRows(data), {}, QuietOptions(2), &original, nullptr).ok());
+  const Eigen::MatrixXf inputs = Eigen::MatrixXf::Random(4, 16) * 10.0f;
+  const Eigen::MatrixXf before = original.Predict(inputs);
+  Mlp copy = original.Clone();
+  EXPECT_EQ(copy.FlatParameters(), original.FlatParameters());  // normalisation included
+  EXPECT_EQ(copy.Predict(inputs), before);
+  EXPECT_TRUE(copy.shape().linear_skip);
+  // Training the copy leaves the original as it was.
+  ASSERT_TRUE(TrainMlp(data, AllRows(data), {}, QuietOptions(2), &copy, nullptr).ok());
+  EXPECT_NE(copy.Predict(inputs), before);
+  EXPECT_EQ(original.Predict(inputs), before);
+}
+
 // y = A x + 3 e^2 for three main inputs x and one extra input e (which joins hidden layer 2).
 class ExtraInputDataset final : public ColumnsDataset {
  public:

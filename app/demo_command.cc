@@ -56,6 +56,12 @@ struct DemoOptions {
   std::vector<uint64_t> seeds = {1};
   // The modal models' ridge rule (dynamics::ParseRidgeRule).
   std::string modal_ridge_rule = "minimum";
+  // Joint F/H training (DemoDynamicsOptions::training_performance_hz): subject A also performs
+  // speech at the first and last training frequency, and F_joint and H_joint are scored
+  // beside F and H.
+  bool joint_training = false;
+  int joint_steps = DemoDynamicsOptions().joint_steps;
+  double cycle_weight = DemoDynamicsOptions().joint_cycle_weight;
 };
 
 // Distinct seeds, at least one. Names the flag.
@@ -246,6 +252,12 @@ Status RunDemo(const DemoOptions& options) {
   FACEDYN_ASSIGN_OR_RETURN(dynamics_options.modal_ridge_rule,
                            dynamics::ParseRidgeRule(options.modal_ridge_rule));
   dynamics_options.seed = options.seeds.front();
+  if (options.joint_training) {
+    dynamics_options.training_performance_hz = {dynamics_options.train_hz.front(),
+                                                dynamics_options.train_hz.back()};
+  }
+  dynamics_options.joint_steps = options.joint_steps;
+  dynamics_options.joint_cycle_weight = options.cycle_weight;
   FACEDYN_RETURN_IF_ERROR(RunDemoDynamicsStage(
       face, cameras, simulated, reconstructed, dynamics_options, options.out_dir,
       &study_artifacts.removal_model, &dynamics_metrics, &artifacts));
@@ -356,6 +368,20 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected) {
                    "minimum (the least error) or one-standard-error (the largest ridge within "
                    "one standard error of it)")
       ->check(CLI::IsMember(dynamics::RidgeRuleNames()))
+      ->capture_default_str();
+  command->add_flag("--joint-training", options->joint_training,
+                    "Also film subject A performing speech at the first and last training "
+                    "frequency, fine-tune F and H together with the cycle loss on those "
+                    "performances (no target read) and score F_joint and H_joint beside F and H");
+  command
+      ->add_option("--joint-steps", options->joint_steps,
+                   "Adam steps of the joint fine-tuning (with --joint-training)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  command
+      ->add_option("--cycle-weight", options->cycle_weight,
+                   "Weight of the cycle loss against F's and H's own (with --joint-training)")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   command->callback([options, selected] { *selected = [options] { return RunDemo(*options); }; });
 }

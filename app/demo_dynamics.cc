@@ -20,6 +20,7 @@
 #include "core/parallel_for.h"
 #include "dynamics/baselines.h"
 #include "dynamics/features.h"
+#include "dynamics/joint_training.h"
 #include "dynamics/modal_synthesis.h"
 #include "dynamics/quasistatic.h"
 #include "learn/mlp.h"
@@ -246,14 +247,10 @@ Status RunSideBySide(const std::vector<std::function<Status()>>& jobs) {
                      [&](int index) { return jobs[index](); });
 }
 
-// F on reconstructed takes, with targets a capture has (moving average, platform-synchronous).
-StatusOr<dynamics::RemovalModel> TrainF(const std::vector<Take>& takes, const FaceRig& face,
-                                        dynamics::RemovalTargets targets, int epochs, int batch,
-                                        uint64_t seed, const std::string& label,
-                                        learn::MlpTrainSummary* summary, bool show_progress,
-                                        long optimizer_steps = 0) {
-  std::vector<dynamics::TrainingTake> training;
-  for (const Take& take : takes) training.push_back({&take, &face});
+// F's options in the demo (TrainF's, and the joint training's rows of F).
+dynamics::RemovalTrainOptions FOptions(dynamics::RemovalTargets targets, int epochs, int batch,
+                                       uint64_t seed, const std::string& label,
+                                       bool show_progress, long optimizer_steps = 0) {
   dynamics::RemovalTrainOptions options;
   options.targets = targets;
   options.train.epochs = epochs;
@@ -263,6 +260,31 @@ StatusOr<dynamics::RemovalModel> TrainF(const std::vector<Take>& takes, const Fa
   options.train.final_learning_rate_fraction = 0.05;
   options.train.progress_label = label;
   options.train.show_progress = show_progress;
+  return options;
+}
+
+// H's options in the demo (TrainH's, and the joint training's rows of H).
+dynamics::SynthesisTrainOptions HOptions(int epochs, uint64_t seed, const std::string& label,
+                                         bool show_progress) {
+  dynamics::SynthesisTrainOptions options;
+  options.train.epochs = epochs;
+  options.train.seed = seed;
+  options.train.final_learning_rate_fraction = 0.05;
+  options.train.progress_label = label;
+  options.train.show_progress = show_progress;
+  return options;
+}
+
+// F on reconstructed takes, with targets a capture has (moving average, platform-synchronous).
+StatusOr<dynamics::RemovalModel> TrainF(const std::vector<Take>& takes, const FaceRig& face,
+                                        dynamics::RemovalTargets targets, int epochs, int batch,
+                                        uint64_t seed, const std::string& label,
+                                        learn::MlpTrainSummary* summary, bool show_progress,
+                                        long optimizer_steps = 0) {
+  std::vector<dynamics::TrainingTake> training;
+  for (const Take& take : takes) training.push_back({&take, &face});
+  dynamics::RemovalTrainOptions options =
+      FOptions(targets, epochs, batch, seed, label, show_progress, optimizer_steps);
   spdlog::info("training {} on {} reconstructed takes ({} epochs, {} targets)", label, takes.size(),
                epochs, dynamics::RemovalTargetsName(targets));
   StatusOr<dynamics::RemovalModel> model = dynamics::TrainRemoval(training, options, summary);
@@ -277,12 +299,7 @@ StatusOr<dynamics::SynthesisModel> TrainH(const std::vector<Take>& decomposed, c
                                           bool show_progress) {
   std::vector<dynamics::TrainingTake> training;
   for (const Take& take : decomposed) training.push_back({&take, &face});
-  dynamics::SynthesisTrainOptions options;
-  options.train.epochs = epochs;
-  options.train.seed = seed;
-  options.train.final_learning_rate_fraction = 0.05;
-  options.train.progress_label = label;
-  options.train.show_progress = show_progress;
+  const dynamics::SynthesisTrainOptions options = HOptions(epochs, seed, label, show_progress);
   spdlog::info("training {} on {} takes decomposed by F ({} epochs)", label, decomposed.size(),
                epochs);
   StatusOr<dynamics::SynthesisModel> model = dynamics::TrainSynthesis(training, options, summary);
@@ -409,6 +426,22 @@ Status DemoDynamicsOptions::Check() const {
   if (!(second_subject_damping_ratio > 0 && second_subject_damping_ratio <= 1)) {
     return InvalidArgumentError("second_subject_damping_ratio must be in (0, 1]");
   }
+  for (double hz : training_performance_hz) {
+    if (std::none_of(train_hz.begin(), train_hz.end(),
+                     [&](double train) { return std::abs(train - hz) < 1e-9; })) {
+      return InvalidArgumentError(fmt::format(
+          "training_performance_hz: {} Hz is not a training frequency (train_hz); a performance "
+          "at another frequency would show the cycle a platform motion F never trained on",
+          hz));
+    }
+  }
+  if (!training_performance_hz.empty() && training_performance_expression.empty()) {
+    return InvalidArgumentError("training_performance_expression: empty");
+  }
+  if (joint_steps < 1) return InvalidArgumentError("joint_steps must be >= 1");
+  if (!(std::isfinite(joint_cycle_weight) && joint_cycle_weight >= 0)) {
+    return InvalidArgumentError("joint_cycle_weight must be finite and >= 0");
+  }
   return Status::Ok();
 }
 
@@ -467,16 +500,31 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   const std::vector<TakeSpec> specs_b =
       TrainingSpecs(options.second_subject_hz, options.second_subject_expressions,
                     options.training_walk_step_hz, &seed);
-  const int total = static_cast<int>(specs_a.size() + specs_b.size());
+  // A's training performances for the joint training: seeds after B's, so the other takes are
+  // those of a run without them.
+  std::vector<TakeSpec> specs_performances;
+  for (double hz : options.training_performance_hz) {
+    specs_performances.push_back({TakeName(options.training_performance_expression, hz),
+                                  options.training_performance_expression,
+                                  PlatformMotion(hz, ++seed), hz});
+  }
+  const int total =
+      static_cast<int>(specs_a.size() + specs_b.size() + specs_performances.size());
   std::printf("\nDynamics on reconstructed takes: %d takes to simulate and reconstruct\n", total);
   int done = 0;
-  SubjectTakes a, b;
+  SubjectTakes a, b, a_performances;
   FACEDYN_RETURN_IF_ERROR(SimulateAndReconstruct(face, cameras, specs_a, options.seconds, tissue_a,
                                                  "A", &done, total, &a));
   FACEDYN_RETURN_IF_ERROR(SimulateAndReconstruct(face_b, cameras, specs_b, options.seconds,
                                                  tissue_b, "B", &done, total, &b));
+  if (!specs_performances.empty()) {
+    FACEDYN_RETURN_IF_ERROR(SimulateAndReconstruct(face, cameras, specs_performances,
+                                                   options.seconds, tissue_a, "A", &done, total,
+                                                   &a_performances));
+  }
   Json reconstruction = a.reconstruction;
   for (const Json& entry : b.reconstruction) reconstruction.push_back(entry);
+  for (const Json& entry : a_performances.reconstruction) reconstruction.push_back(entry);
   const double data_s = SecondsSince(data_start);
 
   // The held-out walk: section 2 films subject A walking it, section 4 has subject B walk it for
@@ -627,20 +675,17 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
 
   Take removed;
   std::vector<Take> modal_storage;
-  Json test_removal;
+  std::vector<eval::NamedRemoval> test_others;  // the modal removals of the held-out take
+  double test_cutoff_hz = 0.0;
+  // The modal model's fit and its removals of the held-out take (F's scoring follows once the
+  // joint training, when there is one, has F_joint to score beside it).
   auto score_test_take = [&]() -> Status {
     FACEDYN_ASSIGN_OR_RETURN(
         modal_trained,
         TrainModal(a.reconstructed, face, options.seed, options.modal_ridge_rule, "modal_A",
                    &training["modal_A"]));
-    double cutoff_hz = 0.0;
-    FACEDYN_ASSIGN_OR_RETURN(const std::vector<eval::NamedRemoval> others,
-                             modal_removals(test_reconstructed, &modal_storage, &cutoff_hz));
-    FACEDYN_ASSIGN_OR_RETURN(test_removal,
-                             eval::CompareRemovalOnReconstruction(
-                                 f_model, reference_removal, test_name, test_simulated,
-                                 test_reconstructed, face, skip, &removed, others));
-    test_removal["methods"]["modal_lowpass"]["cutoff_hz"] = Round4(cutoff_hz);
+    FACEDYN_ASSIGN_OR_RETURN(test_others,
+                             modal_removals(test_reconstructed, &modal_storage, &test_cutoff_hz));
     return Status::Ok();
   };
 
@@ -692,6 +737,66 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   const dynamics::ModalSynthesisModel& modal_a = *modal_trained;
   const dynamics::SynthesisModel& h_model = *h_trained;
   training["H"] = TrainingJson(h_summary, options.synthesis_epochs);
+
+  // F and H fine-tuned together with the cycle on A's training performances (no target read),
+  // from the F and H above, which stay as they are for comparison.
+  std::optional<dynamics::JointModels> joint;
+  if (!a_performances.reconstructed.empty()) {
+    std::vector<dynamics::TrainingTake> held, performances;
+    for (const Take& take : a.reconstructed) held.push_back({&take, &face});
+    for (const Take& take : a_performances.reconstructed) performances.push_back({&take, &face});
+    dynamics::JointTrainOptions joint_options;
+    joint_options.removal = FOptions(options.removal_targets, options.removal_epochs,
+                                     options.removal_batch, options.seed, "F", false);
+    joint_options.synthesis = HOptions(options.synthesis_epochs, options.seed, "H", false);
+    joint_options.joint.steps = options.joint_steps;
+    joint_options.joint.pair_weight = options.joint_cycle_weight;
+    joint_options.joint.first_batch = options.removal_batch;
+    joint_options.joint.second_batch = joint_options.synthesis.train.batch_size;
+    joint_options.joint.seed = options.seed;
+    joint_options.joint.progress_label = "F+H joint";
+    spdlog::info(
+        "training F_joint and H_joint: F and H fine-tuned together, the cycle on {} training "
+        "performances ({} steps, cycle weight {:g})",
+        performances.size(), options.joint_steps, options.joint_cycle_weight);
+    dynamics::JointTrainSummary joint_summary;
+    FACEDYN_ASSIGN_OR_RETURN(joint, dynamics::FineTuneJoint(held, performances, f_model.Clone(),
+                                                            h_model.Clone(), joint_options,
+                                                            &joint_summary));
+    FACEDYN_RETURN_IF_ERROR(joint->removal.Save(JoinPath(models_dir, "F_joint.pt")));
+    FACEDYN_RETURN_IF_ERROR(joint->synthesis.Save(JoinPath(models_dir, "H_joint.pt")));
+    const learn::MlpPairTrainSummary& pair = joint_summary.joint;
+    auto last = [](const std::vector<double>& v) { return v.empty() ? 0.0 : v.back(); };
+    training["joint"] = {
+        {"from", "F and H above, fine-tuned together (dynamics::FineTuneJoint)"},
+        {"performances", a_performances.names},
+        {"performance_frames", joint_summary.performance_frames},
+        {"performance_validation_frames", joint_summary.performance_validation_frames},
+        {"steps", options.joint_steps},
+        {"cycle_weight", options.joint_cycle_weight},
+        {"learning_rate", joint_options.joint.learning_rate},
+        {"final_f_loss", last(pair.first_loss)},
+        {"final_h_loss", last(pair.second_loss)},
+        {"final_cycle_loss", last(pair.pair_loss)},
+        {"final_cycle_validation_loss", last(pair.pair_validation_loss)},
+        {"train_s", Round4(pair.train_s)}};
+  }
+  // F_joint's removal of a take, appended to `others` (its take kept in *storage).
+  auto add_joint_removal = [&](const Take& reconstructed, Take* storage,
+                               std::vector<eval::NamedRemoval>* others) -> Status {
+    if (!joint) return Status::Ok();
+    FACEDYN_ASSIGN_OR_RETURN(*storage,
+                             dynamics::RemoveDynamics(joint->removal, reconstructed, face));
+    others->push_back({"F_joint", storage});
+    return Status::Ok();
+  };
+  Take joint_removed_test, joint_removed_extra;
+  FACEDYN_RETURN_IF_ERROR(add_joint_removal(test_reconstructed, &joint_removed_test, &test_others));
+  FACEDYN_ASSIGN_OR_RETURN(Json test_removal,
+                           eval::CompareRemovalOnReconstruction(
+                               f_model, reference_removal, test_name, test_simulated,
+                               test_reconstructed, face, skip, &removed, test_others));
+  test_removal["methods"]["modal_lowpass"]["cutoff_hz"] = Round4(test_cutoff_hz);
   result["removal"] = std::move(test_removal);
   result["removal"]["F_targets"] = dynamics::RemovalTargetsName(options.removal_targets);
   // A copy: Json is an ordered_json, whose objects are vectors that move on insertion.
@@ -699,8 +804,10 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   for (size_t i = 0; i < extra_specs.size(); ++i) {
     reconstruction.push_back(extra.reconstruction[i]);
     double cutoff_hz = 0.0;
-    FACEDYN_ASSIGN_OR_RETURN(const std::vector<eval::NamedRemoval> others,
+    FACEDYN_ASSIGN_OR_RETURN(std::vector<eval::NamedRemoval> others,
                              modal_removals(extra.reconstructed[i], &modal_storage, &cutoff_hz));
+    FACEDYN_RETURN_IF_ERROR(
+        add_joint_removal(extra.reconstructed[i], &joint_removed_extra, &others));
     FACEDYN_ASSIGN_OR_RETURN(
         result[extra_sections[i]],
         eval::CompareRemovalOnReconstruction(f_model, reference_removal, extra_specs[i].name,
@@ -711,6 +818,8 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   // Fig. 7: remove with F, then resynthesise with the take's own head motion, by H and by the
   // modal model (F's quasistatic plus the offsets A's skull motion predicts; not the identity
   // that the modal model's own removal undone by its own synthesis would be).
+  // With the joint training, also F_joint's removal resynthesised by H_joint: the pair trained
+  // for exactly this agreement.
   auto resynthesise = [&](const std::string& name, const Take& simulated,
                           const Take& reconstructed, const Take& removed_take,
                           Take* by_h) -> StatusOr<Json> {  // by_h: H's take, when wanted
@@ -730,6 +839,21 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
                                                                         skip));
     figures["modal_resynthesis_residual_mm"] = modal["resynthesis_residual_mm"];
     figures["modal_relative_to_offset"] = modal["relative_to_offset"];
+    if (joint) {
+      FACEDYN_ASSIGN_OR_RETURN(const Take joint_removed,
+                               dynamics::RemoveDynamics(joint->removal, reconstructed, face));
+      FACEDYN_ASSIGN_OR_RETURN(
+          const Take joint_take,
+          dynamics::SynthesizeDynamics(joint->synthesis, joint_removed,
+                                       reconstructed.world_from_skull, reconstructed.info.motion,
+                                       face));
+      FACEDYN_ASSIGN_OR_RETURN(const Json by_joint,
+                               eval::ResynthesisFigures(name, simulated, reconstructed,
+                                                        joint_removed, joint_take, skip));
+      figures["H_joint_resynthesis_residual_mm"] = by_joint["resynthesis_residual_mm"];
+      figures["H_joint_relative_to_offset"] = by_joint["relative_to_offset"];
+      figures["F_joint_removed_without_synthesis_mm"] = by_joint["removed_without_synthesis_mm"];
+    }
     return figures;
   };
   auto print_resynthesis = [](const Json& figures) {
@@ -739,7 +863,10 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
          {std::pair<const char*, const char*>{"remove+resynthesise by H, residual",
                                               "resynthesis_residual_mm"},
           {"remove+resynthesise by the modal model, residual", "modal_resynthesis_residual_mm"},
-          {"removed, not resynthesised", "removed_without_synthesis_mm"}}) {
+          {"removed, not resynthesised", "removed_without_synthesis_mm"},
+          {"F_joint removes, H_joint resynthesises, residual",
+           "H_joint_resynthesis_residual_mm"}}) {
+      if (!figures.contains(key)) continue;
       const double mm = figures[key].get<double>();
       eval::PrintMethodRow(take, label, mm, offset_mm > 0 ? mm / offset_mm : 0.0);
     }
@@ -887,6 +1014,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
       {"seconds_per_take", options.seconds},
       {"subset_epochs", options.subset_epochs},
       {"training_takes", a.reconstructed.size()},
+      {"training_performances", a_performances.names},
       {"second_subject_hz", options.second_subject_hz},
       {"second_subject_expressions", options.second_subject_expressions},
       {"removal_epochs", options.removal_epochs},

@@ -81,6 +81,15 @@ struct DemoDynamicsOptions {
   int second_subject_removal_epochs = 10;
   // Paper Fig. 5: F also trained on the first 1 .. n-1 training frequencies (0: skip).
   int subset_epochs = 3;
+  // Joint F/H training with the cycle loss (dynamics/joint_training.h; issue 20): subject A
+  // also performs `training_performance_expression` on the platform at these frequencies
+  // (each a training frequency; filmed and reconstructed like every take, and read without a
+  // target), and F_joint and H_joint are F and H fine-tuned together with the cycle on them.
+  // Scored beside F and H on every held-out take. Empty: no joint training.
+  std::vector<double> training_performance_hz;
+  std::string training_performance_expression = "speech";
+  int joint_steps = 2000;           // dynamics::JointTrainOptions::joint.steps
+  double joint_cycle_weight = 1.0;  // joint.pair_weight (chosen on dynamics_bench's validation)
   // How both subjects' modal models choose their ridge (dynamics/modal_synthesis.h).
   dynamics::RidgeRule modal_ridge_rule = dynamics::RidgeRule::kMinimum;
   uint64_t seed = 1;
@@ -97,7 +106,9 @@ struct DemoDynamicsOptions {
   static DemoDynamicsOptions ForDemo(bool quick);
   // At least two training frequencies in 0.5..30, at least one expression, the second subject's
   // first expression "neutral", seconds and walk_seconds >= 1, epochs >= 1 (subset_epochs
-  // >= 0), scales in [0.7, 1.3], fundamental in 3..30 Hz, damping in (0, 1]. Names the field.
+  // >= 0), scales in [0.7, 1.3], fundamental in 3..30 Hz, damping in (0, 1], training
+  // performances at training frequencies with an expression named, joint_steps >= 1 and the
+  // cycle weight finite and >= 0. Names the field.
   Status Check() const;
 };
 

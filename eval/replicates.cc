@@ -164,6 +164,9 @@ Json SummariseDemoReplicates(const std::vector<Json>& stages, const std::vector<
         if (r.contains("modal_resynthesis_residual_mm"))
           values.emplace_back("modal_resynthesis_residual",
                               Number(r, "modal_resynthesis_residual_mm"));
+        if (r.contains("H_joint_resynthesis_residual_mm"))  // the demo's --joint-training
+          values.emplace_back("H_joint_resynthesis_residual",
+                              Number(r, "H_joint_resynthesis_residual_mm"));
         values.emplace_back("removed_without_synthesis", Number(r, "removed_without_synthesis_mm"));
         figures.push_back(Entry(
             take,

@@ -378,6 +378,10 @@ std::string DynamicsSection(const Json& dynamics) {
         bars.emplace_back("modal resynthesis residual",
                           Number(resynthesis, "modal_resynthesis_residual_mm"));
       }
+      if (resynthesis.contains("H_joint_resynthesis_residual_mm")) {  // --joint-training
+        bars.emplace_back("F_joint then H_joint residual",
+                          Number(resynthesis, "H_joint_resynthesis_residual_mm"));
+      }
       bars.emplace_back("removed, not resynthesised",
                         Number(resynthesis, "removed_without_synthesis_mm"));
       bars.emplace_back("true dynamic offset", Number(resynthesis, "mean_dynamic_offset_mm"));

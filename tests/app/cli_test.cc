@@ -1,5 +1,6 @@
 // End-to-end tests of the `facedyn` executable: exit codes, messages and files on disk.
 
+#include <fmt/format.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -25,13 +26,16 @@ using ::testing::HasSubstr;
 
 std::string Facedyn(const std::string& args) { return FacedynExecutable() + " " + args; }
 
-// Runs `facedyn demo --quick` once for the whole suite (it simulates a face, which takes a
-// few seconds) and returns the folder of its small rigid take; tests copy what they modify.
+// Runs `facedyn demo --quick --joint-training` once for the whole suite (it simulates a face, which
+// takes a few seconds) and returns the folder of its small rigid take; tests copy what they modify.
 const TempDir& DemoDir() {
   static const TempDir* dir = [] {
     auto* d = new TempDir();
     std::string out;
-    const int rc = RunCommand(Facedyn("--quiet demo --quick --out " + d->Join("demo")), &out);
+    // With the joint F/H training (a short one: its wiring, not its figures, is tested here).
+    const int rc = RunCommand(
+        Facedyn("--quiet demo --quick --joint-training --joint-steps 100 --out " + d->Join("demo")),
+        &out);
     EXPECT_EQ(rc, 0) << out;
     return d;
   }();
@@ -144,9 +148,15 @@ TEST(Cli, DemoMetricsAndReport) {
         "removal_by_training_frequencies", "synthesis", "retarget", "training"}) {
     ASSERT_TRUE(dynamics.contains(section)) << section;
   }
+  // A's training performances (--joint-training: speech at the first and last training
+  // frequency), then the held-out performance and walk.
+  const auto& train_hz = dynamics["setup"]["train_hz"];
+  ASSERT_EQ(dynamics["setup"]["training_performances"],
+            nlohmann::json::array({fmt::format("speech@{:g}Hz", train_hz.front().get<double>()),
+                                   fmt::format("speech@{:g}Hz", train_hz.back().get<double>())}));
   EXPECT_EQ(dynamics["reconstruction"].size(),
             dynamics["setup"]["training_takes"].get<size_t>() +
-                dynamics["retarget"]["training_takes"].get<size_t>() + 2);  // + performance, walk
+                dynamics["retarget"]["training_takes"].get<size_t>() + 2 + 2);
   for (const auto& take : dynamics["reconstruction"]) {
     EXPECT_LT(take["sample_rms_mm"].get<double>(), 1.0) << take["take"];
   }
@@ -228,10 +238,28 @@ TEST(Cli, DemoMetricsAndReport) {
        {"H_B_retarget", "modal_B_retarget", "naive_delta_transfer", "no_dynamics"}) {
     EXPECT_TRUE(dynamics["retarget"]["methods"].contains(method)) << method;
   }
-  for (const char* model : {"F", "H", "F_B", "H_B", "modal_A", "modal_B"}) {
+  for (const char* model : {"F", "H", "F_B", "H_B", "modal_A", "modal_B", "joint"}) {
     EXPECT_TRUE(dynamics["training"].contains(model)) << model;
   }
-  for (const char* model : {"F.pt", "H.pt", "H_B.pt"}) {
+  // The joint training: its steps, its cycle on the training performances' frames, and F_joint
+  // scored on every held-out take beside F, and H_joint resynthesising F_joint's removals.
+  const auto& joint = dynamics["training"]["joint"];
+  EXPECT_EQ(joint["steps"].get<int>(), 100);
+  EXPECT_EQ(joint["performances"].size(), 2u);
+  EXPECT_GT(joint["performance_frames"].get<long>(), 0);
+  EXPECT_GT(joint["final_cycle_loss"].get<double>(), 0.0);
+  for (const char* section : {"removal", "removal_performance", "removal_walk"}) {
+    const auto& scored = dynamics[section]["methods"];
+    ASSERT_TRUE(scored.contains("F_joint")) << section;
+    EXPECT_GT(scored["F_joint"]["jiggle_mean_mm"].get<double>(), 0.0) << section;
+  }
+  for (const char* fig : {"resynthesis", "resynthesis_performance"}) {
+    ASSERT_TRUE(synthesis[fig].contains("H_joint_resynthesis_residual_mm")) << fig;
+    EXPECT_LT(synthesis[fig]["H_joint_resynthesis_residual_mm"].get<double>(),
+              synthesis[fig]["F_joint_removed_without_synthesis_mm"].get<double>())
+        << fig;
+  }
+  for (const char* model : {"F.pt", "H.pt", "H_B.pt", "F_joint.pt", "H_joint.pt"}) {
     EXPECT_TRUE(std::filesystem::exists(DemoDir().Join(std::string("demo/models/") + model)))
         << model;
   }
@@ -253,7 +281,8 @@ TEST(Cli, DemoMetricsAndReport) {
   for (const char* figure :
        {"Platform frequency during the sweep", "Reprojection RMS per camera", "never trained on",
         "paper Fig. 5", "paper Fig. 7", "New head motion", "retargeting to a second subject",
-        "Time per stage", "Removal from a performance", "Removal from a new head motion"}) {
+        "Time per stage", "Removal from a performance", "Removal from a new head motion",
+        "F_joint then H_joint residual"}) {
     EXPECT_THAT(report, HasSubstr(figure));
   }
   // Self-contained: nothing is loaded from elsewhere (the SVG namespace URI is not a fetch).
@@ -579,6 +608,23 @@ TEST(Cli, DemoRefusesUnknownRemovalTargets) {
       RunCommand(Facedyn("demo --quick --removal-targets exact --out " + dir.Join("d")), &out), 0);
   EXPECT_THAT(out, HasSubstr("--removal-targets"));
   EXPECT_FALSE(std::filesystem::exists(dir.Join("d/metrics.json")));
+}
+
+// The joint training's options are checked before any stage runs.
+TEST(Cli, DemoRefusesBadJointTrainingOptions) {
+  TempDir dir;
+  std::string out;
+  EXPECT_NE(
+      RunCommand(Facedyn("demo --quick --joint-training --joint-steps 0 --out " + dir.Join("d")),
+                 &out),
+      0);
+  EXPECT_THAT(out, HasSubstr("--joint-steps"));
+  EXPECT_NE(
+      RunCommand(Facedyn("demo --quick --joint-training --cycle-weight -1 --out " + dir.Join("d")),
+                 &out),
+      0);
+  EXPECT_THAT(out, HasSubstr("--cycle-weight"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("d")));
 }
 
 // --seeds: a repeated seed or one that is not a number is refused before any stage runs.

@@ -351,8 +351,16 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected) {
       ->add_option("--removal-targets", options->removal_targets,
                    "Targets of the removal network on the reconstructed takes: "
                    "platform-synchronous-where-known (platform takes fitted at their recorded "
-                   "frequency, walks moving-average) or moving-average (the paper's Eq. 5-6)")
-      ->check(CLI::IsMember({"platform-synchronous-where-known", "moving-average"}))
+                   "frequency, walks moving-average), moving-average (the paper's Eq. 5-6), "
+                   "held-mean (each take's mean shape in the skull frame "
+                   "over its held frames) or platform-synchronous-else-held-mean (platform takes "
+                   "fitted, walks held-mean)")
+      ->check(CLI::IsMember([] {
+        // Not platform-synchronous alone: the demo's training walks record no platform frequency.
+        std::vector<std::string> names = dynamics::RemovalTargetsNames(/*include_exact=*/false);
+        names.erase(std::remove(names.begin(), names.end(), "platform-synchronous"), names.end());
+        return names;
+      }()))
       ->capture_default_str();
   command
       ->add_option("--seeds", options->seeds,

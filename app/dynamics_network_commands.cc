@@ -131,10 +131,11 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       ->add_option("--targets", train_removal->targets,
                    "moving-average (Eq. 5-6, the paper), platform-synchronous (fit at each "
                    "take's recorded platform frequency), platform-synchronous-where-known "
-                   "(platform takes fitted, other head motion moving-average) or exact "
-                   "(simulated takes' quasistatic)")
-      ->check(CLI::IsMember(
-          {"moving-average", "platform-synchronous", "platform-synchronous-where-known", "exact"}))
+                   "(platform takes fitted, other head motion moving-average), held-mean (each "
+                   "take's mean shape in the skull frame over its held frames), "
+                   "platform-synchronous-else-held-mean (platform takes fitted, other head motion "
+                   "held-mean) or exact (simulated takes' quasistatic)")
+      ->check(CLI::IsMember(dynamics::RemovalTargetsNames(/*include_exact=*/true)))
       ->capture_default_str();
   train_removal_cmd
       ->add_option("--target-trend-degree", train_removal->options.target_trend_degree,
@@ -328,10 +329,10 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       ->required();
   train_joint_cmd
       ->add_option("--targets", train_joint->targets,
-                   "F's targets on the held takes: moving-average, platform-synchronous or "
-                   "platform-synchronous-where-known (never the simulator's exact ones here)")
-      ->check(CLI::IsMember(
-          {"moving-average", "platform-synchronous", "platform-synchronous-where-known"}))
+                   "F's targets on the held takes: moving-average, platform-synchronous, "
+                   "platform-synchronous-where-known, held-mean or "
+                   "platform-synchronous-else-held-mean (never the simulator's exact ones here)")
+      ->check(CLI::IsMember(dynamics::RemovalTargetsNames(/*include_exact=*/false)))
       ->capture_default_str();
   train_joint_cmd->add_option("--epochs", train_joint->options.removal.train.epochs, "F's epochs")
       ->capture_default_str();

@@ -98,21 +98,43 @@ const char* RemovalTargetsName(RemovalTargets targets) {
       return "platform-synchronous";
     case RemovalTargets::kPlatformSynchronousWhereKnown:
       return "platform-synchronous-where-known";
+    case RemovalTargets::kHeldMean:
+      return "held-mean";
+    case RemovalTargets::kPlatformSynchronousElseHeldMean:
+      return "platform-synchronous-else-held-mean";
     case RemovalTargets::kMovingAverage:
       break;
   }
   return "moving-average";
 }
 
+namespace {
+constexpr RemovalTargets kAllRemovalTargets[] = {RemovalTargets::kMovingAverage,
+                                                 RemovalTargets::kExact,
+                                                 RemovalTargets::kPlatformSynchronous,
+                                                 RemovalTargets::kPlatformSynchronousWhereKnown,
+                                                 RemovalTargets::kHeldMean,
+                                                 RemovalTargets::kPlatformSynchronousElseHeldMean};
+}  // namespace
+
+std::vector<std::string> RemovalTargetsNames(bool include_exact) {
+  std::vector<std::string> names;
+  for (RemovalTargets targets : kAllRemovalTargets) {
+    if (targets != RemovalTargets::kExact || include_exact) {
+      names.push_back(RemovalTargetsName(targets));
+    }
+  }
+  return names;
+}
+
 StatusOr<RemovalTargets> ParseRemovalTargets(const std::string& name) {
-  for (RemovalTargets targets :
-       {RemovalTargets::kMovingAverage, RemovalTargets::kExact,
-        RemovalTargets::kPlatformSynchronous, RemovalTargets::kPlatformSynchronousWhereKnown}) {
+  for (RemovalTargets targets : kAllRemovalTargets) {
     if (name == RemovalTargetsName(targets)) return targets;
   }
-  return InvalidArgumentError("targets: unknown \"" + name +
-                              "\" (moving-average, platform-synchronous, "
-                              "platform-synchronous-where-known or exact)");
+  std::string known;
+  for (const std::string& one : RemovalTargetsNames(true))
+    known += (known.empty() ? "" : ", ") + one;
+  return InvalidArgumentError("targets: unknown \"" + name + "\" (" + known + ")");
 }
 
 RemovalConfig RemovalConfig::ForRig(const FaceRig& rig, double fps) {
@@ -171,8 +193,9 @@ Status RemovalTrainOptions::Check() const {
                                 std::to_string(target_min_periods));
   }
   // A trend asked for with targets that never use the fit would be silently ignored.
-  if (target_trend_degree != 0 && (targets == RemovalTargets::kMovingAverage ||
-                                   targets == RemovalTargets::kExact)) {
+  if (target_trend_degree != 0 &&
+      (targets == RemovalTargets::kMovingAverage || targets == RemovalTargets::kExact ||
+       targets == RemovalTargets::kHeldMean)) {
     return InvalidArgumentError(std::string("target_trend_degree applies to platform-synchronous "
                                             "targets only, not ") +
                                 RemovalTargetsName(targets));
@@ -256,11 +279,16 @@ StatusOr<RemovalTrainingData> BuildRemovalTrainingData(const std::vector<Trainin
       }
       QuasistaticOptions quasistatic;
       quasistatic.window_s = options.window_s;
+      const bool platform_fit_if_known = kind == RemovalTargets::kPlatformSynchronousWhereKnown ||
+                                         kind == RemovalTargets::kPlatformSynchronousElseHeldMean;
       if (kind == RemovalTargets::kPlatformSynchronous ||
-          (kind == RemovalTargets::kPlatformSynchronousWhereKnown && take.info.platform_hz)) {
+          (platform_fit_if_known && take.info.platform_hz)) {
         quasistatic.method = QuasistaticMethod::kPlatformSynchronous;
         quasistatic.trend_degree = options.target_trend_degree;
         quasistatic.min_periods = options.target_min_periods;
+      } else if (kind == RemovalTargets::kHeldMean ||
+                 kind == RemovalTargets::kPlatformSynchronousElseHeldMean) {
+        quasistatic.method = QuasistaticMethod::kHeldMean;
       }
       FACEDYN_ASSIGN_OR_RETURN(Take estimate, ExtractQuasistatic(take, quasistatic));
       target_window = estimate.info.metadata.value("quasistatic_window_frames", 0);

@@ -103,12 +103,21 @@ enum class RemovalTargets {
   // (walks, runs): a capture session mixes both kinds, and the moving average is the only
   // estimate for head motion without a single known frequency.
   kPlatformSynchronousWhereKnown,
+  // Every take's held mean (quasistatic.h kHeldMean): the mean shape in the skull frame over
+  // the held frames, which is the quasistatic of a held expression under any head motion up to
+  // the jiggle's own mean over the take. Needs a held expression from hold_start_s to the end.
+  kHeldMean,
+  // kPlatformSynchronous on takes that record a platform frequency, kHeldMean on the others: a
+  // walk's or a run's steps are never spanned by the moving average's fixed window.
+  kPlatformSynchronousElseHeldMean,
 };
 
-// "moving-average", "exact", "platform-synchronous", "platform-synchronous-where-known"; and back
-// (InvalidArgument listing them).
+// "moving-average", "exact", "platform-synchronous", "platform-synchronous-where-known",
+// "held-mean", "platform-synchronous-else-held-mean"; and back (InvalidArgument listing them).
 const char* RemovalTargetsName(RemovalTargets targets);
 StatusOr<RemovalTargets> ParseRemovalTargets(const std::string& name);
+// Every name, in the order above; without "exact" for trainers of captured takes.
+std::vector<std::string> RemovalTargetsNames(bool include_exact);
 
 // One training take: the dynamic take and the rig that defines its landmarks and samples.
 struct TrainingTake {

@@ -230,6 +230,50 @@ TEST(TrainRemoval, LeavesOutTheOnsetWithHeldExpressionTargets) {
   EXPECT_THAT(TrainRemoval({{&take, &rig}}, options).status().message(), HasSubstr("held part"));
 }
 
+// Held-mean targets: each take's mean shape in the skull frame over its held frames, so the
+// target offsets are the true ones less their mean over the take, under any head motion; with
+// platform-synchronous-else-held-mean, a take without a platform frequency gets those, and one
+// with it the platform-synchronous fit.
+TEST(BuildRemovalTrainingData, HeldMeanTargetsAreTheOffsetsLessTheirMean) {
+  const FaceRig rig = TinyRig();
+  const int frames = 120;
+  const Take take = SyntheticTake(rig, frames, 128.0, 0.3);  // no hold start: all held
+  auto targets_of = [&](RemovalTargets kind, const Take& one) {
+    RemovalTrainOptions options = QuickOptions(1);
+    options.targets = kind;
+    options.validation_fraction = 0.0;
+    options.learn_propagation = false;
+    RemovalTrainingData data = BuildRemovalTrainingData({{&one, &rig}}, options).value();
+    Eigen::MatrixXf inputs, targets;
+    data.data->Gather(data.train_rows.data(), static_cast<long>(data.train_rows.size()), &inputs,
+                      &targets);
+    return targets;
+  };
+  const Eigen::MatrixXf exact = targets_of(RemovalTargets::kExact, take);
+  const Eigen::MatrixXf held_mean = targets_of(RemovalTargets::kHeldMean, take);
+  ASSERT_EQ(exact.cols(), held_mean.cols());
+  ASSERT_GT(exact.cols(), 0);
+  // The true offset is 0.004 s times landmark 0's velocity at every vertex (SyntheticTake).
+  const Eigen::MatrixXd velocity = SkullLandmarkVelocities(
+      take.world_from_skull, {rig.skull_landmarks[0].position_in_skull}, 128.0);
+  const Eigen::Vector3f mean_offset = (0.004 * velocity.rowwise().mean()).cast<float>();
+  ASSERT_GT(mean_offset.norm(), 1e-3);  // a mean to remove
+  EXPECT_LT((held_mean - (exact.colwise() - mean_offset)).cwiseAbs().maxCoeff(), 2e-4);
+  EXPECT_GT((held_mean - exact).cwiseAbs().maxCoeff(), 1e-3);
+
+  // The mixed kind: held mean without a platform frequency, the fit with one.
+  EXPECT_EQ(targets_of(RemovalTargets::kPlatformSynchronousElseHeldMean, take), held_mean);
+  Take platform = take;
+  platform.info.platform_hz = 11.0;
+  EXPECT_EQ(targets_of(RemovalTargets::kPlatformSynchronousElseHeldMean, platform),
+            targets_of(RemovalTargets::kPlatformSynchronous, platform));
+  EXPECT_EQ(ParseRemovalTargets("held-mean").value(), RemovalTargets::kHeldMean);
+  EXPECT_EQ(ParseRemovalTargets("platform-synchronous-else-held-mean").value(),
+            RemovalTargets::kPlatformSynchronousElseHeldMean);
+  EXPECT_THAT(ParseRemovalTargets("nope").status().message(), HasSubstr("held-mean"));
+  EXPECT_EQ(RemovalTargetsNames(false).size() + 1, RemovalTargetsNames(true).size());
+}
+
 // F carries a linear map of its inputs unless asked for the paper's network alone; the choice
 // is part of the saved model.
 TEST(TrainRemoval, LinearSkipByDefaultSavedWithTheModel) {

@@ -48,7 +48,7 @@ struct DemoOptions {
   std::string out_dir = "facedyn-demo";
   bool quick = false;
   // F's targets on the reconstructed takes (DemoDynamicsOptions::removal_targets).
-  std::string removal_targets = "platform-synchronous-where-known";
+  std::string removal_targets = "platform-synchronous-else-held-mean";
   // Seeds of the dynamics stage: the first is the demo's (renders, viewers, models); each further
   // seed runs the stage again (its own training takes, test performance and walk, and
   // initialisation) under <out>/replicates/seed-N, and the report compares methods by mean and
@@ -62,6 +62,7 @@ struct DemoOptions {
   bool joint_training = false;
   int joint_steps = DemoDynamicsOptions().joint_steps;
   double cycle_weight = DemoDynamicsOptions().joint_cycle_weight;
+  bool joint_early_stopping = false;
 };
 
 // Distinct seeds, at least one. Names the flag.
@@ -258,6 +259,7 @@ Status RunDemo(const DemoOptions& options) {
   }
   dynamics_options.joint_steps = options.joint_steps;
   dynamics_options.joint_cycle_weight = options.cycle_weight;
+  dynamics_options.joint_early_stopping = options.joint_early_stopping;
   FACEDYN_RETURN_IF_ERROR(RunDemoDynamicsStage(
       face, cameras, simulated, reconstructed, dynamics_options, options.out_dir,
       &study_artifacts.removal_model, &dynamics_metrics, &artifacts));
@@ -350,11 +352,10 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected) {
   command
       ->add_option("--removal-targets", options->removal_targets,
                    "Targets of the removal network on the reconstructed takes: "
-                   "platform-synchronous-where-known (platform takes fitted at their recorded "
-                   "frequency, walks moving-average), moving-average (the paper's Eq. 5-6), "
-                   "held-mean (each take's mean shape in the skull frame "
-                   "over its held frames) or platform-synchronous-else-held-mean (platform takes "
-                   "fitted, walks held-mean)")
+                   "platform-synchronous-else-held-mean (platform takes fitted at their recorded "
+                   "frequency, walks their held mean), platform-synchronous-where-known (platform "
+                   "takes fitted, walks moving-average), moving-average (the paper's Eq. 5-6) or "
+                   "held-mean (each take's mean shape in the skull frame over its held frames)")
       ->check(CLI::IsMember([] {
         // Not platform-synchronous alone: the demo's training walks record no platform frequency.
         std::vector<std::string> names = dynamics::RemovalTargetsNames(/*include_exact=*/false);
@@ -391,6 +392,10 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected) {
                    "Weight of the cycle loss against F's and H's own (with --joint-training)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  command->add_flag("--joint-early-stopping", options->joint_early_stopping,
+                    "Keep the joint fine-tuning's parameters from its report of least validation "
+                    "objective (F's held-out loss plus the cycle's on held-out performance frames; "
+                    "with --joint-training)");
   command->callback([options, selected] { *selected = [options] { return RunDemo(*options); }; });
 }
 

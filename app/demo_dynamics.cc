@@ -275,6 +275,29 @@ dynamics::SynthesisTrainOptions HOptions(int epochs, uint64_t seed, const std::s
   return options;
 }
 
+// What F's targets are on the demo's reconstructed takes (metrics.json setup.targets_note).
+std::string TargetsNote(dynamics::RemovalTargets targets) {
+  using dynamics::RemovalTargets;
+  const char* prefix = "reconstructed takes have no exact channel; ";
+  switch (targets) {
+    case RemovalTargets::kPlatformSynchronousWhereKnown:
+      return std::string(prefix) +
+             "platform takes: the fit at the take's recorded platform frequency (quasistatic.h); "
+             "walks: the moving average (Eq. 5-6)";
+    case RemovalTargets::kPlatformSynchronousElseHeldMean:
+      return std::string(prefix) +
+             "platform takes: the fit at the take's recorded platform frequency (quasistatic.h); "
+             "walks: the take's mean shape in the skull frame over its held frames";
+    case RemovalTargets::kHeldMean:
+      return std::string(prefix) +
+             "every take: its mean shape in the skull frame over its held frames";
+    case RemovalTargets::kMovingAverage:
+      return std::string(prefix) + "every take: the moving average (Eq. 5-6)";
+    default:  // exact (refused by Check) and platform-synchronous alone (refused by the CLI)
+      return std::string(prefix) + dynamics::RemovalTargetsName(targets);
+  }
+}
+
 // F on reconstructed takes, with targets a capture has (moving average, platform-synchronous).
 StatusOr<dynamics::RemovalModel> TrainF(const std::vector<Take>& takes, const FaceRig& face,
                                         dynamics::RemovalTargets targets, int epochs, int batch,
@@ -751,6 +774,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
     joint_options.synthesis = HOptions(options.synthesis_epochs, options.seed, "H", false);
     joint_options.joint.steps = options.joint_steps;
     joint_options.joint.pair_weight = options.joint_cycle_weight;
+    joint_options.joint.keep_least_validation = options.joint_early_stopping;
     joint_options.joint.first_batch = options.removal_batch;
     joint_options.joint.second_batch = joint_options.synthesis.train.batch_size;
     joint_options.joint.seed = options.seed;
@@ -775,6 +799,9 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
         {"steps", options.joint_steps},
         {"cycle_weight", options.joint_cycle_weight},
         {"learning_rate", joint_options.joint.learning_rate},
+        {"early_stopping", options.joint_early_stopping},
+        {"kept_report", pair.kept_report},
+        {"reports", static_cast<long>(pair.pair_loss.size())},
         {"final_f_loss", last(pair.first_loss)},
         {"final_h_loss", last(pair.second_loss)},
         {"final_cycle_loss", last(pair.pair_loss)},
@@ -790,7 +817,9 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
     others->push_back({"F_joint", storage});
     return Status::Ok();
   };
-  Take joint_removed_test, joint_removed_extra;
+  // After the loop below joint_removed_extra holds the last extra take's (the performance's)
+  // removal by F_joint, and performance_removed its removal by F.
+  Take joint_removed_test, joint_removed_extra, performance_removed;
   FACEDYN_RETURN_IF_ERROR(add_joint_removal(test_reconstructed, &joint_removed_test, &test_others));
   FACEDYN_ASSIGN_OR_RETURN(Json test_removal,
                            eval::CompareRemovalOnReconstruction(
@@ -808,11 +837,16 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
                              modal_removals(extra.reconstructed[i], &modal_storage, &cutoff_hz));
     FACEDYN_RETURN_IF_ERROR(
         add_joint_removal(extra.reconstructed[i], &joint_removed_extra, &others));
+    // The last extra take is the performance, whose removal by F Fig. 7 resynthesises below:
+    // kept rather than computed again.
+    const bool is_performance =
+        options.performance_expression != "" && i + 1 == extra_specs.size();
     FACEDYN_ASSIGN_OR_RETURN(
         result[extra_sections[i]],
         eval::CompareRemovalOnReconstruction(f_model, reference_removal, extra_specs[i].name,
                                              extra.simulated[i], extra.reconstructed[i], face,
-                                             skip, nullptr, others));
+                                             skip, is_performance ? &performance_removed : nullptr,
+                                             others));
     result[extra_sections[i]]["methods"]["modal_lowpass"]["cutoff_hz"] = Round4(cutoff_hz);
   }
   // Fig. 7: remove with F, then resynthesise with the take's own head motion, by H and by the
@@ -820,8 +854,10 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   // that the modal model's own removal undone by its own synthesis would be).
   // With the joint training, also F_joint's removal resynthesised by H_joint: the pair trained
   // for exactly this agreement.
+  // joint_removed: F_joint's removal of the take, scored above (used when there is a joint).
   auto resynthesise = [&](const std::string& name, const Take& simulated,
                           const Take& reconstructed, const Take& removed_take,
+                          const Take& joint_removed,
                           Take* by_h) -> StatusOr<Json> {  // by_h: H's take, when wanted
     Take h_take;
     FACEDYN_ASSIGN_OR_RETURN(
@@ -840,8 +876,6 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
     figures["modal_resynthesis_residual_mm"] = modal["resynthesis_residual_mm"];
     figures["modal_relative_to_offset"] = modal["relative_to_offset"];
     if (joint) {
-      FACEDYN_ASSIGN_OR_RETURN(const Take joint_removed,
-                               dynamics::RemoveDynamics(joint->removal, reconstructed, face));
       FACEDYN_ASSIGN_OR_RETURN(
           const Take joint_take,
           dynamics::SynthesizeDynamics(joint->synthesis, joint_removed,
@@ -875,12 +909,11 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   // is set on: a take where the expression moves, unlike the held one below.
   Json performance_resynthesis;
   if (options.performance_expression != "") {
-    FACEDYN_ASSIGN_OR_RETURN(Take performance_removed,
-                             dynamics::RemoveDynamics(f_model, extra.reconstructed.back(), face));
     FACEDYN_ASSIGN_OR_RETURN(
         performance_resynthesis,
         resynthesise(extra_specs.back().name + " reconstructed", extra.simulated.back(),
-                     extra.reconstructed.back(), performance_removed, nullptr));
+                     extra.reconstructed.back(), performance_removed, joint_removed_extra,
+                     nullptr));
     if (artifacts != nullptr) {
       artifacts->performance_simulated = extra.simulated.back();
       artifacts->performance_reconstructed = extra.reconstructed.back();
@@ -913,7 +946,8 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   Json synthesis;
   FACEDYN_ASSIGN_OR_RETURN(synthesis["resynthesis"],
                            resynthesise(test_name + " reconstructed", test_simulated,
-                                        test_reconstructed, removed, &resynthesised));
+                                        test_reconstructed, removed, joint_removed_test,
+                                        &resynthesised));
   std::printf("\nSynthesis (H trained on %zu takes decomposed by F):\n", a.reconstructed.size());
   print_resynthesis(synthesis["resynthesis"]);
   if (!performance_resynthesis.is_null()) {
@@ -1002,9 +1036,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
        "eval::FilmSimulatedTake) and reconstructed: the training takes and walks, the held-out "
        "take (app/reconstruct_demo.cc), the test walk and the speech performance"},
       {"targets", dynamics::RemovalTargetsName(options.removal_targets)},
-      {"targets_note",
-       "reconstructed takes have no exact channel; platform-synchronous: the fit at the take's "
-       "recorded platform frequency (quasistatic.h), moving average (Eq. 5-6) on walks"},
+      {"targets_note", TargetsNote(options.removal_targets)},
       {"train_hz", train_hz_json},
       {"expressions", options.expressions},
       {"training_walk_step_hz", options.training_walk_step_hz},

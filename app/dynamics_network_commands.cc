@@ -356,6 +356,10 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
       "--cycle-trains-f-only",
       [train_joint] { train_joint->options.joint.pair_trains_second = false; },
       "Keep the cycle's gradient from H (H then trains on its own loss only)");
+  train_joint_cmd->add_flag(
+      "--early-stopping", train_joint->options.joint.keep_least_validation,
+      "Keep the joint phase's parameters from its report of least validation objective (F's "
+      "held-out loss plus the cycle's on held-out performance frames) instead of the last");
   train_joint_cmd->add_option("--seed", train_joint->options.removal.train.seed)
       ->capture_default_str();
   train_joint_cmd
@@ -410,6 +414,7 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
             {"synthesis", SummaryJson(summary.synthesis)},
             {"joint",
              {{"steps", joint.steps},
+              {"kept_report", joint.kept_report},
               {"performance_frames", summary.performance_frames},
               {"performance_validation_frames", summary.performance_validation_frames},
               {"removal_loss_mm2", joint.first_loss},

@@ -18,7 +18,7 @@
 //                  [--input-noise S] [--no-linear-skip] [--seed N] [--seeds 1,2,3]
 //                  [--held-out-expressions a,b|none] [--held-out-expression-hz F]
 //                  [--held-out-motions walk,run,jump|none] [--joint] [--joint-steps N]
-//                  [--cycle-weight W] [--joint-lr LR]
+//                  [--cycle-weight W] [--joint-lr LR] [--joint-early-stopping]
 //
 // Test takes, one protocol each ("protocol" in every removal entry): every training expression
 // at --test-hz (held-out frequency, paper Fig. 5), speech at --speech-hz (held-out performance),
@@ -39,7 +39,8 @@
 // --joint: also F_joint, F and H trained together with the cycle on the training speech takes,
 // which it reads without their targets (eval/dynamics_study.h DynamicsStudyOptions::joint);
 // F_platform_targets is the same F without the performances. --joint-steps, --cycle-weight and
-// --joint-lr set the joint phase.
+// --joint-lr set the joint phase; --joint-early-stopping keeps its report of least validation
+// objective (learn::MlpPairTrainOptions::keep_least_validation).
 // --no-moving-average / --no-platform-targets skip F trained on the paper's moving-average
 // targets / on platform-synchronous targets (each is one more training run).
 // --laplacian-removal / --laplacian-synthesis propagate that network's samples with the rig's
@@ -254,6 +255,8 @@ int main(int argc, char** argv) {
       options.joint_cycle_weight = Number(next(), arg);
     } else if (arg == "--joint-lr") {
       options.joint_learning_rate = Number(next(), arg);
+    } else if (arg == "--joint-early-stopping") {
+      options.joint_keep_least_validation = true;
     } else {
       std::fprintf(
           stderr,
@@ -266,7 +269,7 @@ int main(int argc, char** argv) {
           "[--input-noise S] [--no-linear-skip] [--seed N] [--seeds 1,2,3] "
           "[--held-out-expressions a,b|none] [--held-out-expression-hz F] "
           "[--held-out-motions walk,run,jump|none] [--joint] [--joint-steps N] "
-          "[--cycle-weight W] [--joint-lr LR]\n");
+          "[--cycle-weight W] [--joint-lr LR] [--joint-early-stopping]\n");
       return 2;
     }
   }

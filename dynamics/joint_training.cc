@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 #include "core/check.h"
@@ -220,25 +221,27 @@ StatusOr<JointModels> FineTuneJoint(const std::vector<TrainingTake>& held,
                            BuildRemovalTrainingData(held, options.removal));
   // The rows are raw features (each network normalises its own inputs), so what must agree is
   // their layout: the network given and the one options.removal would make.
-  auto layout = [](const FeatureSpec& spec, int input_size) {
-    return fmt::format("{} inputs, {} samples, window {} frames at {:g} fps", input_size,
+  auto same_layout = [](const auto& a, const auto& b) {  // RemovalConfig or SynthesisConfig
+    return a.input_size() == b.input_size() && a.sample_count == b.sample_count &&
+           a.features.window_frames() == b.features.window_frames() &&
+           std::abs(a.features.fps - b.features.fps) <= 1e-9 * std::abs(b.features.fps);
+  };
+  auto layout = [](const auto& spec) {  // for the message only
+    return fmt::format("{} inputs, {} samples, window {} frames at {:g} fps", spec.input_size(),
                        spec.sample_count, spec.features.window_frames(), spec.features.fps);
   };
-  const std::string f_given = layout(f.config(), f.config().input_size());
-  const std::string f_rows = layout(f_data.config, f_data.config.input_size());
-  if (f_given != f_rows) {
-    return InvalidArgumentError(fmt::format(
-        "train-joint: the given F has {}, its rows from the held takes {}", f_given, f_rows));
+  if (!same_layout(f.config(), f_data.config)) {
+    return InvalidArgumentError(
+        fmt::format("train-joint: the given F has {}, its rows from the held takes {}",
+                    layout(f.config()), layout(f_data.config)));
   }
   std::vector<Take> decomposed;  // H's rows may refer to these takes: kept to the end
   FACEDYN_ASSIGN_OR_RETURN(SynthesisTrainingData h_data,
                            SynthesisRowsOfDecomposition(f, held, options.synthesis, &decomposed));
-  const std::string h_given = layout(h.config(), h.config().input_size());
-  const std::string h_rows = layout(h_data.config, h_data.config.input_size());
-  if (h_given != h_rows) {
+  if (!same_layout(h.config(), h_data.config)) {
     return InvalidArgumentError(
         fmt::format("train-joint: the given H has {}, its rows from the decomposed held takes {}",
-                    h_given, h_rows));
+                    layout(h.config()), layout(h_data.config)));
   }
   FACEDYN_RETURN_IF_ERROR(FineTuneOnCycle(f_data, h_data, performances, options, &f, &h, &local));
   if (summary != nullptr) *summary = std::move(local);

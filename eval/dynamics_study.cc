@@ -349,6 +349,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     joint_options.joint.steps = options.joint_steps;
     joint_options.joint.pair_weight = options.joint_cycle_weight;
     joint_options.joint.learning_rate = options.joint_learning_rate;
+    joint_options.joint.keep_least_validation = options.joint_keep_least_validation;
     joint_options.joint.first_batch = options.removal_batch;
     joint_options.joint.second_batch = options.synthesis_batch;
     joint_options.joint.seed = options.seed;
@@ -368,6 +369,8 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
     joint_json = {{"performance_frames", joint_summary.performance_frames},
                   {"performance_validation_frames", joint_summary.performance_validation_frames},
                   {"steps", pair.steps},
+                  {"early_stopping", options.joint_keep_least_validation},
+                  {"kept_report", pair.kept_report},
                   {"train_s", Round4(pair.train_s)},
                   {"removal_loss_mm2", pair.first_loss},
                   {"synthesis_loss_mm2", pair.second_loss},

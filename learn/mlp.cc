@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <mutex>
 #include <random>
 #include <utility>
@@ -680,6 +681,12 @@ Status TrainMlpPair(const MlpDataset& first_data, const std::vector<long>& first
     return FailedPreconditionError("TrainMlpPair: no second training rows");
   }
   if (pair_rows.empty()) return FailedPreconditionError("TrainMlpPair: no consistency rows");
+  if (options.keep_least_validation &&
+      (first_validation_rows.empty() || pair_validation_rows.empty())) {
+    return FailedPreconditionError(
+        "TrainMlpPair: keep_least_validation needs validation rows of the first network and of "
+        "the consistency term");
+  }
   if (options.num_threads > 0) torch::set_num_threads(options.num_threads);
 
   Net& f = MlpTrainer::NetOf(*first);
@@ -724,6 +731,9 @@ Status TrainMlpPair(const MlpDataset& first_data, const std::vector<long>& first
   };
 
   MlpPairTrainSummary local;
+  // keep_least_validation: the best report's parameters so far (copies, both networks').
+  double best_objective = std::numeric_limits<double>::infinity();
+  std::vector<torch::Tensor> best_parameters;
   const long reports = (options.steps + options.steps_per_report - 1) / options.steps_per_report;
   Progress progress(options.progress_label, reports,
                     options.show_progress ? ProgressMode::kAuto : ProgressMode::kSilent);
@@ -789,12 +799,28 @@ Status TrainMlpPair(const MlpDataset& first_data, const std::vector<long>& first
                                              static_cast<double>(pair_validation_rows.size()));
         status += fmt::format(" val cycle {:.4g}", local.pair_validation_loss.back());
       }
+      if (options.keep_least_validation) {
+        const double objective = local.first_validation_loss.back() +
+                                 options.pair_weight * local.pair_validation_loss.back();
+        if (objective < best_objective) {  // strictly: ties keep the earlier report
+          best_objective = objective;
+          local.kept_report = report;
+          best_parameters.clear();
+          for (const torch::Tensor& p : parameters) best_parameters.push_back(p.detach().clone());
+        }
+      }
       f->train();
       h->train();
     }
     progress.Update(report + 1, status);
   }
   progress.Finish();
+  if (options.keep_least_validation && local.kept_report >= 0) {
+    torch::NoGradGuard no_grad;
+    for (size_t i = 0; i < parameters.size(); ++i) parameters[i].copy_(best_parameters[i]);
+  } else {
+    local.kept_report = reports - 1;
+  }
   f->eval();
   h->eval();
   f->dropout_generator.reset();

@@ -236,6 +236,12 @@ struct MlpPairTrainOptions {
   bool pair_trains_second = true;
   uint64_t seed = 1;
   int num_threads = 0;
+  // Early stopping: keep both networks' parameters from the report with the least validation
+  // objective, the first network's validation loss plus pair_weight times the consistency
+  // term's (the training objective's two terms that have validation rows), instead of the last
+  // report's. Needs validation rows of both kinds (refused otherwise). Reads nothing but the
+  // validation rows passed, so it is as truth-free as they are.
+  bool keep_least_validation = false;
   bool show_progress = true;
   std::string progress_label = "train-joint";
   // steps, steps_per_report and batches >= 1, learning_rate > 0, pair_weight >= 0 and finite,
@@ -250,6 +256,9 @@ struct MlpPairTrainSummary {
   std::vector<double> first_loss, second_loss, pair_loss;
   // Per report interval, on the validation rows passed (empty without them).
   std::vector<double> first_validation_loss, pair_validation_loss;
+  // The report whose parameters the networks end with: the last, or with keep_least_validation
+  // the one of least validation objective (index into the per-report vectors).
+  long kept_report = -1;
   long steps = 0;
   double train_s = 0.0;
 };

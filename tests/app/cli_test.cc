@@ -34,7 +34,9 @@ const TempDir& DemoDir() {
     std::string out;
     // With the joint F/H training (a short one: its wiring, not its figures, is tested here).
     const int rc = RunCommand(
-        Facedyn("--quiet demo --quick --joint-training --joint-steps 100 --out " + d->Join("demo")),
+        Facedyn("--quiet demo --quick --joint-training --joint-steps 100 --joint-early-stopping "
+                "--out " +
+                d->Join("demo")),
         &out);
     EXPECT_EQ(rc, 0) << out;
     return d;
@@ -183,7 +185,7 @@ TEST(Cli, DemoMetricsAndReport) {
   const double reference_mm = dynamics["removal"]["exact_offsets_removed_mm"].get<double>();
   EXPECT_GT(reference_mm, 0.0);
   EXPECT_LT(reference_mm, 0.5 * methods["no_removal"]["jiggle_mean_mm"].get<double>());
-  EXPECT_EQ(dynamics["removal"]["F_targets"], "platform-synchronous-where-known");
+  EXPECT_EQ(dynamics["removal"]["F_targets"], "platform-synchronous-else-held-mean");
   EXPECT_LT(f_mm, 0.5 * methods["no_removal"]["jiggle_mean_mm"].get<double>());
   // The performance (speech) on the held-out frequency, never trained on.
   ASSERT_TRUE(dynamics.contains("removal_performance"));
@@ -248,6 +250,10 @@ TEST(Cli, DemoMetricsAndReport) {
   EXPECT_EQ(joint["performances"].size(), 2u);
   EXPECT_GT(joint["performance_frames"].get<long>(), 0);
   EXPECT_GT(joint["final_cycle_loss"].get<double>(), 0.0);
+  // --joint-early-stopping: the kept report is one of the reports (100 steps: the one).
+  EXPECT_TRUE(joint["early_stopping"].get<bool>());
+  EXPECT_EQ(joint["reports"].get<long>(), 1);
+  EXPECT_EQ(joint["kept_report"].get<long>(), 0);
   for (const char* section : {"removal", "removal_performance", "removal_walk"}) {
     const auto& scored = dynamics[section]["methods"];
     ASSERT_TRUE(scored.contains("F_joint")) << section;

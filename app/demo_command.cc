@@ -63,6 +63,7 @@ struct DemoOptions {
   int joint_steps = DemoDynamicsOptions().joint_steps;
   double cycle_weight = DemoDynamicsOptions().joint_cycle_weight;
   bool joint_early_stopping = false;
+  bool joint_cycle_trains_f_only = false;
 };
 
 // Distinct seeds, at least one. Names the flag.
@@ -260,6 +261,7 @@ Status RunDemo(const DemoOptions& options) {
   dynamics_options.joint_steps = options.joint_steps;
   dynamics_options.joint_cycle_weight = options.cycle_weight;
   dynamics_options.joint_early_stopping = options.joint_early_stopping;
+  dynamics_options.joint_cycle_trains_f_only = options.joint_cycle_trains_f_only;
   FACEDYN_RETURN_IF_ERROR(RunDemoDynamicsStage(
       face, cameras, simulated, reconstructed, dynamics_options, options.out_dir,
       &study_artifacts.removal_model, &dynamics_metrics, &artifacts));
@@ -378,24 +380,34 @@ void AddDemoCommand(CLI::App& app, CommandRunner* selected) {
                    "one standard error of it)")
       ->check(CLI::IsMember(dynamics::RidgeRuleNames()))
       ->capture_default_str();
-  command->add_flag("--joint-training", options->joint_training,
-                    "Also film subject A performing speech at the first and last training "
-                    "frequency, fine-tune F and H together with the cycle loss on those "
-                    "performances (no target read) and score F_joint and H_joint beside F and H");
+  CLI::Option* joint_training = command->add_flag(
+      "--joint-training", options->joint_training,
+      "Also film subject A performing speech at the first and last training "
+      "frequency, fine-tune F and H together with the cycle loss on those "
+      "performances (no target read) and score F_joint and H_joint beside F and H");
   command
       ->add_option("--joint-steps", options->joint_steps,
                    "Adam steps of the joint fine-tuning (with --joint-training)")
+      ->needs(joint_training)
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   command
       ->add_option("--cycle-weight", options->cycle_weight,
                    "Weight of the cycle loss against F's and H's own (with --joint-training)")
+      ->needs(joint_training)
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  command->add_flag("--joint-early-stopping", options->joint_early_stopping,
-                    "Keep the joint fine-tuning's parameters from its report of least validation "
-                    "objective (F's held-out loss plus the cycle's on held-out performance frames; "
-                    "with --joint-training)");
+  command
+      ->add_flag("--joint-early-stopping", options->joint_early_stopping,
+                 "Keep the joint fine-tuning's parameters from its report of least validation "
+                 "objective (F's and H's held-out losses on held-take rows plus the cycle's on "
+                 "held-out performance frames; with --joint-training)")
+      ->needs(joint_training);
+  command
+      ->add_flag("--joint-cycle-trains-f-only", options->joint_cycle_trains_f_only,
+                 "Keep the cycle's gradient from H in the joint fine-tuning (H then fine-tunes "
+                 "on its own loss only; with --joint-training)")
+      ->needs(joint_training);
   command->callback([options, selected] { *selected = [options] { return RunDemo(*options); }; });
 }
 

@@ -775,6 +775,7 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
     joint_options.joint.steps = options.joint_steps;
     joint_options.joint.pair_weight = options.joint_cycle_weight;
     joint_options.joint.keep_least_validation = options.joint_early_stopping;
+    joint_options.joint.pair_trains_second = !options.joint_cycle_trains_f_only;
     joint_options.joint.first_batch = options.removal_batch;
     joint_options.joint.second_batch = joint_options.synthesis.train.batch_size;
     joint_options.joint.seed = options.seed;
@@ -800,12 +801,18 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
         {"cycle_weight", options.joint_cycle_weight},
         {"learning_rate", joint_options.joint.learning_rate},
         {"early_stopping", options.joint_early_stopping},
+        {"cycle_trains_h", !options.joint_cycle_trains_f_only},
         {"kept_report", pair.kept_report},
         {"reports", static_cast<long>(pair.pair_loss.size())},
         {"final_f_loss", last(pair.first_loss)},
         {"final_h_loss", last(pair.second_loss)},
         {"final_cycle_loss", last(pair.pair_loss)},
+        {"final_f_validation_loss", last(pair.first_validation_loss)},
+        {"final_h_validation_loss", last(pair.second_validation_loss)},
         {"final_cycle_validation_loss", last(pair.pair_validation_loss)},
+        {"f_validation_loss", pair.first_validation_loss},
+        {"h_validation_loss", pair.second_validation_loss},
+        {"cycle_validation_loss", pair.pair_validation_loss},
         {"train_s", Round4(pair.train_s)}};
   }
   // F_joint's removal of a take, appended to `others` (its take kept in *storage).

@@ -94,6 +94,9 @@ struct DemoDynamicsOptions {
   double joint_cycle_weight = 1.0;  // joint.pair_weight (chosen on dynamics_bench's validation)
   // joint.keep_least_validation: keep the joint report of least validation objective.
   bool joint_early_stopping = false;
+  // !joint.pair_trains_second: the cycle's gradient reaches F only (H then fine-tunes on its
+  // own supervised loss alone and teaches F on the performances).
+  bool joint_cycle_trains_f_only = false;
   // How both subjects' modal models choose their ridge (dynamics/modal_synthesis.h).
   dynamics::RidgeRule modal_ridge_rule = dynamics::RidgeRule::kMinimum;
   uint64_t seed = 1;

@@ -359,7 +359,8 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
   train_joint_cmd->add_flag(
       "--early-stopping", train_joint->options.joint.keep_least_validation,
       "Keep the joint phase's parameters from its report of least validation objective (F's "
-      "held-out loss plus the cycle's on held-out performance frames) instead of the last");
+      "and H's held-out losses on held-take rows plus the cycle's on held-out performance "
+      "frames) instead of the last");
   train_joint_cmd->add_option("--seed", train_joint->options.removal.train.seed)
       ->capture_default_str();
   train_joint_cmd
@@ -421,6 +422,7 @@ void AddDynamicsNetworkCommands(CLI::App* dynamics, CommandRunner* selected) {
               {"synthesis_loss_mm2", joint.second_loss},
               {"cycle_loss_mm2", joint.pair_loss},
               {"removal_validation_loss_mm2", joint.first_validation_loss},
+              {"synthesis_validation_loss_mm2", joint.second_validation_loss},
               {"cycle_validation_loss_mm2", joint.pair_validation_loss},
               {"train_s", joint.train_s}}}};
         std::printf("%s\n", out.dump(2, ' ', false, kJsonReplaceInvalidUtf8).c_str());

@@ -112,14 +112,21 @@ Status FineTuneOnCycle(const RemovalTrainingData& f_data, const SynthesisTrainin
   }
   local->performance_frames = static_cast<long>(cycle_rows.size());
   local->performance_validation_frames = static_cast<long>(cycle_validation_rows.size());
+  if (options.joint.keep_least_validation &&
+      (f_data.validation_rows.empty() || cycle_validation_rows.empty())) {
+    return FailedPreconditionError(fmt::format(
+        "train-joint: early stopping needs held-out rows of F and of the cycle, and has {} of "
+        "F (from the held takes) and {} performance frames held out; longer takes give them",
+        f_data.validation_rows.size(), cycle_validation_rows.size()));
+  }
   spdlog::info(
       "train-joint: 3/3, F and H together, the cycle on {} performance frames ({} held "
       "out)",
       local->performance_frames, local->performance_validation_frames);
-  FACEDYN_RETURN_IF_ERROR(
-      learn::TrainMlpPair(*f_data.data, f_data.train_rows, f_data.validation_rows, *h_data.data,
-                          h_data.train_rows, cycle, cycle_rows, cycle_validation_rows,
-                          options.joint, f.mutable_mlp(), h.mutable_mlp(), &local->joint));
+  FACEDYN_RETURN_IF_ERROR(learn::TrainMlpPair(
+      *f_data.data, f_data.train_rows, f_data.validation_rows, *h_data.data, h_data.train_rows,
+      h_data.validation_rows, cycle, cycle_rows, cycle_validation_rows, options.joint,
+      f.mutable_mlp(), h.mutable_mlp(), &local->joint));
   return Status::Ok();
 }
 

@@ -376,6 +376,7 @@ StatusOr<Json> RunDynamicsStudy(const DynamicsStudyOptions& options,
                   {"synthesis_loss_mm2", pair.second_loss},
                   {"cycle_loss_mm2", pair.pair_loss},
                   {"removal_validation_loss_mm2", pair.first_validation_loss},
+                  {"synthesis_validation_loss_mm2", pair.second_validation_loss},
                   {"cycle_validation_loss_mm2", pair.pair_validation_loss}};
     models.push_back({"F_joint", std::move(joint.removal), std::move(joint_summary.removal)});
   }

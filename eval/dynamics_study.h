@@ -81,8 +81,8 @@ struct DynamicsStudyOptions {
   long joint_steps = 2000;          // learn::MlpPairTrainOptions::steps
   double joint_cycle_weight = 1.0;  // learn::MlpPairTrainOptions::pair_weight
   double joint_learning_rate = 1e-4;
-  // Keep the joint phase's report of least validation objective (F's held-out loss plus the
-  // cycle's on held-out performance frames; MlpPairTrainOptions::keep_least_validation).
+  // Keep the joint phase's report of least validation objective (F's and H's held-out losses
+  // plus the cycle's on held-out performance frames; MlpPairTrainOptions::keep_least_validation).
   bool joint_keep_least_validation = false;
   // Propagation of each network: learned from its training offsets (propagation.h) or the
   // rig's Laplacian.

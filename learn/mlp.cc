@@ -638,8 +638,9 @@ double MeanOutputVariance(Net& net) { return net->output_std.square().mean().ite
 
 Status TrainMlpPair(const MlpDataset& first_data, const std::vector<long>& first_rows,
                     const std::vector<long>& first_validation_rows, const MlpDataset& second_data,
-                    const std::vector<long>& second_rows, const MlpPairDataset& pair_data,
-                    const std::vector<long>& pair_rows,
+                    const std::vector<long>& second_rows,
+                    const std::vector<long>& second_validation_rows,
+                    const MlpPairDataset& pair_data, const std::vector<long>& pair_rows,
                     const std::vector<long>& pair_validation_rows,
                     const MlpPairTrainOptions& options, Mlp* first, Mlp* second,
                     MlpPairTrainSummary* summary) {
@@ -768,22 +769,32 @@ Status TrainMlpPair(const MlpDataset& first_data, const std::vector<long>& first
     local.pair_loss.push_back(f_scale * pair_sum / static_cast<double>(steps));
     std::string status = fmt::format("F {:.4g} H {:.4g} cycle {:.4g}", local.first_loss.back(),
                                      local.second_loss.back(), local.pair_loss.back());
-    if (!first_validation_rows.empty() || !pair_validation_rows.empty()) {
+    if (!first_validation_rows.empty() || !second_validation_rows.empty() ||
+        !pair_validation_rows.empty()) {
       torch::NoGradGuard no_grad;
       f->eval();
       h->eval();
       constexpr long kEvalBatch = 4096;
-      if (!first_validation_rows.empty()) {
+      // A network's mean squared error per output over its validation rows, in its units.
+      auto validation_loss = [&](Net& net, const MlpDataset& data, const std::vector<long>& rows) {
         double sum = 0.0;
-        for (size_t begin = 0; begin < first_validation_rows.size(); begin += kEvalBatch) {
-          const long n = static_cast<long>(
-              std::min(first_validation_rows.size() - begin, static_cast<size_t>(kEvalBatch)));
-          first_data.Gather(first_validation_rows.data() + begin, n, &inputs, &targets);
-          sum += supervised(f, inputs, targets, 1.0).item<double>() * static_cast<double>(n);
+        for (size_t begin = 0; begin < rows.size(); begin += kEvalBatch) {
+          const long n =
+              static_cast<long>(std::min(rows.size() - begin, static_cast<size_t>(kEvalBatch)));
+          data.Gather(rows.data() + begin, n, &inputs, &targets);
+          sum += supervised(net, inputs, targets, 1.0).item<double>() * static_cast<double>(n);
         }
-        local.first_validation_loss.push_back(sum /
-                                              static_cast<double>(first_validation_rows.size()));
+        return sum / static_cast<double>(rows.size());
+      };
+      if (!first_validation_rows.empty()) {
+        local.first_validation_loss.push_back(
+            validation_loss(f, first_data, first_validation_rows));
         status += fmt::format(" val F {:.4g}", local.first_validation_loss.back());
+      }
+      if (!second_validation_rows.empty()) {
+        local.second_validation_loss.push_back(
+            validation_loss(h, second_data, second_validation_rows));
+        status += fmt::format(" val H {:.4g}", local.second_validation_loss.back());
       }
       if (!pair_validation_rows.empty()) {
         const long eval_groups = std::max<long>(1, kEvalBatch / std::max(1, group));
@@ -800,8 +811,10 @@ Status TrainMlpPair(const MlpDataset& first_data, const std::vector<long>& first
         status += fmt::format(" val cycle {:.4g}", local.pair_validation_loss.back());
       }
       if (options.keep_least_validation) {
-        const double objective = local.first_validation_loss.back() +
-                                 options.pair_weight * local.pair_validation_loss.back();
+        const double objective =
+            local.first_validation_loss.back() +
+            (second_validation_rows.empty() ? 0.0 : local.second_validation_loss.back()) +
+            options.pair_weight * local.pair_validation_loss.back();
         if (objective < best_objective) {  // strictly: ties keep the earlier report
           best_objective = objective;
           local.kept_report = report;

@@ -237,9 +237,13 @@ struct MlpPairTrainOptions {
   uint64_t seed = 1;
   int num_threads = 0;
   // Early stopping: keep both networks' parameters from the report with the least validation
-  // objective, the first network's validation loss plus pair_weight times the consistency
-  // term's (the training objective's two terms that have validation rows), instead of the last
-  // report's. Needs validation rows of both kinds (refused otherwise). Reads nothing but the
+  // objective instead of the last report's. The objective is the training objective's terms on
+  // the validation rows, each in its network's output units squared: the first network's
+  // validation loss, plus the second's when second validation rows are passed, plus
+  // pair_weight times the consistency term's. (The training objective divides each term by its
+  // network's output variance to condition the optimisation; the pair's networks output the
+  // same quantity, so the validation objective sums them as they are.) Needs validation rows of
+  // the first network and of the consistency term (refused otherwise). Reads nothing but the
   // validation rows passed, so it is as truth-free as they are.
   bool keep_least_validation = false;
   bool show_progress = true;
@@ -255,7 +259,7 @@ struct MlpPairTrainSummary {
   // network's output units squared).
   std::vector<double> first_loss, second_loss, pair_loss;
   // Per report interval, on the validation rows passed (empty without them).
-  std::vector<double> first_validation_loss, pair_validation_loss;
+  std::vector<double> first_validation_loss, second_validation_loss, pair_validation_loss;
   // The report whose parameters the networks end with: the last, or with keep_least_validation
   // the one of least validation objective (index into the per-report vectors).
   long kept_report = -1;
@@ -263,12 +267,14 @@ struct MlpPairTrainSummary {
   double train_s = 0.0;
 };
 
+// Each *_validation_rows may be empty (that loss is then not reported).
 // Errors: a model without its trained normalisation is not checked (the caller trains first);
 // sizes that disagree with the datasets, an empty supervised or consistency row set.
 Status TrainMlpPair(const MlpDataset& first_data, const std::vector<long>& first_rows,
                     const std::vector<long>& first_validation_rows, const MlpDataset& second_data,
-                    const std::vector<long>& second_rows, const MlpPairDataset& pair_data,
-                    const std::vector<long>& pair_rows,
+                    const std::vector<long>& second_rows,
+                    const std::vector<long>& second_validation_rows,
+                    const MlpPairDataset& pair_data, const std::vector<long>& pair_rows,
                     const std::vector<long>& pair_validation_rows,
                     const MlpPairTrainOptions& options, Mlp* first, Mlp* second,
                     MlpPairTrainSummary* summary);

@@ -254,6 +254,13 @@ TEST(Cli, DemoMetricsAndReport) {
   EXPECT_TRUE(joint["early_stopping"].get<bool>());
   EXPECT_EQ(joint["reports"].get<long>(), 1);
   EXPECT_EQ(joint["kept_report"].get<long>(), 0);
+  // The validation losses early stopping reads: F's and H's on their held-out held-take rows
+  // and the cycle's on held-out performance frames, one per report.
+  for (const char* loss : {"f_validation_loss", "h_validation_loss", "cycle_validation_loss"}) {
+    ASSERT_EQ(joint[loss].size(), 1u) << loss;
+    EXPECT_GT(joint[loss][0].get<double>(), 0.0) << loss;
+  }
+  EXPECT_TRUE(joint["cycle_trains_h"].get<bool>());
   for (const char* section : {"removal", "removal_performance", "removal_walk"}) {
     const auto& scored = dynamics[section]["methods"];
     ASSERT_TRUE(scored.contains("F_joint")) << section;
@@ -630,6 +637,14 @@ TEST(Cli, DemoRefusesBadJointTrainingOptions) {
                  &out),
       0);
   EXPECT_THAT(out, HasSubstr("--cycle-weight"));
+  // The joint phase's settings without the joint training would be silently ignored: refused.
+  for (const char* flag : {"--joint-early-stopping", "--joint-cycle-trains-f-only"}) {
+    EXPECT_NE(
+        RunCommand(Facedyn(std::string("demo --quick ") + flag + " --out " + dir.Join("d")), &out),
+        0)
+        << flag;
+    EXPECT_THAT(out, HasSubstr("--joint-training")) << flag;
+  }
   EXPECT_FALSE(std::filesystem::exists(dir.Join("d")));
 }
 

@@ -139,6 +139,18 @@ TEST(DynamicsCli, TrainJointWritesBothModelsAndReportsTheCycle) {
             0)
       << out;
 
+  // Early stopping needs held-out rows of F and of the cycle, and 1 s takes have none (their
+  // frames are all needed for training): refused by name, before any model is written. (The
+  // choice of report is tested in tests/learn/mlp_pair_test; this checks the flag reaches it.)
+  std::filesystem::remove(dir.Join("F.pt"));
+  std::filesystem::remove(dir.Join("H.pt"));
+  EXPECT_EQ(RunCommand(Facedyn(common + " --early-stopping"), &out), 1);
+  EXPECT_THAT(out, HasSubstr("early stopping needs held-out rows"));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("F.pt")));
+  EXPECT_FALSE(std::filesystem::exists(dir.Join("H.pt")));
+  EXPECT_EQ(summary["joint"]["kept_report"].get<long>(), 0);  // without it: the last report
+  EXPECT_TRUE(summary["joint"].contains("synthesis_validation_loss_mm2"));
+
   // The simulator's exact targets are not a capture's: refused by name.
   EXPECT_NE(RunCommand(Facedyn(common + " --targets exact"), &out), 0);
   EXPECT_THAT(out, HasSubstr("--targets"));

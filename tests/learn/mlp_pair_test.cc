@@ -111,11 +111,14 @@ struct Fixture {
   static std::vector<long> PairValidationRows() { return {300, 301, 302, 303, 350, 399}; }
 
   // The validation objective keep_least_validation minimises, computed from the networks as they
-  // are: f's mean squared error over its validation rows (all 400) plus pair_weight times the
-  // mean squared difference of f's and h's outputs over the pair validation rows.
+  // are: f's and h's mean squared errors over their validation rows (all 400 each) plus
+  // pair_weight times the mean squared difference of f's and h's outputs over the pair
+  // validation rows.
   double ValidationObjective(double pair_weight) const {
     const double first_loss =
         (first.Predict(first_data.inputs) - first_data.targets).array().square().mean();
+    const double second_loss =
+        (second.Predict(second_data.inputs) - second_data.targets).array().square().mean();
     Eigen::MatrixXf first_inputs, second_inputs;
     const std::vector<long> rows = PairValidationRows();
     pair.Gather(rows.data(), static_cast<long>(rows.size()), &first_inputs, &second_inputs);
@@ -123,7 +126,7 @@ struct Fixture {
     const Eigen::MatrixXf h_out = second.Predict(second_inputs);  // 2 x n
     const Eigen::Map<const Eigen::MatrixXf> h_by_member(h_out.data(), 1, h_out.size());
     const double pair_loss = (f_out - h_by_member).array().square().mean();
-    return first_loss + pair_weight * pair_loss;
+    return first_loss + second_loss + pair_weight * pair_loss;
   }
 
   MlpPairTrainSummary Train(double pair_weight, bool pair_trains_second,
@@ -142,8 +145,8 @@ struct Fixture {
     options.show_progress = false;
     MlpPairTrainSummary summary;
     const Status status =
-        TrainMlpPair(first_data, Range(400), Range(400), second_data, Range(400), pair, Range(300),
-                     PairValidationRows(), options, &first, &second, &summary);
+        TrainMlpPair(first_data, Range(400), Range(400), second_data, Range(400), Range(400), pair,
+                     Range(300), PairValidationRows(), options, &first, &second, &summary);
     EXPECT_TRUE(status.ok()) << status.message();
     return summary;
   }
@@ -165,6 +168,7 @@ TEST(MlpPair, ConsistencyTeachesTheFirstNetworkWhereOnlyTheSecondIsSupervised) {
     EXPECT_LT(with.SupervisedError(), 0.03);  // 0.012 for both
     ASSERT_EQ(summary.pair_loss.size(), 3u);
     ASSERT_EQ(summary.first_validation_loss.size(), 3u);
+    ASSERT_EQ(summary.second_validation_loss.size(), 3u);
     ASSERT_EQ(summary.pair_validation_loss.size(), 3u);
     EXPECT_LT(summary.pair_loss.back(), 0.25 * summary.pair_loss.front());
     EXPECT_EQ(summary.steps, 900);
@@ -192,13 +196,16 @@ TEST(MlpPair, KeepLeastValidationEndsWithTheBestReportsParameters) {
   const MlpPairTrainSummary with = kept.Train(1.0, true, true, 50, 1e-2);
   const MlpPairTrainSummary without = last.Train(1.0, true, false, 50, 1e-2);
   ASSERT_EQ(with.first_validation_loss.size(), 18u);
+  ASSERT_EQ(with.second_validation_loss.size(), 18u);
   ASSERT_EQ(with.pair_validation_loss.size(), 18u);
   // Keeping changes nothing in the training itself.
   EXPECT_EQ(with.first_validation_loss, without.first_validation_loss);
+  EXPECT_EQ(with.second_validation_loss, without.second_validation_loss);
   EXPECT_EQ(with.pair_validation_loss, without.pair_validation_loss);
   std::vector<double> objective;
   for (size_t r = 0; r < with.first_validation_loss.size(); ++r) {
-    objective.push_back(with.first_validation_loss[r] + with.pair_validation_loss[r]);
+    objective.push_back(with.first_validation_loss[r] + with.second_validation_loss[r] +
+                        with.pair_validation_loss[r]);
   }
   const long best =
       static_cast<long>(std::min_element(objective.begin(), objective.end()) - objective.begin());
@@ -208,8 +215,9 @@ TEST(MlpPair, KeepLeastValidationEndsWithTheBestReportsParameters) {
   // recorded for it (float networks: to 1e-4 relative), and the last report's without keeping.
   EXPECT_NEAR(kept.ValidationObjective(1.0), objective[best], 1e-4 * objective[best]);
   EXPECT_NEAR(last.ValidationObjective(1.0), objective.back(), 1e-4 * objective.back());
-  // The fixture exercises the keeping: here the objective is least at report 16 of 18 (9.8e-5,
-  // then 1.03e-4 and 1.16e-4), so the kept networks are not the last ones.
+  // The fixture exercises the keeping: here the objective (both networks' validation losses and
+  // the pair's) is least at report 16 of 18 (1.14e-4, then 1.19e-4 and 1.31e-4), so the kept
+  // networks are not the last ones.
   ASSERT_LT(best + 1, static_cast<long>(objective.size()));
   EXPECT_NE(kept.first.FlatParameters(), last.first.FlatParameters());
   EXPECT_LT(kept.ValidationObjective(1.0), last.ValidationObjective(1.0));
@@ -222,24 +230,24 @@ TEST(MlpPair, RefusesMismatchedSizesAndEmptyRows) {
   options.steps = 1;
   // The second network's dataset where the first's belongs.
   Status status =
-      TrainMlpPair(fixture.second_data, Range(10), {}, fixture.second_data, Range(10), fixture.pair,
-                   Range(10), {}, options, &fixture.first, &fixture.second, nullptr);
+      TrainMlpPair(fixture.second_data, Range(10), {}, fixture.second_data, Range(10), {},
+                   fixture.pair, Range(10), {}, options, &fixture.first, &fixture.second, nullptr);
   EXPECT_FALSE(status.ok());
   EXPECT_THAT(status.message(), HasSubstr("first outputs"));
-  status = TrainMlpPair(fixture.first_data, Range(10), {}, fixture.second_data, Range(10),
+  status = TrainMlpPair(fixture.first_data, Range(10), {}, fixture.second_data, Range(10), {},
                         fixture.pair, {}, {}, options, &fixture.first, &fixture.second, nullptr);
   EXPECT_THAT(status.message(), HasSubstr("no consistency rows"));
   options.pair_weight = -1;
   status =
-      TrainMlpPair(fixture.first_data, Range(10), {}, fixture.second_data, Range(10), fixture.pair,
-                   Range(10), {}, options, &fixture.first, &fixture.second, nullptr);
+      TrainMlpPair(fixture.first_data, Range(10), {}, fixture.second_data, Range(10), {},
+                   fixture.pair, Range(10), {}, options, &fixture.first, &fixture.second, nullptr);
   EXPECT_THAT(status.message(), HasSubstr("pair_weight"));
   // Early stopping without validation rows to stop on.
   options.pair_weight = 1;
   options.keep_least_validation = true;
   status =
-      TrainMlpPair(fixture.first_data, Range(10), {}, fixture.second_data, Range(10), fixture.pair,
-                   Range(10), {}, options, &fixture.first, &fixture.second, nullptr);
+      TrainMlpPair(fixture.first_data, Range(10), {}, fixture.second_data, Range(10), {},
+                   fixture.pair, Range(10), {}, options, &fixture.first, &fixture.second, nullptr);
   EXPECT_THAT(status.message(), HasSubstr("keep_least_validation needs validation rows"));
 }
 

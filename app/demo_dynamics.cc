@@ -728,7 +728,10 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
                    options.test_walk_step_hz),
        test_simulated.info.expression, walk, 0.0, options.walk_seconds}};
   std::vector<std::string> extra_sections = {"removal_walk"};  // per extra take, its metrics
+  // The held-out performance's index among the extra takes (Fig. 7 resynthesises it below).
+  std::optional<size_t> performance_index;
   if (options.performance_expression != "") {
+    performance_index = extra_specs.size();
     extra_sections.push_back("removal_performance");
     extra_specs.push_back({TakeName(options.performance_expression, test_hz),
                            options.performance_expression,
@@ -824,9 +827,9 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
     others->push_back({"F_joint", storage});
     return Status::Ok();
   };
-  // After the loop below joint_removed_extra holds the last extra take's (the performance's)
-  // removal by F_joint, and performance_removed its removal by F.
-  Take joint_removed_test, joint_removed_extra, performance_removed;
+  // After the loop below joint_removed_performance holds the performance's removal by F_joint,
+  // and performance_removed its removal by F (both kept for Fig. 7 rather than computed again).
+  Take joint_removed_test, joint_removed_extra, joint_removed_performance, performance_removed;
   FACEDYN_RETURN_IF_ERROR(add_joint_removal(test_reconstructed, &joint_removed_test, &test_others));
   FACEDYN_ASSIGN_OR_RETURN(Json test_removal,
                            eval::CompareRemovalOnReconstruction(
@@ -842,12 +845,10 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
     double cutoff_hz = 0.0;
     FACEDYN_ASSIGN_OR_RETURN(std::vector<eval::NamedRemoval> others,
                              modal_removals(extra.reconstructed[i], &modal_storage, &cutoff_hz));
-    FACEDYN_RETURN_IF_ERROR(
-        add_joint_removal(extra.reconstructed[i], &joint_removed_extra, &others));
-    // The last extra take is the performance, whose removal by F Fig. 7 resynthesises below:
-    // kept rather than computed again.
-    const bool is_performance =
-        options.performance_expression != "" && i + 1 == extra_specs.size();
+    const bool is_performance = performance_index == i;
+    FACEDYN_RETURN_IF_ERROR(add_joint_removal(
+        extra.reconstructed[i], is_performance ? &joint_removed_performance : &joint_removed_extra,
+        &others));
     FACEDYN_ASSIGN_OR_RETURN(
         result[extra_sections[i]],
         eval::CompareRemovalOnReconstruction(f_model, reference_removal, extra_specs[i].name,
@@ -915,15 +916,16 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
   // The held-out performance (speech at the held-out frequency), what the Fig. 7 target
   // is set on: a take where the expression moves, unlike the held one below.
   Json performance_resynthesis;
-  if (options.performance_expression != "") {
+  if (performance_index) {
+    const size_t p = *performance_index;
     FACEDYN_ASSIGN_OR_RETURN(
         performance_resynthesis,
-        resynthesise(extra_specs.back().name + " reconstructed", extra.simulated.back(),
-                     extra.reconstructed.back(), performance_removed, joint_removed_extra,
+        resynthesise(extra_specs[p].name + " reconstructed", extra.simulated[p],
+                     extra.reconstructed[p], performance_removed, joint_removed_performance,
                      nullptr));
     if (artifacts != nullptr) {
-      artifacts->performance_simulated = extra.simulated.back();
-      artifacts->performance_reconstructed = extra.reconstructed.back();
+      artifacts->performance_simulated = extra.simulated[p];
+      artifacts->performance_reconstructed = extra.reconstructed[p];
       artifacts->performance_removed = std::move(performance_removed);
     }
   }

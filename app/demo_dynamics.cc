@@ -895,6 +895,24 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
       figures["H_joint_resynthesis_residual_mm"] = by_joint["resynthesis_residual_mm"];
       figures["H_joint_relative_to_offset"] = by_joint["relative_to_offset"];
       figures["F_joint_removed_without_synthesis_mm"] = by_joint["removed_without_synthesis_mm"];
+      // The cross pairings separate what the joint phase did to each network: F_joint's removal
+      // resynthesised by the H trained before it, and F's removal by H_joint.
+      auto cross = [&](const dynamics::SynthesisModel& synthesis, const Take& removed_by,
+                       const char* key) -> Status {
+        FACEDYN_ASSIGN_OR_RETURN(
+            const Take take,
+            dynamics::SynthesizeDynamics(synthesis, removed_by, reconstructed.world_from_skull,
+                                         reconstructed.info.motion, face));
+        FACEDYN_ASSIGN_OR_RETURN(const Json scored,
+                                 eval::ResynthesisFigures(name, simulated, reconstructed,
+                                                          removed_by, take, skip));
+        figures[key] = scored["resynthesis_residual_mm"];
+        return Status::Ok();
+      };
+      FACEDYN_RETURN_IF_ERROR(
+          cross(h_model, joint_removed, "F_joint_then_H_resynthesis_residual_mm"));
+      FACEDYN_RETURN_IF_ERROR(
+          cross(joint->synthesis, removed_take, "F_then_H_joint_resynthesis_residual_mm"));
     }
     return figures;
   };
@@ -907,7 +925,9 @@ Status RunDemoDynamicsStage(const FaceRig& face, const eval::SimulatedCameraRig&
           {"remove+resynthesise by the modal model, residual", "modal_resynthesis_residual_mm"},
           {"removed, not resynthesised", "removed_without_synthesis_mm"},
           {"F_joint removes, H_joint resynthesises, residual",
-           "H_joint_resynthesis_residual_mm"}}) {
+           "H_joint_resynthesis_residual_mm"},
+          {"F_joint removes, H resynthesises, residual", "F_joint_then_H_resynthesis_residual_mm"},
+          {"F removes, H_joint resynthesises, residual", "F_then_H_joint_resynthesis_residual_mm"}}) {
       if (!figures.contains(key)) continue;
       const double mm = figures[key].get<double>();
       eval::PrintMethodRow(take, label, mm, offset_mm > 0 ? mm / offset_mm : 0.0);

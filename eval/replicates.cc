@@ -167,6 +167,14 @@ Json SummariseDemoReplicates(const std::vector<Json>& stages, const std::vector<
         if (r.contains("H_joint_resynthesis_residual_mm"))  // the demo's --joint-training
           values.emplace_back("H_joint_resynthesis_residual",
                               Number(r, "H_joint_resynthesis_residual_mm"));
+        // The joint training's cross pairings: F_joint then H, F then H_joint.
+        for (const char* cross : {"F_joint_then_H", "F_then_H_joint"}) {
+          const std::string cross_key = std::string(cross) + "_resynthesis_residual_mm";
+          if (r.contains(cross_key)) {
+            values.emplace_back(std::string(cross) + "_resynthesis_residual",
+                                Number(r, cross_key.c_str()));
+          }
+        }
         values.emplace_back("removed_without_synthesis", Number(r, "removed_without_synthesis_mm"));
         figures.push_back(Entry(
             take,

@@ -271,6 +271,15 @@ TEST(Cli, DemoMetricsAndReport) {
     EXPECT_LT(synthesis[fig]["H_joint_resynthesis_residual_mm"].get<double>(),
               synthesis[fig]["F_joint_removed_without_synthesis_mm"].get<double>())
         << fig;
+    // The cross pairings: F_joint's removal resynthesised by H, F's by H_joint.
+    ASSERT_TRUE(synthesis[fig].contains("F_joint_then_H_resynthesis_residual_mm")) << fig;
+    EXPECT_LT(synthesis[fig]["F_joint_then_H_resynthesis_residual_mm"].get<double>(),
+              synthesis[fig]["F_joint_removed_without_synthesis_mm"].get<double>())
+        << fig;
+    ASSERT_TRUE(synthesis[fig].contains("F_then_H_joint_resynthesis_residual_mm")) << fig;
+    EXPECT_LT(synthesis[fig]["F_then_H_joint_resynthesis_residual_mm"].get<double>(),
+              synthesis[fig]["removed_without_synthesis_mm"].get<double>())
+        << fig;
   }
   for (const char* model : {"F.pt", "H.pt", "H_B.pt", "F_joint.pt", "H_joint.pt"}) {
     EXPECT_TRUE(std::filesystem::exists(DemoDir().Join(std::string("demo/models/") + model)))
